@@ -1,0 +1,39 @@
+# parkfleet developer commands. `make test` and `make demo` work from a fresh clone.
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: install test lint typecheck pytest demo reproduce bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)  ## create .venv and install parkfleet with its test extras
+
+lint: $(STAMP)  ## ruff lint + format check
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
+typecheck: $(STAMP)  ## mypy --strict on the pure core and service
+	$(BIN)/mypy --strict fleet
+
+pytest: $(STAMP)
+	$(BIN)/pytest -q
+
+test: lint typecheck pytest  ## everything CI runs
+
+demo: $(STAMP)  ## the main job
+	$(BIN)/parkfleet demo
+
+reproduce: $(STAMP)
+	$(BIN)/parkfleet reproduce
+
+bench: $(STAMP)
+	$(BIN)/parkfleet bench sim
+
+clean:
+	rm -rf $(VENV) .mypy_cache .pytest_cache .ruff_cache build *.egg-info

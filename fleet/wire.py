@@ -1,0 +1,247 @@
+"""Wire contract: Zenoh key expressions and the JSON messages carried on them.
+
+Pure module (no Zenoh import): builds keys, validates ids, encodes and decodes messages.
+Every message carries the schema version ``v``. Decoding never raises: a malformed,
+oversized or unknown payload is dropped, logged and counted by :class:`Decoder`.
+
+Key expressions::
+
+    parkfleet/<fleet>/robot/<id>/state        robot -> all     RobotState
+    parkfleet/<fleet>/robot/<id>/assignment   fleet -> robot   ParkAssignment | CancelAssignment
+    parkfleet/<fleet>/obstacles               fleet -> all     ObstacleSet (also a queryable)
+    parkfleet/<fleet>/alive/<id>              liveliness token of each robot
+    parkfleet/<fleet>/alive/_service          liveliness token of the fleet service
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import threading
+from collections import Counter
+from enum import StrEnum
+from typing import Annotated, Literal, TypeVar
+
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
+
+from fleet.control import Law
+from fleet.params import Avoidance, Gains, Tolerance
+
+SCHEMA_VERSION = 1
+MAX_PAYLOAD_BYTES = 64 * 1024
+SERVICE_TOKEN = "_service"
+
+_ID_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+_log = logging.getLogger(__name__)
+
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+
+
+def validate_id(value: str, what: str = "robot id") -> str:
+    """Return ``value`` if it is a safe key-expression chunk, else raise ValueError.
+
+    1-64 characters from ``[A-Za-z0-9_.-]``, starting with a letter or digit: no
+    ``/ * $ ? #`` wildcards or separators, never empty, never the service token.
+    """
+    if not isinstance(value, str) or not _ID_RE.fullmatch(value):
+        raise ValueError(
+            f"invalid {what} {value!r}: use 1-64 characters from A-Z a-z 0-9 _ . -, "
+            "starting with a letter or digit"
+        )
+    return value
+
+
+RobotId = Annotated[str, Field(pattern=_ID_RE.pattern)]
+
+
+class Keys:
+    """Key expressions of one fleet (``parkfleet/<fleet>/...``)."""
+
+    def __init__(self, fleet: str = "default") -> None:
+        self.fleet = validate_id(fleet, "fleet name")
+        self.root = f"parkfleet/{self.fleet}"
+
+    def state(self, robot_id: str) -> str:
+        return f"{self.root}/robot/{validate_id(robot_id)}/state"
+
+    def assignment(self, robot_id: str) -> str:
+        return f"{self.root}/robot/{validate_id(robot_id)}/assignment"
+
+    @property
+    def all_states(self) -> str:
+        return f"{self.root}/robot/*/state"
+
+    @property
+    def obstacles(self) -> str:
+        return f"{self.root}/obstacles"
+
+    def alive(self, robot_id: str) -> str:
+        return f"{self.root}/alive/{validate_id(robot_id)}"
+
+    @property
+    def all_alive(self) -> str:
+        return f"{self.root}/alive/*"
+
+    @property
+    def service_alive(self) -> str:
+        return f"{self.root}/alive/{SERVICE_TOKEN}"
+
+    def robot_of(self, key: str) -> str | None:
+        """Robot id in a ``.../robot/<id>/...`` or ``.../alive/<id>`` key, else None."""
+        parts = key.split("/")
+        if len(parts) >= 4 and parts[0] == "parkfleet" and parts[1] == self.fleet:
+            if parts[2] in ("robot", "alive") and _ID_RE.fullmatch(parts[3]):
+                return parts[3]
+        return None
+
+
+class Pose(BaseModel):
+    """Planar posture in the world frame: x, y [m], theta [rad]."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    x: FiniteFloat
+    y: FiniteFloat
+    theta: FiniteFloat = 0.0
+
+    def as_tuple(self) -> tuple[float, float, float]:
+        return (self.x, self.y, self.theta)
+
+
+class RobotMode(StrEnum):
+    """What a robot says it is doing (``lost`` is decided by the fleet, never sent)."""
+
+    IDLE = "idle"
+    DRIVING = "driving"
+    AVOIDING = "avoiding"
+    ARRIVED = "arrived"
+    HOLDING = "holding"
+
+
+class _Message(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    v: Literal[1] = SCHEMA_VERSION
+
+
+class RobotState(_Message):
+    """State a robot publishes at its control rate on ``robot/<id>/state``."""
+
+    kind: Literal["state"] = "state"
+    robot_id: RobotId
+    seq: Annotated[int, Field(ge=0)]
+    stamp: FiniteFloat  # sender's wall clock [s since epoch]
+    pose: Pose
+    u: FiniteFloat = 0.0  # commanded forward speed [m/s]
+    omega: FiniteFloat = 0.0  # commanded turn rate [rad/s]
+    mode: RobotMode = RobotMode.IDLE
+    task_id: str | None = None  # task the robot is executing or has just finished
+    law: Law | None = None
+    goal: Pose | None = None
+    radius: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 0.2  # body radius [m]
+
+
+class ParkAssignment(_Message):
+    """Fleet -> robot: park at ``goal`` with ``law``; re-sent until acknowledged."""
+
+    kind: Literal["park"] = "park"
+    robot_id: RobotId
+    task_id: Annotated[str, Field(min_length=1, max_length=64)]
+    goal: Pose
+    law: Law
+    gains: Gains
+    tolerance: Tolerance = Tolerance()
+    max_wheel_speed: Annotated[float, Field(gt=0)] | None = None  # [rad/s]; None = robot's own
+    avoidance: Avoidance = Avoidance()
+
+
+class CancelAssignment(_Message):
+    """Fleet -> robot: stop working on ``task_id`` and hold still."""
+
+    kind: Literal["cancel"] = "cancel"
+    robot_id: RobotId
+    task_id: Annotated[str, Field(min_length=1, max_length=64)]
+
+
+Assignment = Annotated[ParkAssignment | CancelAssignment, Field(discriminator="kind")]
+
+
+class Obstacle(BaseModel):
+    """A static circular obstacle: centre (x, y) [m] and influence radius [m] (Section 6)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    x: FiniteFloat
+    y: FiniteFloat
+    radius: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 1.0
+
+
+class ObstacleSet(_Message):
+    """All static obstacles of the yard, published whole (latest wins)."""
+
+    kind: Literal["obstacles"] = "obstacles"
+    obstacles: list[Obstacle] = Field(default_factory=list, max_length=1000)
+
+
+M = TypeVar("M", bound=BaseModel)
+_assignment_adapter: TypeAdapter[ParkAssignment | CancelAssignment] = TypeAdapter(Assignment)
+
+
+def encode(message: BaseModel) -> bytes:
+    """Serialise a message to compact JSON bytes."""
+    return message.model_dump_json().encode()
+
+
+class Decoder:
+    """Decodes payloads, dropping (and counting) anything malformed instead of raising.
+
+    Thread-safe: Zenoh callbacks run on several threads.
+    """
+
+    def __init__(self, name: str = "parkfleet") -> None:
+        self.name = name
+        self._lock = threading.Lock()
+        self.dropped: Counter[str] = Counter()
+
+    @property
+    def dropped_total(self) -> int:
+        with self._lock:
+            return sum(self.dropped.values())
+
+    def _drop(self, reason: str, detail: str) -> None:
+        with self._lock:
+            self.dropped[reason] += 1
+            count = self.dropped[reason]
+        if count <= 10 or count % 1000 == 0:  # log the first few, then sample
+            _log.warning("%s: dropped message (%s, %d so far): %s", self.name, reason, count, detail)
+
+    def _raw(self, payload: bytes | bytearray | memoryview | str) -> bytes | None:
+        raw = payload.encode() if isinstance(payload, str) else bytes(payload)
+        if len(raw) > MAX_PAYLOAD_BYTES:
+            self._drop("oversized", f"{len(raw)} bytes")
+            return None
+        return raw
+
+    def decode(self, model: type[M], payload: bytes | bytearray | memoryview | str) -> M | None:
+        """Validate ``payload`` as ``model``; None (and a count) if it is not one."""
+        raw = self._raw(payload)
+        if raw is None:
+            return None
+        try:
+            return model.model_validate_json(raw)
+        except ValidationError as exc:
+            self._drop("invalid", f"{model.__name__}: {exc.error_count()} error(s)")
+            return None
+
+    def decode_assignment(
+        self, payload: bytes | bytearray | memoryview | str
+    ) -> ParkAssignment | CancelAssignment | None:
+        """Validate a park or cancel assignment; None (and a count) otherwise."""
+        raw = self._raw(payload)
+        if raw is None:
+            return None
+        try:
+            return _assignment_adapter.validate_json(raw)
+        except ValidationError as exc:
+            self._drop("invalid", f"assignment: {exc.error_count()} error(s)")
+            return None

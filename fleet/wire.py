@@ -11,6 +11,18 @@ Key expressions::
     parkfleet/<fleet>/obstacles               fleet -> all     ObstacleSet (also a queryable)
     parkfleet/<fleet>/alive/<id>              liveliness token of each robot
     parkfleet/<fleet>/alive/_service          liveliness token of the fleet service
+
+Protocol between the fleet service and a robot agent:
+
+* A robot publishes ``RobotState`` at its control rate; ``task_id`` names the task it is
+  executing (or last executed). A state carrying an assignment's ``task_id`` acknowledges
+  it; the service re-sends an assignment until it sees that acknowledgement.
+* ``ParkAssignment`` with a new ``task_id`` replaces whatever the robot was doing; a repeat
+  of the current ``task_id`` is ignored (delivery is at-least-once).
+* On arrival within tolerance the robot stops and reports ``mode=arrived`` with the task id;
+  the service marks the task succeeded.
+* ``CancelAssignment`` for the current task stops the robot: ``mode=holding``, task id kept.
+* With no assignment the robot stands still in ``mode=idle`` with ``task_id=None``.
 """
 
 from __future__ import annotations

@@ -14,9 +14,7 @@ import sys
 from collections.abc import Sequence
 
 #: Modules that register sub-commands, in help order.
-COMMAND_MODULES: tuple[str, ...] = (
-    "fleet.commands.reproduce",
-)
+COMMAND_MODULES: tuple[str, ...] = ("fleet.commands.reproduce",)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -24,7 +22,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog="parkfleet",
         description="Fleet service for self-parking robots (Lyapunov posture control over Zenoh).",
     )
-    parser.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv: debug)")
+    parser.add_argument(
+        "-v", "--verbose", action="count", default=0, help="more logging (-vv: debug)"
+    )
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     bench_parser = commands.add_parser("bench", help="benchmarks that print numbers and ratios")
     bench = bench_parser.add_subparsers(dest="bench", metavar="BENCH", required=True)

@@ -89,7 +89,9 @@ def pose_error(
 def ccw_law(
     x_e: npt.ArrayLike, y_e: npt.ArrayLike, theta_e: npt.ArrayLike, gains: npt.ArrayLike
 ) -> tuple[FloatArray, FloatArray]:
-    """Counter-clockwise law, Eq. (17): u = kx x_e, omega = (ky y_e^2 + ktheta theta_e^2) e^-theta_e.
+    """Counter-clockwise law, Eq. (17).
+
+    u = kx x_e, omega = (ky y_e^2 + ktheta theta_e^2) e^(-theta_e).
 
     ``theta_e`` must be wrapped to [0, 2pi); ``gains`` is (..., 3) = (kx, ky, ktheta) > 0.
     Returns (u [m/s], omega [rad/s]) with omega >= 0.
@@ -104,7 +106,9 @@ def ccw_law(
 def cw_law(
     x_e: npt.ArrayLike, y_e: npt.ArrayLike, theta_e: npt.ArrayLike, gains: npt.ArrayLike
 ) -> tuple[FloatArray, FloatArray]:
-    """Clockwise law, Eq. (20): u = kx x_e, omega = -(ky y_e^2 + ktheta theta_e^2) e^theta_e.
+    """Clockwise law, Eq. (20).
+
+    u = kx x_e, omega = -(ky y_e^2 + ktheta theta_e^2) e^(theta_e).
 
     ``theta_e`` must be wrapped to (-2pi, 0]; returns (u [m/s], omega [rad/s]) with omega <= 0.
     """
@@ -210,7 +214,9 @@ def saturate(
     u_, w_ = _f(u), _f(omega)
     right, left = wheel_speeds(u_, w_, wheel_radius, half_axle)
     peak = np.maximum(np.abs(right), np.abs(left))
-    scale = np.where(peak > _f(max_wheel_speed), _f(max_wheel_speed) / np.maximum(peak, 1e-300), 1.0)
+    scale = np.where(
+        peak > _f(max_wheel_speed), _f(max_wheel_speed) / np.maximum(peak, 1e-300), 1.0
+    )
     return u_ * scale, w_ * scale
 
 

@@ -61,5 +61,8 @@ class Avoidance(BaseModel):
     min_x_oa: PositiveFloat = 0.05
 
 
+DEFAULT_TOLERANCE = Tolerance()
+"""The paper's tight tolerance (comparative cases I and II): 0.05 m, 0.02 rad."""
+
 UNLIMITED = RobotProfile(max_wheel_speed=math.inf)
 """Robot with no wheel-speed limit, as in the paper's simulations."""

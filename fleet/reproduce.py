@@ -21,7 +21,9 @@ class ReproductionRow(BaseModel):
     time: float
 
 
-def run_scenario(scenario: Scenario, law: Law, record: bool = False, max_time: float = 120.0) -> SimResult:
+def run_scenario(
+    scenario: Scenario, law: Law, record: bool = False, max_time: float = 120.0
+) -> SimResult:
     """Simulate one paper scenario with the paper's gains for ``law`` at dt = 0.01 s."""
     problem = BatchProblem.build(
         scenario.start,

@@ -39,7 +39,9 @@ class Settings(BaseSettings):
     zenoh_mode: Literal["router", "peer", "client"] | None = None  # None: role decides
     listen: list[str] = Field(default_factory=list)
     connect: list[str] = Field(default_factory=list)
-    lease_ms: Annotated[int, Field(ge=100)] = 1000  # transport lease: how fast a hung peer is seen gone
+    lease_ms: Annotated[int, Field(ge=100)] = (
+        1000  # transport lease: how fast a hung peer is seen gone
+    )
     zenoh_user: str | None = None
     zenoh_password: SecretStr | None = None
     tls_root_ca: Path | None = None
@@ -60,7 +62,12 @@ class Settings(BaseSettings):
     api_host: str = "127.0.0.1"
     api_port: Annotated[int, Field(ge=0, le=65535)] = 8000
     api_token: SecretStr | None = None
-    yard: tuple[float, float, float, float] = (-10.0, 10.0, -10.0, 10.0)  # xmin, xmax, ymin, ymax [m]
+    yard: tuple[float, float, float, float] = (
+        -10.0,
+        10.0,
+        -10.0,
+        10.0,
+    )  # xmin, xmax, ymin, ymax [m]
     task_timeout_s: Annotated[float, Field(gt=0)] = 120.0
     on_robot_lost: Literal["fail", "requeue"] = "fail"
     safety_separation_m: Annotated[float, Field(gt=0)] = 0.5

@@ -22,16 +22,15 @@ import numpy.typing as npt
 
 from fleet.control import (
     DEFAULT_MIN_X_OA,
+    TWO_PI,
     BoolArray,
     FloatArray,
     Law,
-    TWO_PI,
     is_cw,
     obstacle_repulsion,
-    posture_law,
     saturate,
 )
-from fleet.params import UNLIMITED, Gains, RobotProfile, Tolerance
+from fleet.params import DEFAULT_TOLERANCE, UNLIMITED, Gains, RobotProfile, Tolerance
 
 PAPER_DT = 0.01
 
@@ -76,7 +75,7 @@ class BatchProblem:
         goal: npt.ArrayLike,
         gains: Gains | Sequence[Gains] | npt.ArrayLike,
         law: Law | Sequence[Law] | npt.ArrayLike,
-        tolerance: Tolerance | Sequence[Tolerance] = Tolerance(),
+        tolerance: Tolerance | Sequence[Tolerance] = DEFAULT_TOLERANCE,
         profile: RobotProfile | Sequence[RobotProfile] = UNLIMITED,
         obstacles: npt.ArrayLike = (),
         obstacle_radius: npt.ArrayLike = 1.0,
@@ -294,7 +293,11 @@ def simulate(
             pose = np.stack([x, y, theta], axis=1)
             if has_obstacles:
                 ws.u += obstacle_repulsion(
-                    pose, problem.obstacles, problem.obstacle_radius, problem.k_avoid, problem.min_x_oa
+                    pose,
+                    problem.obstacles,
+                    problem.obstacle_radius,
+                    problem.k_avoid,
+                    problem.min_x_oa,
                 )
             if peers:
                 positions = np.broadcast_to(np.stack([x, y], axis=1)[None, :, :], (n, n, 2))

@@ -50,7 +50,10 @@ def zenoh_config(settings: Settings, role: Role) -> zenoh.Config:
         conf.insert_json5(
             "transport/auth/usrpwd",
             json.dumps(
-                {"user": settings.zenoh_user, "password": settings.zenoh_password.get_secret_value()}
+                {
+                    "user": settings.zenoh_user,
+                    "password": settings.zenoh_password.get_secret_value(),
+                }
             ),
         )
     if settings.tls_root_ca:

@@ -101,9 +101,13 @@ class Keys:
     def robot_of(self, key: str) -> str | None:
         """Robot id in a ``.../robot/<id>/...`` or ``.../alive/<id>`` key, else None."""
         parts = key.split("/")
-        if len(parts) >= 4 and parts[0] == "parkfleet" and parts[1] == self.fleet:
-            if parts[2] in ("robot", "alive") and _ID_RE.fullmatch(parts[3]):
-                return parts[3]
+        if (
+            len(parts) >= 4
+            and parts[:2] == ["parkfleet", self.fleet]
+            and parts[2] in ("robot", "alive")
+            and _ID_RE.fullmatch(parts[3])
+        ):
+            return parts[3]
         return None
 
 
@@ -133,7 +137,7 @@ class RobotMode(StrEnum):
 class _Message(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    v: Literal[1] = SCHEMA_VERSION
+    v: Literal[1] = 1  # SCHEMA_VERSION
 
 
 class RobotState(_Message):
@@ -225,7 +229,9 @@ class Decoder:
             self.dropped[reason] += 1
             count = self.dropped[reason]
         if count <= 10 or count % 1000 == 0:  # log the first few, then sample
-            _log.warning("%s: dropped message (%s, %d so far): %s", self.name, reason, count, detail)
+            _log.warning(
+                "%s: dropped message (%s, %d so far): %s", self.name, reason, count, detail
+            )
 
     def _raw(self, payload: bytes | bytearray | memoryview | str) -> bytes | None:
         raw = payload.encode() if isinstance(payload, str) else bytes(payload)

@@ -26,7 +26,10 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps([row.model_dump() for row in rows]))
         return 0
-    print(f"{'case':<8} {'law':<4} {'control effort':>15} {'distance (m)':>13} {'time (s)':>9}  scenario")
+    print(
+        f"{'case':<8} {'law':<4} {'control effort':>15} {'distance (m)':>13} "
+        f"{'time (s)':>9}  scenario"
+    )
     for row in rows:
         print(
             f"{row.case:<8} {row.law:<4} {row.control_effort:>15.4f} {row.distance:>13.4f} "

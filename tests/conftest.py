@@ -1,0 +1,26 @@
+"""Shared fixtures: a real Zenoh router on a free loopback port."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+
+from fleet.settings import Settings, load_settings
+from fleet.transport import listening_locators, open_session
+
+
+@pytest.fixture
+def router_endpoint() -> Iterator[str]:
+    """A Zenoh router listening on ``tcp/127.0.0.1:<free port>``; yields its endpoint."""
+    settings = load_settings(listen=["tcp/127.0.0.1:0"])
+    with open_session(settings, "router") as session:
+        locators = [loc for loc in listening_locators(session) if loc.startswith("tcp/")]
+        assert locators, "router reported no tcp locator"
+        yield locators[0]
+
+
+@pytest.fixture
+def client_settings(router_endpoint: str) -> Settings:
+    """Settings of a client session connected to the test router."""
+    return load_settings(connect=[router_endpoint])

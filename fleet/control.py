@@ -63,7 +63,11 @@ def heading_error(theta_goal: npt.ArrayLike, theta: npt.ArrayLike, cw: npt.Array
     """
     diff = wrap_to_2pi(theta_goal) - wrap_to_2pi(theta)
     ccw_err = np.where(diff < 0.0, diff + TWO_PI, diff)  # (11.b)
-    return np.where(np.asarray(cw, dtype=bool) & (ccw_err > 0.0), ccw_err - TWO_PI, ccw_err)  # (21)
+    # A difference of -1e-300 plus 2pi rounds to 2pi: that error is really zero.
+    ccw_err = np.where(ccw_err >= TWO_PI, 0.0, ccw_err)
+    cw_err = ccw_err - TWO_PI  # (21), for ccw_err > 0; it can round to -2pi the same way
+    cw_err = np.where(cw_err <= -TWO_PI, 0.0, cw_err)
+    return np.where(np.asarray(cw, dtype=bool) & (ccw_err > 0.0), cw_err, ccw_err)
 
 
 def pose_error(

@@ -209,9 +209,13 @@ def _pose_error_into(
     np.subtract(goal_theta_wrapped, ws.tmp, out=ws.theta_e)
     np.less(ws.theta_e, 0.0, out=ws.mask)
     np.add(ws.theta_e, TWO_PI, out=ws.theta_e, where=ws.mask)  # (11.b)
+    np.greater_equal(ws.theta_e, TWO_PI, out=ws.mask)  # rounding guard, as in heading_error
+    ws.theta_e[ws.mask] = 0.0
     np.greater(ws.theta_e, 0.0, out=ws.mask)
     ws.mask &= cw
     np.subtract(ws.theta_e, TWO_PI, out=ws.theta_e, where=ws.mask)  # (21)
+    np.less_equal(ws.theta_e, -TWO_PI, out=ws.mask)
+    ws.theta_e[ws.mask] = 0.0
 
 
 def _law_into(gains: FloatArray, cw: BoolArray, ws: _Workspace) -> None:

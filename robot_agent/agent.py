@@ -1,0 +1,263 @@
+"""``RobotAgent``: one robot's control loop on Zenoh, over a :class:`~robot_agent.drive.Drive`.
+
+Each tick (default 50 Hz, ``Settings.control_rate_hz``, on the agent's monotonic clock):
+read the pose, apply pending assignment messages, decide with the pure
+:func:`robot_agent.logic.decide`, command the wheels, publish ``RobotState`` on
+``keys.state(id)`` (stamped with the wall clock). Zenoh edges:
+
+* liveliness token ``keys.alive(id)``;
+* subscriber on ``keys.assignment(id)`` (park / cancel, decoded by ``wire.Decoder``:
+  malformed payloads are dropped and counted, never reach the loop);
+* a :class:`~robot_agent.world.WorldView` with peers' states (``keys.all_states``) and the
+  obstacles (subscribed and queried once at start), owned or shared with other agents.
+
+Exceptions in callbacks are caught, counted and logged (``callback_errors``); an exception
+in a tick stops the robot and is counted (``tick_errors``), the loop goes on.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from fleet.settings import Settings
+from fleet.wire import (
+    CancelAssignment,
+    Decoder,
+    Keys,
+    ParkAssignment,
+    Pose,
+    RobotMode,
+    RobotState,
+    encode,
+)
+from robot_agent.clock import Clock, MonotonicClock, run_periodic
+from robot_agent.drive import Drive
+from robot_agent.logic import Decision, Task, TaskStatus, apply_assignment, decide
+from robot_agent.world import CallbackGuard, WorldView
+
+_log = logging.getLogger(__name__)
+_NO_PEERS = np.zeros((0, 2))  # peers only matter while driving
+
+
+@dataclass(frozen=True)
+class AgentSnapshot:
+    """What the agent last did (for tests, logs and status)."""
+
+    pose: Pose
+    mode: RobotMode
+    task_id: str | None
+    seq: int
+    decision: Decision
+
+
+class RobotAgent:
+    """Runs one robot: call :meth:`open` (declares on the session), then :meth:`run` or
+    :meth:`start`, and :meth:`close` (also via ``with``). The session belongs to the caller.
+    """
+
+    def __init__(
+        self,
+        robot_id: str,
+        drive: Drive,
+        session: Any,
+        settings: Settings,
+        *,
+        clock: Clock | None = None,
+        world: WorldView | None = None,
+        wall_clock: Callable[[], float] = time.time,
+    ) -> None:
+        self.keys = Keys(settings.fleet_name)
+        self.robot_id = robot_id
+        self.keys.state(robot_id)  # validates the id
+        self.drive = drive
+        self.session = session
+        self.settings = settings
+        self.clock: Clock = clock or MonotonicClock()
+        self.period = 1.0 / settings.control_rate_hz  # [s]
+        self._wall = wall_clock
+        self._owns_world = world is None
+        self.world = world or WorldView(self.keys)
+        self.decoder = Decoder(f"agent {robot_id}")
+        self.guard = CallbackGuard(f"agent {robot_id}")
+        self._inbox: queue.SimpleQueue[ParkAssignment | CancelAssignment] = queue.SimpleQueue()
+        self._task: Task | None = None
+        self._seq = 0
+        self._pose = Pose(x=0.0, y=0.0, theta=0.0)
+        self.tick_errors = 0
+        self.last: AgentSnapshot | None = None
+        self._handles: list[Any] = []
+        self._publisher: Any = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._opened = False
+
+    # -- Zenoh edges ----------------------------------------------------------------------
+    @property
+    def callback_errors(self) -> int:
+        return self.guard.errors + self.world.guard.errors
+
+    def _on_assignment(self, sample: Any) -> None:
+        message = self.decoder.decode_assignment(sample.payload.to_bytes())
+        if message is None:
+            return
+        if message.robot_id != self.robot_id:
+            self.decoder._drop("wrong_robot", f"{message.robot_id} on {sample.key_expr}")
+            return
+        self.submit(message)
+
+    def submit(self, message: ParkAssignment | CancelAssignment) -> None:
+        """Queue an assignment message; applied at the start of the next tick (thread-safe)."""
+        self._inbox.put(message)
+
+    def open(self) -> RobotAgent:
+        """Declare the publisher, liveliness token and subscribers on the session."""
+        if self._opened:
+            return self
+        self._opened = True
+        try:
+            if self._owns_world:
+                self.world.attach(self.session)
+            self._publisher = self.session.declare_publisher(self.keys.state(self.robot_id))
+            self._handles.append(self._publisher)
+            self._handles.append(
+                self.session.declare_subscriber(
+                    self.keys.assignment(self.robot_id), self.guard.wrap(self._on_assignment)
+                )
+            )
+            self._handles.append(
+                self.session.liveliness().declare_token(self.keys.alive(self.robot_id))
+            )
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    # -- control loop ---------------------------------------------------------------------
+    def tick(self) -> AgentSnapshot | None:
+        """One control step: pose -> assignments -> decide -> wheels -> publish state."""
+        try:
+            pose, stamp = self.drive.read_pose()
+            self._pose = pose
+            while True:
+                try:
+                    message = self._inbox.get_nowait()
+                except queue.Empty:
+                    break
+                self._task = apply_assignment(self._task, message)
+            active = self._task is not None and self._task.status is TaskStatus.ACTIVE
+            decision = decide(
+                pose.as_tuple(),
+                self.clock.now() - stamp,
+                self._task,
+                self.world.peer_positions(exclude=self.robot_id) if active else _NO_PEERS,
+                self.world.obstacles(),
+                self.settings.profile,
+                self.settings.avoidance,
+                self.settings.pose_stale_s,
+            )
+            self._task = decision.task
+            if decision.moving:
+                self.drive.command_wheels(decision.right, decision.left)
+            else:
+                self.drive.stop()
+        except Exception:
+            self.tick_errors += 1
+            if self.tick_errors <= 10 or self.tick_errors % 1000 == 0:
+                _log.exception("%s: tick failed (%d so far)", self.robot_id, self.tick_errors)
+            self._safe_stop()
+            decision = Decision(mode=RobotMode.HOLDING, task=self._task)
+        return self._publish(decision)
+
+    def _publish(self, decision: Decision) -> AgentSnapshot | None:
+        task = decision.task
+        a = task.assignment if task is not None else None
+        snapshot = AgentSnapshot(
+            pose=self._pose,
+            mode=decision.mode,
+            task_id=task.task_id if task is not None else None,
+            seq=self._seq,
+            decision=decision,
+        )
+        self.last = snapshot
+        state = RobotState(
+            robot_id=self.robot_id,
+            seq=self._seq,
+            stamp=self._wall(),
+            pose=self._pose,
+            u=decision.u,
+            omega=decision.omega,
+            mode=decision.mode,
+            task_id=snapshot.task_id,
+            law=a.law if a is not None else None,
+            goal=a.goal if a is not None else None,
+            radius=self.settings.profile.radius,
+        )
+        self._seq += 1
+        self.world.update_state(state)  # agents sharing this session see it without Zenoh
+        if self._publisher is None:
+            return snapshot
+        try:
+            self._publisher.put(encode(state))
+        except Exception:
+            self.tick_errors += 1
+            _log.exception("%s: publishing state failed", self.robot_id)
+        return snapshot
+
+    def _safe_stop(self) -> None:
+        try:
+            self.drive.stop()
+        except Exception:
+            _log.exception("%s: drive.stop() failed", self.robot_id)
+
+    def run(self, stop: threading.Event | None = None) -> None:
+        """Run the loop in real time in this thread until ``stop`` (or :meth:`close`).
+
+        Simulations on a :class:`~robot_agent.clock.SteppedClock` call :meth:`tick`
+        themselves instead (``sim_agent.fleet``).
+        """
+        self.open()
+        event = stop or self._stop
+        try:
+            ticks, overruns = run_periodic(self.period, event, self.tick)
+            if overruns:
+                _log.warning("%s: %d of %d ticks overran", self.robot_id, overruns, ticks)
+        finally:
+            self._safe_stop()
+
+    def start(self) -> RobotAgent:
+        """Run the loop on a background thread (stopped by :meth:`close`)."""
+        self.open()
+        self._thread = threading.Thread(target=self.run, name=f"agent-{self.robot_id}")
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        """Stop the loop and the robot, undeclare everything (idempotent)."""
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join()
+        self._thread = None
+        self._safe_stop()
+        handles, self._handles = self._handles, []
+        self._publisher = None
+        for handle in reversed(handles):
+            try:
+                handle.undeclare()
+            except Exception:
+                _log.debug("undeclare failed", exc_info=True)
+        if self._owns_world:
+            self.world.detach()
+
+    def __enter__(self) -> RobotAgent:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,71 @@
+"""The ``Drive`` interface: the only code a user writes to put a real robot in the fleet.
+
+A ``Drive`` connects :class:`robot_agent.agent.RobotAgent` to one robot's hardware:
+
+* :meth:`Drive.read_pose` -- where the robot is, in the **world frame** (x, y [m],
+  theta [rad], counter-clockwise from the world x axis), and **when** that pose was
+  measured, in seconds on the agent's clock (``time.monotonic()`` for a real robot, or
+  ``clock.now()`` of the :class:`~robot_agent.clock.Clock` the agent was given). The agent
+  stops the robot (mode ``holding``) when that stamp is older than
+  ``Settings.pose_stale_s``, so stamp the *measurement*, not the call: a localisation
+  stack that stopped updating must look stale.
+* :meth:`Drive.command_wheels` -- set the right and left wheel angular speeds [rad/s]
+  (positive = forward). The agent already respects ``RobotProfile.max_wheel_speed``
+  (both wheels scaled together so the path curvature is kept, Eq. 2); the drive holds the
+  command until the next one (zero-order hold). The agent commands at its control rate.
+* :meth:`Drive.stop` -- stop both wheels now. Called on shutdown, on a stale pose and
+  when a tick fails; it must be safe to call at any time and repeatedly.
+
+Calls come from one thread (the agent's control loop), never concurrently. Methods should
+return quickly (well under one control period); raise an exception on a hardware fault,
+the agent counts it, logs it and stops the robot.
+
+Example, wrapping a motor controller and a localisation source::
+
+    import time
+    from fleet.wire import Pose
+
+    class MyDrive:
+        def __init__(self, settings):
+            self.motors = MotorBoard("/dev/ttyACM0")
+            self.localiser = Localiser()
+
+        def read_pose(self):
+            x, y, theta, t_measured = self.localiser.latest()  # t on time.monotonic()
+            return Pose(x=x, y=y, theta=theta), t_measured
+
+        def command_wheels(self, right_rad_s, left_rad_s):
+            self.motors.set_speeds(right_rad_s, left_rad_s)
+
+        def stop(self):
+            self.motors.set_speeds(0.0, 0.0)
+
+    def make_drive(settings):  # parkfleet agent --id r1 --drive mypackage.mydrive:make_drive
+        return MyDrive(settings)
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+from fleet.wire import Pose
+
+PoseReading = tuple[Pose, float]
+"""A world-frame pose and the time [s, agent clock] it was measured."""
+
+
+@runtime_checkable
+class Drive(Protocol):
+    """Hardware boundary of one differential-drive robot (see the module docstring)."""
+
+    def read_pose(self) -> PoseReading:
+        """Latest world-frame pose and its measurement time [s] on the agent's clock."""
+        ...
+
+    def command_wheels(self, right_rad_s: float, left_rad_s: float) -> None:
+        """Hold right/left wheel angular speeds [rad/s] until the next command."""
+        ...
+
+    def stop(self) -> None:
+        """Stop both wheels immediately; idempotent."""
+        ...

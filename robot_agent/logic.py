@@ -1,0 +1,186 @@
+"""Pure per-tick decision logic of a robot agent (no Zenoh, no clock, no I/O).
+
+One tick: given the robot's own pose (and its age), its task, its peers' last positions
+and the static obstacles, decide the wheel command and the mode to report. The agent
+(:mod:`robot_agent.agent`) feeds it from Zenoh and the drive; tests feed it directly.
+
+Task protocol (``fleet.wire`` module docstring), as a pure state machine
+(:func:`apply_assignment`):
+
+* a ``ParkAssignment`` with a new ``task_id`` replaces the current task; a repeat of the
+  current ``task_id`` is ignored (delivery is at-least-once);
+* a ``CancelAssignment`` for the current task -> ``holding`` with the task id kept;
+  a cancel for any other task is ignored;
+* arrival within tolerance -> stop, ``arrived`` (latched until a new task);
+* no task -> stand still, ``idle``.
+
+Control of an active task (:func:`decide`): error of Eq. (5), law (17) ``ccw`` or (20)
+``cw``, plus the repulsion -K_avoid/x_OA of Eq. (27) from every peer within the peer
+influence radius and every static obstacle within its own radius (mode ``avoiding``
+while any is inside), then the wheel-speed limit (scaled together, curvature kept) and
+Eq. (2) to wheel speeds. Arrival uses the batch simulator's stop rule: the pre-step
+error is within tolerance (||(x_e, y_e)|| < position and |theta_e| < heading).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from enum import StrEnum
+
+import numpy as np
+
+from fleet.control import FloatArray, is_cw, obstacle_repulsion, pose_error, posture_law, saturate
+from fleet.control import wheel_speeds as to_wheel_speeds
+from fleet.params import Avoidance, RobotProfile
+from fleet.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
+
+
+class TaskStatus(StrEnum):
+    ACTIVE = "active"
+    ARRIVED = "arrived"
+    CANCELLED = "cancelled"
+
+
+@dataclass(frozen=True)
+class Task:
+    """The robot's current (or last) assignment and how far it got."""
+
+    assignment: ParkAssignment
+    status: TaskStatus = TaskStatus.ACTIVE
+
+    @property
+    def task_id(self) -> str:
+        return self.assignment.task_id
+
+
+def apply_assignment(task: Task | None, message: ParkAssignment | CancelAssignment) -> Task | None:
+    """Next task after an assignment message (see the module docstring for the rules)."""
+    if isinstance(message, ParkAssignment):
+        if task is not None and task.task_id == message.task_id:
+            return task  # at-least-once delivery: a repeat changes nothing
+        return Task(message)
+    if task is not None and task.task_id == message.task_id:
+        return replace(task, status=TaskStatus.CANCELLED)
+    return task
+
+
+@dataclass(frozen=True)
+class Decision:
+    """Output of one tick: body and wheel command, mode to report, task after the tick."""
+
+    mode: RobotMode
+    task: Task | None
+    u: float = 0.0  # forward speed [m/s]
+    omega: float = 0.0  # turn rate [rad/s]
+    right: float = 0.0  # right wheel [rad/s]
+    left: float = 0.0  # left wheel [rad/s]
+    repulsion: float = 0.0  # Eq. (27) sum added to u before saturation [m/s]
+
+    @property
+    def moving(self) -> bool:
+        return self.right != 0.0 or self.left != 0.0
+
+
+def _stopped(mode: RobotMode, task: Task | None) -> Decision:
+    return Decision(mode=mode, task=task)
+
+
+def within_tolerance(pose: Sequence[float] | FloatArray, assignment: ParkAssignment) -> bool:
+    """The simulator's stop rule on the pre-step error of Eq. (5) with the law's wrap."""
+    x_e, y_e, theta_e = pose_error(pose, assignment.goal.as_tuple(), is_cw(assignment.law))
+    return bool(
+        math.hypot(float(x_e), float(y_e)) < assignment.tolerance.position
+        and abs(float(theta_e)) < assignment.tolerance.heading
+    )
+
+
+def obstacle_arrays(obstacles: Sequence[Obstacle]) -> tuple[FloatArray, FloatArray]:
+    """Static obstacles as centres (M, 2) [m] and influence radii (M,) [m]."""
+    if not obstacles:
+        return np.zeros((0, 2)), np.zeros(0)
+    centres = np.array([(o.x, o.y) for o in obstacles], dtype=np.float64)
+    radii = np.array([o.radius for o in obstacles], dtype=np.float64)
+    return centres, radii
+
+
+def decide(
+    pose: Sequence[float],
+    pose_age: float,
+    task: Task | None,
+    peers: FloatArray,
+    obstacles: tuple[FloatArray, FloatArray],
+    profile: RobotProfile,
+    avoidance: Avoidance,
+    pose_stale_s: float,
+) -> Decision:
+    """Decide one control tick.
+
+    Parameters
+    ----------
+    pose : (x [m], y [m], theta [rad])
+        Own posture in the world frame, as last measured.
+    pose_age : float
+        Age of that measurement [s]; above ``pose_stale_s`` the robot is stopped
+        (``holding``) while it has an active task.
+    task : Task or None
+        Current task (see :func:`apply_assignment`).
+    peers : ndarray, shape (M, 2)
+        Last known centres [m] of every other robot (never forgotten, even when silent).
+    obstacles : (centres (K, 2), radii (K,))
+        Static obstacles and their influence radii [m], from :func:`obstacle_arrays`.
+    profile : RobotProfile
+        Wheel radius, half axle and wheel-speed limit of this robot.
+    avoidance : Avoidance
+        The robot's own K_avoid, peer influence radius and x_OA guard (from
+        ``Settings.avoidance``); an assignment that sets ``avoidance`` explicitly wins.
+    """
+    if task is None:
+        return _stopped(RobotMode.IDLE, None)
+    if task.status is TaskStatus.ARRIVED:
+        return _stopped(RobotMode.ARRIVED, task)
+    if task.status is TaskStatus.CANCELLED:
+        return _stopped(RobotMode.HOLDING, task)
+    if not pose_age <= pose_stale_s:  # also catches NaN
+        return _stopped(RobotMode.HOLDING, task)
+
+    a = task.assignment
+    p = np.asarray(pose, dtype=np.float64)
+    if within_tolerance(p, a):
+        return _stopped(RobotMode.ARRIVED, replace(task, status=TaskStatus.ARRIVED))
+
+    cw = is_cw(a.law)
+    x_e, y_e, theta_e = pose_error(p, a.goal.as_tuple(), cw)
+    u, omega = posture_law(x_e, y_e, theta_e, a.gains.as_tuple(), cw)  # Eq. (17) / (20)
+
+    # The task's avoidance parameters win when the fleet sent them; else the robot's own.
+    avoid = a.avoidance if "avoidance" in a.model_fields_set else avoidance
+    repulsion = 0.0
+    active = False
+    if avoid.k_avoid > 0:
+        centres, radii = obstacles
+        for points, radius in ((peers, avoid.peer_radius), (centres, radii)):
+            if points.shape[0] == 0:
+                continue
+            d2 = (points[:, 0] - p[0]) ** 2 + (points[:, 1] - p[1]) ** 2
+            if bool((d2 < np.asarray(radius) ** 2).any()):
+                active = True
+                repulsion += float(
+                    obstacle_repulsion(p, points, radius, avoid.k_avoid, avoid.min_x_oa)
+                )  # Eq. (27)
+
+    limit = profile.max_wheel_speed
+    if a.max_wheel_speed is not None:
+        limit = min(limit, a.max_wheel_speed)  # never above the robot's own limit
+    u_s, w_s = saturate(float(u) + repulsion, omega, profile.wheel_radius, profile.half_axle, limit)
+    right, left = to_wheel_speeds(u_s, w_s, profile.wheel_radius, profile.half_axle)
+    return Decision(
+        mode=RobotMode.AVOIDING if active else RobotMode.DRIVING,
+        task=task,
+        u=float(u_s),
+        omega=float(w_s),
+        right=float(right),
+        left=float(left),
+        repulsion=repulsion,
+    )

@@ -1,0 +1,245 @@
+"""Many simulated robots in one process, sharing ONE Zenoh session (for scale).
+
+Every robot is a full :class:`~robot_agent.agent.RobotAgent` (own publisher, liveliness
+token, assignment subscriber) over a :class:`~sim_agent.drive.SimDrive`; they share one
+:class:`~robot_agent.world.WorldView` (peer states decoded once) and one control thread
+that ticks them all at the control rate on a common stepped clock (lockstep simulation).
+
+Spawn layouts (:func:`spawn_layout`): ``random`` (uniform in the yard, kept apart, seeded),
+``grid`` (rows centred on the origin), or a JSON file ``[{"id", "x", "y", "theta"}, ...]``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fleet.settings import Settings
+from fleet.wire import Keys, validate_id
+from robot_agent.agent import RobotAgent
+from robot_agent.clock import SteppedClock, run_periodic
+from robot_agent.world import WorldView
+from sim_agent.drive import SimDrive
+
+_log = logging.getLogger(__name__)
+
+#: Robots ticked back to back before the loop yields (see :meth:`SimFleet.run`).
+SLICE = 50
+
+
+@dataclass(frozen=True)
+class Spawn:
+    """Initial posture of one simulated robot: id, x, y [m], theta [rad] (world frame)."""
+
+    robot_id: str
+    x: float
+    y: float
+    theta: float = 0.0
+
+
+def spawn_layout(
+    layout: str,
+    robots: int,
+    *,
+    seed: int | None = None,
+    id_prefix: str = "robot-",
+    yard: tuple[float, float, float, float] = (-10.0, 10.0, -10.0, 10.0),
+    spacing: float = 1.5,
+) -> list[Spawn]:
+    """Initial postures for ``robots`` robots: ``random``, ``grid`` or a JSON file path.
+
+    Ids are ``<id_prefix>1`` ... ``<id_prefix>N`` (a file brings its own ids).
+    ``random`` keeps centres at least ``spacing`` [m] apart when the yard allows it.
+    """
+    if layout not in ("random", "grid"):
+        return _spawn_file(Path(layout))
+    if robots < 1:
+        raise ValueError("--robots must be at least 1")
+    ids = [validate_id(f"{id_prefix}{i}") for i in range(1, robots + 1)]
+    xmin, xmax, ymin, ymax = yard
+    rng = np.random.default_rng(seed)
+    if layout == "grid":
+        cols = math.ceil(math.sqrt(robots))
+        rows = math.ceil(robots / cols)
+        step = min(spacing, (xmax - xmin) / cols, (ymax - ymin) / rows)
+        x0 = -(cols - 1) * step / 2
+        y0 = -(rows - 1) * step / 2
+        return [
+            Spawn(rid, x0 + (i % cols) * step, y0 + (i // cols) * step, 0.0)
+            for i, rid in enumerate(ids)
+        ]
+    placed: list[Spawn] = []
+    for rid in ids:
+        for attempt in range(200):
+            x, y = float(rng.uniform(xmin, xmax)), float(rng.uniform(ymin, ymax))
+            if attempt == 199 or all(math.hypot(x - s.x, y - s.y) >= spacing for s in placed):
+                break
+        placed.append(Spawn(rid, x, y, float(rng.uniform(-math.pi, math.pi))))
+    return placed
+
+
+def _spawn_file(path: Path) -> list[Spawn]:
+    if not path.is_file():
+        raise FileNotFoundError(f"spawn must be random, grid or a JSON file; not found: {path}")
+    data = json.loads(path.read_text())
+    if not isinstance(data, list) or not data:
+        raise ValueError(f"{path}: expected a non-empty JSON list of {{id, x, y, theta}}")
+    spawns = [
+        Spawn(validate_id(str(e["id"])), float(e["x"]), float(e["y"]), float(e.get("theta", 0)))
+        for e in data
+    ]
+    if len({s.robot_id for s in spawns}) != len(spawns):
+        raise ValueError(f"{path}: duplicate robot ids")
+    return spawns
+
+
+class SimFleet:
+    """N simulated agents on one session, ticked by one thread.
+
+    ``open()`` declares everything, ``run(stop)`` / ``start()`` ticks, ``close()`` undeclares
+    (the session belongs to the caller). ``time_scale`` S paces one control period of
+    simulated time every ``period / S`` real seconds (lockstep, see
+    :class:`~robot_agent.clock.SteppedClock`).
+    """
+
+    def __init__(
+        self,
+        session: Any,
+        settings: Settings,
+        spawns: list[Spawn],
+        *,
+        time_scale: float = 1.0,
+        noise_std: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        seed: int | None = None,
+    ) -> None:
+        self.session = session
+        self.settings = settings
+        if not time_scale > 0:
+            raise ValueError(f"time scale must be positive, got {time_scale}")
+        self.time_scale = float(time_scale)
+        self.period = 1.0 / settings.control_rate_hz  # control period = Euler step [sim s]
+        self.clock = SteppedClock()
+        self.world = WorldView(Keys(settings.fleet_name))
+        rng = np.random.default_rng(seed)
+        self.drives: dict[str, SimDrive] = {}
+        self.agents: list[RobotAgent] = []
+        for spawn in spawns:
+            drive = SimDrive(
+                (spawn.x, spawn.y, spawn.theta),
+                settings.profile,
+                self.clock,
+                max_step=self.period,
+                noise_std=noise_std,
+                rng=np.random.default_rng(rng.integers(2**63)),
+            )
+            self.drives[spawn.robot_id] = drive
+            self.agents.append(
+                RobotAgent(
+                    spawn.robot_id,
+                    drive,
+                    session,
+                    settings,
+                    clock=self.clock,
+                    world=self.world,
+                )
+            )
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._opened = False
+        self.ticks = 0
+        self.overruns = 0
+
+    def agent(self, robot_id: str) -> RobotAgent:
+        return next(a for a in self.agents if a.robot_id == robot_id)
+
+    def open(self) -> SimFleet:
+        if not self._opened:
+            self._opened = True
+            try:
+                self.world.attach(self.session)
+                for agent in self.agents:
+                    agent.open()
+            except BaseException:
+                self.close()
+                raise
+        return self
+
+    def tick(self) -> None:
+        """One control period: every agent ticks at sim time t, then t += period."""
+        for agent in self.agents:
+            agent.tick()
+        self.clock.advance(self.period)
+
+    def _slices(self) -> list[list[RobotAgent]]:
+        """Agents in groups of at most ``SLICE`` robots, ticked spread over the period."""
+        return [self.agents[i : i + SLICE] for i in range(0, len(self.agents), SLICE)]
+
+    def run(self, stop: threading.Event | None = None) -> None:
+        """Tick every agent each control period until ``stop`` (or :meth:`close`).
+
+        Large fleets tick in slices spread evenly over the period (every agent still ticks
+        at the same simulated time t), so their states leave as a steady stream, not one
+        burst per period.
+        """
+        self.open()
+        event = stop or self._stop
+        slices = self._slices()
+        position = 0
+
+        def step() -> None:
+            nonlocal position
+            for agent in slices[position]:
+                agent.tick()
+            position += 1
+            if position == len(slices):
+                position = 0
+                self.clock.advance(self.period)
+
+        try:
+            # Catch up after short stalls (up to one control period behind).
+            steps, overruns = run_periodic(
+                self.period / self.time_scale / len(slices),
+                event,
+                step,
+                max_lag=self.period / self.time_scale,
+            )
+            self.ticks, self.overruns = steps // len(slices), overruns
+            if self.overruns:
+                _log.warning(
+                    "sim: %d of %d steps overran: ran slower than time scale %g",
+                    overruns,
+                    steps,
+                    self.time_scale,
+                )
+        finally:
+            for drive in self.drives.values():
+                drive.stop()
+
+    def start(self) -> SimFleet:
+        self.open()
+        self._thread = threading.Thread(target=self.run, name="sim-fleet")
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        """Stop ticking, stop every robot, undeclare everything (idempotent)."""
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join()
+        self._thread = None
+        for agent in self.agents:
+            agent.close()
+        self.world.detach()
+
+    def __enter__(self) -> SimFleet:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

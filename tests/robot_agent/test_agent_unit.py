@@ -1,0 +1,170 @@
+"""RobotAgent and WorldView without Zenoh: tick plumbing, drops, errors, peers kept."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pytest
+
+from fleet.params import Gains, Tolerance
+from fleet.settings import load_settings
+from fleet.wire import (
+    Keys,
+    ObstacleSet,
+    ParkAssignment,
+    Pose,
+    RobotMode,
+    RobotState,
+    encode,
+)
+from robot_agent.agent import RobotAgent
+from robot_agent.clock import SteppedClock
+from robot_agent.drive import Drive
+from robot_agent.world import CallbackGuard, WorldView
+
+
+class FakeDrive:
+    def __init__(self, clock: SteppedClock) -> None:
+        self.clock = clock
+        self.pose = Pose(x=0.0, y=0.0, theta=0.0)
+        self.stamp_lag = 0.0
+        self.fail = False
+        self.commands: list[tuple[float, float]] = []
+        self.stops = 0
+
+    def read_pose(self) -> tuple[Pose, float]:
+        if self.fail:
+            raise OSError("encoder unplugged")
+        return self.pose, self.clock.now() - self.stamp_lag
+
+    def command_wheels(self, right_rad_s: float, left_rad_s: float) -> None:
+        self.commands.append((right_rad_s, left_rad_s))
+
+    def stop(self) -> None:
+        self.stops += 1
+
+
+@dataclass
+class FakeSample:
+    key_expr: str
+    payload: Any
+
+
+class Payload:
+    def __init__(self, data: bytes) -> None:
+        self.data = data
+
+    def to_bytes(self) -> bytes:
+        return self.data
+
+
+def make_agent() -> tuple[RobotAgent, FakeDrive, SteppedClock]:
+    clock = SteppedClock()
+    drive = FakeDrive(clock)
+    agent = RobotAgent("r1", drive, None, load_settings(), clock=clock)
+    return agent, drive, clock
+
+
+ASSIGNMENT = ParkAssignment(
+    robot_id="r1",
+    task_id="t1",
+    goal=Pose(x=2.0, y=0.0, theta=0.0),
+    law="ccw",
+    gains=Gains(kx=1, ky=2, ktheta=1),
+    tolerance=Tolerance(position=0.1, heading=0.1),
+)
+
+
+def test_fake_drive_satisfies_the_protocol() -> None:
+    assert isinstance(FakeDrive(SteppedClock()), Drive)
+
+
+def test_idle_agent_stops_and_reports_idle() -> None:
+    agent, drive, _ = make_agent()
+    snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.IDLE and snap.task_id is None
+    assert drive.stops == 1 and not drive.commands
+
+
+def test_assignment_via_callback_drives_and_malformed_payloads_are_dropped() -> None:
+    agent, drive, _ = make_agent()
+    key = Keys().assignment("r1")
+    for junk in (b"\xff\x00garbage", b"{}", b'{"kind": "park"}', b"[1,2]"):
+        agent._on_assignment(FakeSample(key, Payload(junk)))
+    other = ASSIGNMENT.model_copy(update={"robot_id": "r2"})
+    agent._on_assignment(FakeSample(key, Payload(encode(other))))
+    snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.IDLE
+    assert agent.decoder.dropped_total == 5 and agent.tick_errors == 0
+
+    agent._on_assignment(FakeSample(key, Payload(encode(ASSIGNMENT))))
+    snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.DRIVING and snap.task_id == "t1"
+    assert drive.commands and drive.commands[-1][0] > 0
+
+
+def test_stale_pose_holds_and_failing_drive_is_counted_not_raised() -> None:
+    agent, drive, clock = make_agent()
+    agent.submit(ASSIGNMENT)
+    clock.advance(10.0)
+    drive.stamp_lag = 0.6  # older than pose_stale_s = 0.5
+    snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.HOLDING and not drive.commands
+    drive.stamp_lag = 0.0
+    assert agent.tick().mode is RobotMode.DRIVING  # type: ignore[union-attr]
+    drive.fail = True
+    stops = drive.stops
+    snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.HOLDING
+    assert agent.tick_errors == 1 and drive.stops == stops + 1
+
+
+def test_world_keeps_silent_peers_and_the_newest_state() -> None:
+    world = WorldView(Keys())
+
+    def state(rid: str, seq: int, x: float) -> RobotState:
+        return RobotState(robot_id=rid, seq=seq, stamp=1000.0 + seq, pose=Pose(x=x, y=0.0))
+
+    for i in range(40):  # grows past the initial buffer
+        world.update_state(state(f"p{i}", 0, float(i)))
+    world.update_state(state("p3", 5, 30.0))
+    world.update_state(state("p3", 4, -1.0))  # late, out of order: ignored
+    peers = world.peer_positions(exclude="p0")
+    assert peers.shape == (39, 2)
+    assert 30.0 in peers[:, 0] and -1.0 not in peers[:, 0] and 0.0 not in peers[:, 0]
+    # nothing ever removes a peer: it stays an obstacle at its last pose
+    assert world.peer_positions(exclude="nobody").shape == (40, 2)
+
+
+def test_world_decodes_samples_and_rejects_ids_not_matching_the_key() -> None:
+    keys = Keys()
+    world = WorldView(keys)
+    good = RobotState(robot_id="a", seq=0, stamp=1.0, pose=Pose(x=1.0, y=2.0))
+    world._on_state(FakeSample(keys.state("a"), Payload(encode(good))))
+    world._on_state(FakeSample(keys.state("b"), Payload(encode(good))))  # spoofed
+    world._on_state(FakeSample(keys.state("c"), Payload(b"nope")))
+    assert list(world.states()) == ["a"]
+    assert world.decoder.dropped_total == 2
+    obstacles = ObstacleSet.model_validate({"obstacles": [{"x": 1, "y": 2, "radius": 0.5}]})
+    world._on_obstacles(FakeSample(keys.obstacles, Payload(encode(obstacles))))
+    centres, radii = world.obstacles()
+    assert np.array_equal(centres, [[1.0, 2.0]]) and np.array_equal(radii, [0.5])
+
+
+def test_callback_guard_counts_exceptions() -> None:
+    guard = CallbackGuard("test")
+
+    def boom(_: object) -> None:
+        raise RuntimeError("bug")
+
+    wrapped = guard.wrap(boom)
+    wrapped(None)
+    wrapped(None)
+    assert guard.errors == 2
+
+
+def test_agent_rejects_unsafe_ids() -> None:
+    with pytest.raises(ValueError, match="invalid robot id"):
+        RobotAgent("robot/*", FakeDrive(SteppedClock()), None, load_settings())

@@ -1,0 +1,187 @@
+"""Pure per-tick logic of the robot agent: task protocol, modes, avoidance, wheel limit."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fleet.control import FloatArray
+from fleet.params import Avoidance, Gains, RobotProfile, Tolerance
+from fleet.wire import CancelAssignment, Obstacle, ParkAssignment, Pose, RobotMode
+from robot_agent.logic import (
+    Decision,
+    Task,
+    TaskStatus,
+    apply_assignment,
+    decide,
+    obstacle_arrays,
+    within_tolerance,
+)
+
+PROFILE = RobotProfile()  # r = 0.05 m, b = 0.135 m, 20 rad/s
+NO_PEERS = np.zeros((0, 2))
+NO_OBSTACLES = obstacle_arrays([])
+
+
+def park(
+    task_id: str = "t1", goal: tuple[float, float, float] = (3.0, 0.0, 0.0), **kw: object
+) -> ParkAssignment:
+    return ParkAssignment(
+        robot_id="r1",
+        task_id=task_id,
+        goal=Pose(x=goal[0], y=goal[1], theta=goal[2]),
+        law=kw.pop("law", "ccw"),  # type: ignore[arg-type]
+        gains=Gains(kx=1.0, ky=2.0, ktheta=1.0),
+        tolerance=Tolerance(position=0.1, heading=0.1),
+        **kw,  # type: ignore[arg-type]
+    )
+
+
+DEFAULT_AVOIDANCE = Avoidance()  # K_avoid = 4 m^2/s, peer radius 1 m
+
+
+def tick(
+    pose: Sequence[float],
+    task: Task | None,
+    peers: FloatArray = NO_PEERS,
+    obstacles: tuple[FloatArray, FloatArray] = NO_OBSTACLES,
+    age: float = 0.0,
+    avoidance: Avoidance = DEFAULT_AVOIDANCE,
+) -> Decision:
+    return decide(pose, age, task, peers, obstacles, PROFILE, avoidance, 0.5)
+
+
+# -- task protocol -----------------------------------------------------------------------
+def test_new_task_replaces_and_repeat_is_ignored() -> None:
+    t1 = apply_assignment(None, park("t1"))
+    assert t1 is not None and t1.task_id == "t1" and t1.status is TaskStatus.ACTIVE
+    arrived = Task(t1.assignment, TaskStatus.ARRIVED)
+    assert apply_assignment(arrived, park("t1", goal=(9.0, 9.0, 0.0))) is arrived
+    t2 = apply_assignment(arrived, park("t2"))
+    assert t2 is not None and t2.task_id == "t2" and t2.status is TaskStatus.ACTIVE
+
+
+def test_cancel_only_affects_the_current_task() -> None:
+    t1 = apply_assignment(None, park("t1"))
+    assert apply_assignment(t1, CancelAssignment(robot_id="r1", task_id="other")) is t1
+    assert apply_assignment(None, CancelAssignment(robot_id="r1", task_id="t1")) is None
+    cancelled = apply_assignment(t1, CancelAssignment(robot_id="r1", task_id="t1"))
+    assert cancelled is not None and cancelled.status is TaskStatus.CANCELLED
+    assert cancelled.task_id == "t1"
+    # a late repeat of the cancelled task does not restart it
+    assert apply_assignment(cancelled, park("t1")) is cancelled
+
+
+# -- modes -------------------------------------------------------------------------------
+def test_no_task_is_idle_and_still() -> None:
+    d = tick((0.0, 0.0, 0.0), None)
+    assert d.mode is RobotMode.IDLE and d.task is None and not d.moving
+
+
+def test_active_task_drives_towards_goal() -> None:
+    d = tick((0.0, 0.0, 0.0), Task(park()))
+    assert d.mode is RobotMode.DRIVING and d.u > 0 and d.right > 0 and d.left > 0
+
+
+def test_cancelled_task_holds_still() -> None:
+    d = tick((0.0, 0.0, 0.0), Task(park(), TaskStatus.CANCELLED))
+    assert d.mode is RobotMode.HOLDING and not d.moving and d.task is not None
+
+
+@pytest.mark.parametrize("age", [0.51, 10.0, math.inf, math.nan])
+def test_stale_pose_stops_the_robot(age: float) -> None:
+    task = Task(park())
+    d = tick((0.0, 0.0, 0.0), task, age=age)
+    assert d.mode is RobotMode.HOLDING and not d.moving
+    assert d.task is task  # resumes when the pose is fresh again
+    assert tick((0.0, 0.0, 0.0), task, age=0.49).mode is RobotMode.DRIVING
+
+
+def test_arrival_uses_the_pre_step_tolerance_and_latches() -> None:
+    task = Task(park(goal=(1.0, 1.0, 0.5)))
+    inside = (1.0 + 0.07, 1.0 - 0.05, 0.5 - 0.09)  # 0.086 m < 0.1, 0.09 rad < 0.1
+    assert within_tolerance(inside, task.assignment)
+    d = tick(inside, task)
+    assert d.mode is RobotMode.ARRIVED and not d.moving
+    assert d.task is not None and d.task.status is TaskStatus.ARRIVED
+    # latched: even pushed outside the tolerance it stays arrived until a new task
+    assert tick((0.0, 0.0, 0.0), d.task).mode is RobotMode.ARRIVED
+
+
+def test_heading_outside_tolerance_is_not_arrived() -> None:
+    task = Task(park(goal=(1.0, 1.0, 0.5)))
+    assert tick((1.0, 1.0, 0.5 - 0.11), task).mode is RobotMode.DRIVING
+
+
+# -- avoidance (Eq. 27) ------------------------------------------------------------------
+def test_peer_ahead_inside_radius_slows_the_robot_and_sets_avoiding() -> None:
+    task = Task(park())
+    free = tick((0.0, 0.0, 0.0), task)
+    peer_ahead = np.array([[0.5, 0.0]])
+    blocked = tick((0.0, 0.0, 0.0), task, peers=peer_ahead)
+    assert blocked.mode is RobotMode.AVOIDING
+    assert blocked.repulsion == pytest.approx(-4.0 / 0.5)  # -K_avoid / x_OA
+    assert blocked.u < free.u
+
+
+def test_peer_outside_radius_changes_nothing() -> None:
+    task = Task(park())
+    free = tick((0.0, 0.0, 0.0), task)
+    far = tick((0.0, 0.0, 0.0), task, peers=np.array([[1.01, 0.0], [-5.0, 3.0]]))
+    assert far.mode is RobotMode.DRIVING and far == free
+
+
+def test_static_obstacle_uses_its_own_radius() -> None:
+    task = Task(park())
+    obstacles = obstacle_arrays([Obstacle(x=1.5, y=0.0, radius=2.0)])
+    d = tick((0.0, 0.0, 0.0), task, obstacles=obstacles)
+    assert d.mode is RobotMode.AVOIDING and d.repulsion == pytest.approx(-4.0 / 1.5)
+    small = obstacle_arrays([Obstacle(x=1.5, y=0.0, radius=1.0)])
+    assert tick((0.0, 0.0, 0.0), task, obstacles=small).mode is RobotMode.DRIVING
+
+
+def test_robot_avoidance_settings_apply_unless_the_assignment_sets_them() -> None:
+    peer = np.array([[1.5, 0.0]])
+    wide = Avoidance(peer_radius=2.0)
+    assert tick((0, 0, 0), Task(park()), peers=peer, avoidance=wide).mode is RobotMode.AVOIDING
+    explicit = Task(park(avoidance=Avoidance(peer_radius=1.0)))
+    assert tick((0, 0, 0), explicit, peers=peer, avoidance=wide).mode is RobotMode.DRIVING
+    off = Avoidance(k_avoid=0.0, peer_radius=2.0)
+    assert tick((0, 0, 0), Task(park()), peers=peer, avoidance=off).mode is RobotMode.DRIVING
+
+
+# -- wheel-speed limit -------------------------------------------------------------------
+coord = st.floats(-8, 8, allow_nan=False)
+angle = st.floats(-7, 7, allow_nan=False)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    pose=st.tuples(coord, coord, angle),
+    goal=st.tuples(coord, coord, angle),
+    law=st.sampled_from(["ccw", "cw"]),
+    peers=st.lists(st.tuples(coord, coord), max_size=5),
+    limit=st.one_of(st.none(), st.floats(0.5, 40)),
+)
+def test_wheel_speeds_never_exceed_the_limit_and_keep_the_curvature(
+    pose: tuple[float, float, float],
+    goal: tuple[float, float, float],
+    law: str,
+    peers: list[tuple[float, float]],
+    limit: float | None,
+) -> None:
+    task = Task(park(goal=goal, law=law, max_wheel_speed=limit))
+    d = tick(pose, task, peers=np.array(peers, dtype=float).reshape(-1, 2))
+    cap = PROFILE.max_wheel_speed if limit is None else min(limit, PROFILE.max_wheel_speed)
+    assert max(abs(d.right), abs(d.left)) <= cap * (1 + 1e-9)
+    # Eq. (2): the wheel speeds reproduce (u, omega)
+    r, b = PROFILE.wheel_radius, PROFILE.half_axle
+    assert r / 2 * (d.right + d.left) == pytest.approx(d.u, abs=1e-9)
+    assert r / (2 * b) * (d.right - d.left) == pytest.approx(d.omega, abs=1e-9)
+    if d.mode is not RobotMode.ARRIVED:
+        assert (d.omega >= 0) if law == "ccw" else (d.omega <= 0)

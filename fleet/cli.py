@@ -14,7 +14,13 @@ import sys
 from collections.abc import Sequence
 
 #: Modules that register sub-commands, in help order.
-COMMAND_MODULES: tuple[str, ...] = ("fleet.commands.reproduce",)
+COMMAND_MODULES: tuple[str, ...] = (
+    "fleet.commands.reproduce",
+    "fleet.commands.router",
+    "robot_agent.cli",
+    "sim_agent.cli",
+    "sim_agent.bench_zenoh",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 COMMAND_MODULES: tuple[str, ...] = (
     "fleet.commands.reproduce",
     "fleet.commands.router",
+    "fleet.commands.bench_fleet",
     "robot_agent.cli",
     "sim_agent.cli",
     "sim_agent.bench_zenoh",

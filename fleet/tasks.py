@@ -63,8 +63,19 @@ class TaskRequest(BaseModel):
     goal: Pose
     robot_id: RobotId | None = None
     direction: Direction = "auto"
-    gains: Gains | None = None  # None: DEFAULT_GAINS of the chosen law
+    gains: Gains | None = None  # None: law_gains, else DEFAULT_GAINS of the chosen law
     tolerance: Tolerance = Tolerance(position=0.1, heading=0.1)
+    #: Gains per law, used when ``gains`` is None (e.g. ``auto`` with the paper's per-law
+    #: gains of Table 8); a law missing here falls back to DEFAULT_GAINS.
+    law_gains: dict[Law, Gains] | None = None
+
+    def gains_for(self, law: Law) -> Gains:
+        """The gains the robot uses with ``law``: gains, else law_gains[law], else default."""
+        if self.gains is not None:
+            return self.gains
+        if self.law_gains is not None and law in self.law_gains:
+            return self.law_gains[law]
+        return DEFAULT_GAINS[law]
 
 
 class Task(BaseModel):
@@ -98,6 +109,29 @@ class RobotView(BaseModel):
     goal: Pose | None = None
     radius: float = 0.2
     last_seen: float  # [s since epoch], service clock
+
+
+class RobotEvent(BaseModel):
+    """A robot's view changed (status, task, or a throttled pose update)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    type: Literal["robot"] = "robot"
+    robot: RobotView
+
+
+class TaskEvent(BaseModel):
+    """A task changed state; sent only after the change is stored."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    type: Literal["task"] = "task"
+    task: Task
+
+
+#: What :meth:`fleet.service.FleetService.add_listener` callbacks receive. A plain union,
+#: so ``isinstance(event, FleetEvent)`` works; serialise with ``event.model_dump_json()``.
+FleetEvent = RobotEvent | TaskEvent
 
 
 class FleetError(Exception):

@@ -1,0 +1,393 @@
+"""FleetService logic with the in-memory bus and store and a fake clock (no threads)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+from fleet.bus import MemoryBus
+from fleet.service import RESEND_INTERVAL_S, FleetService
+from fleet.settings import Settings
+from fleet.store import MemoryTaskStore
+from fleet.tasks import (
+    FleetEvent,
+    GoalRejected,
+    RobotEvent,
+    RobotNotFound,
+    RobotStatus,
+    TaskConflict,
+    TaskEvent,
+    TaskNotFound,
+    TaskRequest,
+    TaskStatus,
+)
+from fleet.wire import (
+    CancelAssignment,
+    Obstacle,
+    ParkAssignment,
+    Pose,
+    RobotMode,
+    RobotState,
+)
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.t = 1000.0
+
+    def __call__(self) -> float:
+        return self.t
+
+    def advance(self, dt: float) -> None:
+        self.t += dt
+
+
+class Fleet:
+    """A service wired to a MemoryBus and a store, plus helpers that play the robots."""
+
+    def __init__(self, store: MemoryTaskStore | None = None, **settings: Any) -> None:
+        self.clock = Clock()
+        self.bus = MemoryBus()
+        self.store = store or MemoryTaskStore()
+        self.settings = Settings(**settings)
+        self.service = FleetService(self.settings, self.bus, self.store, clock=self.clock)
+        self.events: list[FleetEvent] = []
+        self.service.add_listener(self.events.append)
+        self.seq = 0
+        self.service.start(background=False)
+
+    def robot(
+        self,
+        rid: str,
+        x: float,
+        y: float,
+        theta: float = 0.0,
+        mode: RobotMode = RobotMode.IDLE,
+        task_id: str | None = None,
+    ) -> None:
+        self.seq += 1
+        self.bus.deliver_state(
+            RobotState(
+                robot_id=rid,
+                seq=self.seq,
+                stamp=self.clock.t,
+                pose=Pose(x=x, y=y, theta=theta),
+                mode=mode,
+                task_id=task_id,
+            )
+        )
+
+    def join(self, rid: str, x: float, y: float) -> None:
+        self.bus.robot_alive(rid)
+        self.robot(rid, x, y)
+
+    def parks(self, rid: str | None = None) -> list[ParkAssignment]:
+        return [m for m in self.bus.sent(rid) if isinstance(m, ParkAssignment)]
+
+    def cancels(self, rid: str | None = None) -> list[CancelAssignment]:
+        return [m for m in self.bus.sent(rid) if isinstance(m, CancelAssignment)]
+
+    def task_statuses(self, task_id: str) -> list[TaskStatus]:
+        return [
+            e.task.status for e in self.events if isinstance(e, TaskEvent) and e.task.id == task_id
+        ]
+
+
+@pytest.fixture
+def fleet() -> Iterator[Fleet]:
+    f = Fleet(task_timeout_s=30.0)
+    yield f
+    f.service.close()
+
+
+def req(x: float, y: float, robot: str | None = None, **kw: Any) -> TaskRequest:
+    return TaskRequest(goal=Pose(x=x, y=y, theta=0.0), robot_id=robot, **kw)
+
+
+def test_full_life_cycle_is_stored_before_it_is_announced(fleet: Fleet) -> None:
+    stored_at_event: list[TaskStatus | None] = []
+
+    def check(event: FleetEvent) -> None:
+        if isinstance(event, TaskEvent):
+            got = fleet.store.get(event.task.id)
+            stored_at_event.append(got.status if got else None)
+
+    fleet.service.add_listener(check)
+    fleet.join("r1", 0.0, 0.0)
+    task = fleet.service.submit(req(3.0, 0.0))
+    assert task.status == TaskStatus.QUEUED
+
+    fleet.service.tick()
+    task = fleet.service.task(task.id)
+    assert (
+        task.status == TaskStatus.ASSIGNED and task.robot_id == "r1" and task.law in ("cw", "ccw")
+    )
+    (park,) = fleet.parks("r1")
+    assert park.task_id == task.id and park.goal == Pose(x=3.0, y=0.0) and park.law == task.law
+
+    fleet.robot("r1", 0.5, 0.0, mode=RobotMode.DRIVING, task_id=task.id)
+    assert fleet.service.task(task.id).status == TaskStatus.DRIVING
+    fleet.robot("r1", 3.0, 0.0, mode=RobotMode.ARRIVED, task_id=task.id)
+    done = fleet.service.task(task.id)
+    assert done.status == TaskStatus.SUCCEEDED and done.reason is None
+
+    expected = [TaskStatus.QUEUED, TaskStatus.ASSIGNED, TaskStatus.DRIVING, TaskStatus.SUCCEEDED]
+    assert fleet.task_statuses(task.id) == expected
+    assert stored_at_event == expected
+    assert [ev for _, ev, _ in fleet.store.history(task.id)] == [
+        "created",
+        "assigned",
+        "acknowledged",
+        "succeeded",
+    ]
+    assert fleet.service.robot("r1").status == RobotStatus.ARRIVED
+    assert any(isinstance(e, RobotEvent) for e in fleet.events)
+    assert [p[1] for p in fleet.service.path(task.id)] == [0.5, 3.0]
+
+
+def test_assignment_is_resent_until_acknowledged(fleet: Fleet) -> None:
+    fleet.join("r1", 0.0, 0.0)
+    task = fleet.service.submit(req(3.0, 0.0))
+    fleet.service.tick()
+    assert len(fleet.parks()) == 1
+    fleet.clock.advance(RESEND_INTERVAL_S / 2)
+    fleet.service.tick()
+    assert len(fleet.parks()) == 1
+    for n in (2, 3):
+        fleet.clock.advance(RESEND_INTERVAL_S)
+        fleet.service.tick()
+        assert len(fleet.parks()) == n
+    assert {p.task_id for p in fleet.parks()} == {task.id}
+    fleet.robot("r1", 0.1, 0.0, mode=RobotMode.DRIVING, task_id=task.id)
+    for _ in range(5):
+        fleet.clock.advance(RESEND_INTERVAL_S)
+        fleet.service.tick()
+    assert len(fleet.parks()) == 3
+    assert fleet.service.counters["assignments_resent"] == 2
+
+    # A robot that restarts and forgets its task gets it again.
+    fleet.robot("r1", 0.1, 0.0, mode=RobotMode.IDLE, task_id=None)
+    fleet.clock.advance(RESEND_INTERVAL_S)
+    fleet.service.tick()
+    assert len(fleet.parks()) == 4
+
+
+def test_timeout_fails_the_task_and_stops_the_robot(fleet: Fleet) -> None:
+    fleet.join("r1", 0.0, 0.0)
+    task = fleet.service.submit(req(3.0, 0.0))
+    fleet.service.tick()
+    fleet.robot("r1", 0.1, 0.0, mode=RobotMode.DRIVING, task_id=task.id)
+    fleet.clock.advance(29.0)
+    fleet.service.tick()
+    assert fleet.service.task(task.id).status == TaskStatus.DRIVING
+    fleet.clock.advance(1.5)
+    fleet.service.tick()
+    failed = fleet.service.task(task.id)
+    assert failed.status == TaskStatus.FAILED and failed.reason is not None
+    assert "timeout" in failed.reason
+    assert [c.task_id for c in fleet.cancels("r1")] == [task.id]
+    # The robot did not hear the cancel and drives on: the cancel is re-sent.
+    fleet.clock.advance(RESEND_INTERVAL_S)
+    fleet.robot("r1", 0.2, 0.0, mode=RobotMode.DRIVING, task_id=task.id)
+    assert len(fleet.cancels("r1")) == 2
+    fleet.robot("r1", 0.2, 0.0, mode=RobotMode.DRIVING, task_id=task.id)  # rate limited
+    assert len(fleet.cancels("r1")) == 2
+    fleet.robot("r1", 0.2, 0.0, mode=RobotMode.HOLDING, task_id=task.id)
+    assert fleet.service.robot("r1").status == RobotStatus.HOLDING
+
+
+def test_lost_robot_fails_its_task_and_stays_an_obstacle(fleet: Fleet) -> None:
+    fleet.join("r1", 0.0, 0.0)
+    task = fleet.service.submit(req(3.0, 0.0))
+    fleet.service.tick()
+    fleet.robot("r1", 1.0, 0.0, mode=RobotMode.DRIVING, task_id=task.id)
+    fleet.bus.robot_gone("r1")
+    failed = fleet.service.task(task.id)
+    assert failed.status == TaskStatus.FAILED and "lost" in (failed.reason or "")
+    view = fleet.service.robot("r1")
+    assert view.status == RobotStatus.LOST and view.pose.x == 1.0
+    with pytest.raises(GoalRejected, match="lost robot r1"):
+        fleet.service.submit(req(1.5, 0.0))
+    # A late state does not revive it; a new token does.
+    fleet.robot("r1", 1.0, 0.0, mode=RobotMode.DRIVING, task_id=task.id)
+    assert fleet.service.robot("r1").status == RobotStatus.LOST
+    fleet.bus.robot_alive("r1")
+    assert fleet.service.robot("r1").status == RobotStatus.DRIVING
+
+
+def test_lost_robot_requeues_its_task_to_another_robot() -> None:
+    f = Fleet(on_robot_lost="requeue")
+    try:
+        f.join("r1", 0.0, 0.0)
+        f.join("r2", -5.0, 5.0)
+        task = f.service.submit(req(2.0, 0.0))
+        f.service.tick()
+        assert f.service.task(task.id).robot_id == "r1"
+        f.robot("r1", 0.5, 0.0, mode=RobotMode.DRIVING, task_id=task.id)
+        f.bus.robot_gone("r1")
+        requeued = f.service.task(task.id)
+        assert requeued.status == TaskStatus.QUEUED and requeued.robot_id is None
+        assert "requeued" in (requeued.reason or "")
+        f.service.tick()
+        again = f.service.task(task.id)
+        assert again.status == TaskStatus.ASSIGNED and again.robot_id == "r2"
+        assert again.attempts == 2
+        assert f.parks("r2")[0].task_id == task.id
+    finally:
+        f.service.close()
+
+
+def test_cancel(fleet: Fleet) -> None:
+    queued = fleet.service.submit(req(3.0, 0.0))  # no robots: stays queued
+    fleet.service.tick()
+    assert fleet.service.cancel(queued.id).status == TaskStatus.CANCELLED
+    with pytest.raises(TaskConflict, match="already cancelled"):
+        fleet.service.cancel(queued.id)
+    with pytest.raises(TaskNotFound):
+        fleet.service.cancel("nope")
+    assert fleet.cancels() == []  # nothing was sent to a robot
+
+    fleet.join("r1", 0.0, 0.0)
+    task = fleet.service.submit(req(3.0, 0.0))
+    fleet.service.tick()
+    fleet.robot("r1", 0.1, 0.0, mode=RobotMode.DRIVING, task_id=task.id)
+    cancelled = fleet.service.cancel(task.id)
+    assert cancelled.status == TaskStatus.CANCELLED and cancelled.reason
+    assert [c.task_id for c in fleet.cancels("r1")] == [task.id]
+    fleet.robot("r1", 0.1, 0.0, mode=RobotMode.HOLDING, task_id=task.id)
+    fleet.clock.advance(1.0)
+    fleet.service.tick()
+    assert len(fleet.parks("r1")) == 1  # a cancelled task is never re-sent
+
+
+def test_idempotency_key_returns_the_same_task(fleet: Fleet) -> None:
+    first = fleet.service.submit(req(3.0, 0.0), idempotency_key="k1")
+    again = fleet.service.submit(req(3.0, 0.0), idempotency_key="k1")
+    assert again.id == first.id
+    assert len(fleet.service.tasks()) == 1
+    other = fleet.service.submit(req(-3.0, 0.0), idempotency_key="k2")
+    assert other.id != first.id
+
+
+def test_validation_errors(fleet: Fleet) -> None:
+    with pytest.raises(RobotNotFound):
+        fleet.service.submit(req(1.0, 1.0, robot="ghost"))
+    with pytest.raises(GoalRejected, match="outside the yard"):
+        fleet.service.submit(req(50.0, 0.0))
+    first = fleet.service.submit(req(1.0, 1.0))
+    with pytest.raises(GoalRejected, match=f"goal of task {first.id}"):
+        fleet.service.submit(req(1.5, 1.0))
+    fleet.service.set_obstacles([Obstacle(x=5.0, y=5.0, radius=1.0)])
+    assert fleet.bus.obstacle_sets[-1].obstacles == [Obstacle(x=5.0, y=5.0, radius=1.0)]
+    assert fleet.service.obstacles() == [Obstacle(x=5.0, y=5.0, radius=1.0)]
+    with pytest.raises(GoalRejected, match="influence zone of obstacle 0"):
+        fleet.service.submit(req(5.5, 5.0))
+    assert len(fleet.service.tasks()) == 1
+    with pytest.raises(TaskNotFound):
+        fleet.service.task("nope")
+    with pytest.raises(TaskNotFound):
+        fleet.service.path("nope")
+    with pytest.raises(RobotNotFound):
+        fleet.service.robot("nope")
+
+
+def test_named_task_waits_until_its_robot_is_free(fleet: Fleet) -> None:
+    fleet.join("r1", 0.0, 0.0)
+    fleet.join("r2", 0.0, 5.0)
+    first = fleet.service.submit(req(3.0, 0.0, robot="r1"))
+    second = fleet.service.submit(req(-3.0, 0.0, robot="r1"))
+    fleet.service.tick()
+    assert fleet.service.task(first.id).status == TaskStatus.ASSIGNED
+    assert fleet.service.task(second.id).status == TaskStatus.QUEUED  # r2 idle but not named
+    fleet.robot("r1", 3.0, 0.0, mode=RobotMode.ARRIVED, task_id=first.id)
+    fleet.service.tick()
+    assert fleet.service.task(second.id).status == TaskStatus.ASSIGNED
+    assert fleet.service.task(second.id).robot_id == "r1"
+
+
+def test_unnamed_tasks_go_to_robots_by_least_total_predicted_time(fleet: Fleet) -> None:
+    fleet.join("a", -6.0, 0.0)
+    fleet.join("b", 6.0, 0.0)
+    # Submitted in the order that a first-come/first-robot rule would get wrong.
+    east = fleet.service.submit(req(7.0, 2.0))
+    west = fleet.service.submit(req(-7.0, 2.0))
+    fleet.service.tick()
+    assert fleet.service.task(east.id).robot_id == "b"
+    assert fleet.service.task(west.id).robot_id == "a"
+
+
+def test_direction_request_is_obeyed(fleet: Fleet) -> None:
+    fleet.join("r1", 0.0, 0.0)
+    task = fleet.service.submit(req(0.0, 3.0, direction="cw"))
+    fleet.service.tick()
+    assert fleet.service.task(task.id).law == "cw"
+    assert fleet.parks("r1")[0].law == "cw"
+
+
+def test_restart_recovers_unfinished_tasks_from_the_store() -> None:
+    store = MemoryTaskStore()
+    first = Fleet(store=store)
+    first.join("r1", 0.0, 0.0)
+    running = first.service.submit(req(3.0, 0.0))
+    first.service.tick()
+    waiting = first.service.submit(req(-3.0, 3.0, robot="r1"))
+    first.robot("r1", 0.5, 0.0, mode=RobotMode.DRIVING, task_id=running.id)
+    first.service.close()
+    first.service.close()  # idempotent
+    assert first.bus.closed
+
+    second = Fleet(store=store)
+    try:
+        assert second.service.task(running.id).status == TaskStatus.DRIVING
+        assert second.service.task(waiting.id).status == TaskStatus.QUEUED
+        second.bus.robot_alive("r1")
+        second.service.tick()  # robot state unknown yet: the assignment is re-sent
+        assert [p.task_id for p in second.parks("r1")] == [running.id]
+        second.robot("r1", 3.0, 0.0, mode=RobotMode.ARRIVED, task_id=running.id)
+        assert second.service.task(running.id).status == TaskStatus.SUCCEEDED
+        second.service.tick()
+        assert second.service.task(waiting.id).status == TaskStatus.ASSIGNED
+    finally:
+        second.service.close()
+
+
+def test_listeners_may_call_back_and_unsubscribe(fleet: Fleet) -> None:
+    seen: list[int] = []
+
+    def listener(event: FleetEvent) -> None:
+        seen.append(len(fleet.service.tasks()))  # re-entrant call must not deadlock
+
+    unsubscribe = fleet.service.add_listener(listener)
+    fleet.service.submit(req(1.0, 1.0))
+    unsubscribe()
+    fleet.service.submit(req(-4.0, 1.0))
+    assert seen == [1]
+
+    def broken(event: FleetEvent) -> None:
+        raise RuntimeError("boom")
+
+    fleet.service.add_listener(broken)
+    fleet.service.submit(req(4.0, -4.0))
+    assert fleet.service.counters["listener_errors"] == 1
+
+
+def test_parked_robot_blocks_goals_near_it(fleet: Fleet) -> None:
+    fleet.join("r1", 0.0, 0.0)
+    task = fleet.service.submit(req(3.0, 0.0))
+    fleet.service.tick()
+    fleet.robot("r1", 3.0, 0.0, mode=RobotMode.ARRIVED, task_id=task.id)
+    with pytest.raises(GoalRejected, match="arrived robot r1"):
+        fleet.service.submit(req(3.5, 0.5))
+    # ... but the robot itself may be sent there again.
+    fleet.service.submit(req(3.5, 0.5, robot="r1"))
+    assert math.isfinite(fleet.service.robot("r1").last_seen)
+
+
+def test_background_thread_dispatches(fleet: Fleet) -> None:
+    service = FleetService(Settings(), MemoryBus(), MemoryTaskStore())
+    with service:
+        service.start()  # idempotent
+    service.close()

@@ -16,6 +16,8 @@ from collections.abc import Sequence
 #: Modules that register sub-commands, in help order.
 COMMAND_MODULES: tuple[str, ...] = (
     "fleet.commands.reproduce",
+    "fleet.commands.plot",
+    "fleet.commands.bench_sim",
     "fleet.commands.router",
     "fleet.commands.bench_fleet",
     "robot_agent.cli",

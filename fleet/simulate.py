@@ -28,7 +28,6 @@ from fleet.control import (
     Law,
     is_cw,
     obstacle_repulsion,
-    saturate,
 )
 from fleet.params import DEFAULT_TOLERANCE, UNLIMITED, Gains, RobotProfile, Tolerance
 
@@ -172,18 +171,49 @@ class _Workspace:
         self.x_e = np.empty(n)
         self.y_e = np.empty(n)
         self.theta_e = np.empty(n)
+        self.y_e_sq = np.empty(n)
+        self.abs_theta_e = np.empty(n)
         self.mag = np.empty(n)
         self.u = np.empty(n)
         self.omega = np.empty(n)
+        self.abs_u = np.empty(n)
         self.inside = np.empty(n, dtype=bool)
         self.mask = np.empty(n, dtype=bool)
+
+
+def _wrap_heading_into(theta: FloatArray, ws: _Workspace) -> None:
+    """(11.a): ``theta`` mapped to [0, 2pi) into ``ws.tmp``, bit for bit ``wrap_to_2pi``.
+
+    ``np.mod`` costs as much as a sine, so the remainder is formed directly for
+    theta in [-4pi, 6pi) (robots turn a few times at most): with k = floor(theta / 2pi)
+    clipped to [-2, 2], k 2pi is exact and theta - k 2pi is exact for k >= 0 (Sterbenz)
+    and, for k < 0, the single rounding that numpy's remainder also makes (exact ``fmod``,
+    then one addition of 2pi). A k misjudged by the rounded division lands outside
+    [0, 2pi], as does any other angle or NaN: those entries take ``np.mod``.
+    """
+    np.divide(theta, TWO_PI, out=ws.tmp)
+    np.floor(ws.tmp, out=ws.tmp)
+    np.clip(ws.tmp, -2.0, 2.0, out=ws.tmp)
+    ws.tmp *= TWO_PI
+    np.subtract(theta, ws.tmp, out=ws.tmp)
+    low, high = ws.tmp.min(), ws.tmp.max()
+    if not (low >= 0.0 and high <= TWO_PI):
+        np.greater_equal(ws.tmp, 0.0, out=ws.mask)  # False for NaN
+        np.logical_not(ws.mask, out=ws.mask)
+        ws.mask |= ws.tmp > TWO_PI
+        ws.tmp[ws.mask] = np.mod(theta[ws.mask], TWO_PI)
+        high = ws.tmp.max()
+    if not high < TWO_PI:  # np.mod can round a tiny negative angle up to exactly 2pi
+        np.greater_equal(ws.tmp, TWO_PI, out=ws.mask)
+        ws.tmp[ws.mask] = 0.0
 
 
 def _pose_error_into(
     x: FloatArray,
     y: FloatArray,
     theta: FloatArray,
-    goal: FloatArray,
+    goal_x: FloatArray,
+    goal_y: FloatArray,
     goal_theta_wrapped: FloatArray,
     cw: BoolArray,
     ws: _Workspace,
@@ -191,11 +221,14 @@ def _pose_error_into(
     """Eq. (5) with the wraps (11.a)/(11.b)/(21), written into ``ws.x_e/y_e/theta_e``.
 
     Same arithmetic as :func:`fleet.control.pose_error`; property tests hold them equal.
+    Conditional +-2pi shifts are done as ``+= mask * 2pi`` (adding 0.0 is exact), which is
+    several times cheaper than ufuncs with ``where=``; the rare rounding guards run only
+    when a reduction shows they are needed.
     """
     np.cos(theta, out=ws.c)
     np.sin(theta, out=ws.s)
-    np.subtract(goal[:, 0], x, out=ws.dx)
-    np.subtract(goal[:, 1], y, out=ws.dy)
+    np.subtract(goal_x, x, out=ws.dx)
+    np.subtract(goal_y, y, out=ws.dy)
     np.multiply(ws.c, ws.dx, out=ws.x_e)
     np.multiply(ws.s, ws.dy, out=ws.tmp)
     ws.x_e += ws.tmp
@@ -203,34 +236,65 @@ def _pose_error_into(
     np.multiply(ws.s, ws.dx, out=ws.tmp)
     ws.y_e -= ws.tmp
     # (11.a) on the robot heading; the goal heading was wrapped once up front.
-    np.mod(theta, TWO_PI, out=ws.tmp)
-    np.greater_equal(ws.tmp, TWO_PI, out=ws.mask)
-    ws.tmp[ws.mask] = 0.0
-    np.subtract(goal_theta_wrapped, ws.tmp, out=ws.theta_e)
-    np.less(ws.theta_e, 0.0, out=ws.mask)
-    np.add(ws.theta_e, TWO_PI, out=ws.theta_e, where=ws.mask)  # (11.b)
-    np.greater_equal(ws.theta_e, TWO_PI, out=ws.mask)  # rounding guard, as in heading_error
-    ws.theta_e[ws.mask] = 0.0
-    np.greater(ws.theta_e, 0.0, out=ws.mask)
+    _wrap_heading_into(theta, ws)
+    te = ws.theta_e
+    np.subtract(goal_theta_wrapped, ws.tmp, out=te)
+    np.less(te, 0.0, out=ws.mask)
+    np.multiply(ws.mask, TWO_PI, out=ws.tmp)
+    te += ws.tmp  # (11.b)
+    if te.max() >= TWO_PI:  # -1e-300 + 2pi rounds to 2pi: that error is really zero
+        np.greater_equal(te, TWO_PI, out=ws.mask)
+        te[ws.mask] = 0.0
+    np.greater(te, 0.0, out=ws.mask)
     ws.mask &= cw
-    np.subtract(ws.theta_e, TWO_PI, out=ws.theta_e, where=ws.mask)  # (21)
-    np.less_equal(ws.theta_e, -TWO_PI, out=ws.mask)
-    ws.theta_e[ws.mask] = 0.0
+    np.multiply(ws.mask, TWO_PI, out=ws.tmp)
+    te -= ws.tmp  # (21)
+    if te.min() <= -TWO_PI:
+        np.less_equal(te, -TWO_PI, out=ws.mask)
+        te[ws.mask] = 0.0
 
 
-def _law_into(gains: FloatArray, cw: BoolArray, ws: _Workspace) -> None:
-    """Laws (17)/(20) into ``ws.u``/``ws.omega``; same arithmetic as ``posture_law``."""
-    np.multiply(gains[:, 0], ws.x_e, out=ws.u)
-    np.multiply(ws.y_e, ws.y_e, out=ws.mag)
-    ws.mag *= gains[:, 1]
+def _law_into(
+    kx: FloatArray, signed_ky: FloatArray, signed_ktheta: FloatArray, ws: _Workspace
+) -> None:
+    """Laws (17)/(20) into ``ws.u``/``ws.omega``; same arithmetic as ``posture_law``.
+
+    Expects ``ws.y_e_sq`` = y_e^2 and ``ws.abs_theta_e`` = |theta_e| (shared with the stop
+    rule). ``signed_ky``/``signed_ktheta`` carry the law's sign (negative for cw): rounding
+    is symmetric, so (-a)(b) + (-c)(d) is bit for bit -(ab + cd).
+    """
+    np.multiply(kx, ws.x_e, out=ws.u)
+    np.multiply(ws.y_e_sq, signed_ky, out=ws.mag)
     np.multiply(ws.theta_e, ws.theta_e, out=ws.tmp)
-    ws.tmp *= gains[:, 2]
+    ws.tmp *= signed_ktheta
     ws.mag += ws.tmp
-    np.abs(ws.theta_e, out=ws.tmp)
-    np.negative(ws.tmp, out=ws.tmp)
+    np.negative(ws.abs_theta_e, out=ws.tmp)
     np.exp(ws.tmp, out=ws.tmp)
     np.multiply(ws.mag, ws.tmp, out=ws.omega)
-    np.negative(ws.omega, out=ws.omega, where=cw)
+
+
+def _saturate_into(
+    wheel_radius: FloatArray, half_axle: FloatArray, max_wheel_speed: FloatArray, ws: _Workspace
+) -> None:
+    """``control.saturate`` in place on ``ws.u``/``ws.omega`` (bit for bit; x * 1.0 == x)."""
+    right, left, peak = ws.dx, ws.dy, ws.tmp
+    np.multiply(half_axle, ws.omega, out=peak)
+    np.add(ws.u, peak, out=right)
+    right /= wheel_radius
+    np.subtract(ws.u, peak, out=left)
+    left /= wheel_radius
+    np.abs(right, out=right)
+    np.abs(left, out=left)
+    np.maximum(right, left, out=peak)
+    np.greater(peak, max_wheel_speed, out=ws.mask)
+    if not ws.mask.any():
+        return
+    np.maximum(peak, 1e-300, out=peak)
+    np.divide(max_wheel_speed, peak, out=peak)
+    np.logical_not(ws.mask, out=ws.mask)
+    peak[ws.mask] = 1.0
+    ws.u *= peak
+    ws.omega *= peak
 
 
 def simulate(
@@ -252,10 +316,16 @@ def simulate(
     y = problem.start[:, 1].copy()
     theta = problem.start[:, 2].copy()
     goal = problem.goal
+    goal_x = np.ascontiguousarray(goal[:, 0])
+    goal_y = np.ascontiguousarray(goal[:, 1])
     goal_theta_wrapped = np.mod(goal[:, 2], TWO_PI)
     goal_theta_wrapped[goal_theta_wrapped >= TWO_PI] = 0.0
     cw = problem.cw
-    gains = problem.gains
+    # Contiguous gain columns; the law's sign folded into the omega gains (see _law_into).
+    law_sign = np.where(cw, -1.0, 1.0)
+    kx = np.ascontiguousarray(problem.gains[:, 0])
+    signed_ky = problem.gains[:, 1] * law_sign
+    signed_ktheta = problem.gains[:, 2] * law_sign
     tol_pos_sq = problem.tol_position**2
     limited = bool(np.isfinite(problem.max_wheel_speed).any())
     has_obstacles = problem.k_avoid > 0 and problem.obstacles.shape[0] > 0
@@ -263,13 +333,15 @@ def simulate(
 
     ws = _Workspace(n)
     active = np.ones(n, dtype=bool)
+    all_active = n > 0
     finished_now = np.empty(n, dtype=bool)
     done_step = np.full(n, -1, dtype=np.int64)
     effort = np.zeros(n)
     distance = np.zeros(n)
-    abs_u = np.empty(n)
-    peer_radius = np.full((n, n), problem.peer_radius)
-    np.fill_diagonal(peer_radius, 0.0)
+    peer_radius = np.zeros((0, 0))
+    if peers:  # (N, N): only when peers repel, never for large batches without them
+        peer_radius = np.full((n, n), problem.peer_radius)
+        np.fill_diagonal(peer_radius, 0.0)
     min_pair = np.full((n, n), np.inf) if track_separation else None
     poses: list[FloatArray] = []
     controls: list[FloatArray] = []
@@ -277,22 +349,25 @@ def simulate(
 
     max_steps = round(max_time / dt)
     step = 0
-    while step < max_steps and active.any():
+    while step < max_steps and (all_active or active.any()):
         if min_pair is not None:
             d = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
             np.minimum(min_pair, d, out=min_pair)
-        _pose_error_into(x, y, theta, goal, goal_theta_wrapped, cw, ws)
+        _pose_error_into(x, y, theta, goal_x, goal_y, goal_theta_wrapped, cw, ws)
         # Stop rule: pre-step error inside tolerance -> done at this step (still applied).
+        np.multiply(ws.y_e, ws.y_e, out=ws.y_e_sq)
         np.multiply(ws.x_e, ws.x_e, out=ws.tmp)
-        ws.tmp += ws.y_e * ws.y_e
+        ws.tmp += ws.y_e_sq
         np.less(ws.tmp, tol_pos_sq, out=finished_now)
-        np.abs(ws.theta_e, out=ws.tmp)
-        np.less(ws.tmp, problem.tol_heading, out=ws.inside)
+        np.abs(ws.theta_e, out=ws.abs_theta_e)
+        np.less(ws.abs_theta_e, problem.tol_heading, out=ws.inside)
         finished_now &= ws.inside
         finished_now &= active
-        done_step[finished_now] = step
+        any_finished = bool(finished_now.any())
+        if any_finished:
+            done_step[finished_now] = step
 
-        _law_into(gains, cw, ws)
+        _law_into(kx, signed_ky, signed_ktheta, ws)
         if has_obstacles or peers:
             pose = np.stack([x, y, theta], axis=1)
             if has_obstacles:
@@ -309,24 +384,26 @@ def simulate(
                     pose, positions, peer_radius, problem.k_avoid, problem.min_x_oa
                 )
         if limited:
-            ws.u[:], ws.omega[:] = saturate(
-                ws.u, ws.omega, problem.wheel_radius, problem.half_axle, problem.max_wheel_speed
-            )
-        np.logical_not(active, out=ws.mask)
-        ws.u[ws.mask] = 0.0
-        ws.omega[ws.mask] = 0.0
+            _saturate_into(problem.wheel_radius, problem.half_axle, problem.max_wheel_speed, ws)
+        if not all_active:
+            np.logical_not(active, out=ws.mask)
+            ws.u[ws.mask] = 0.0
+            ws.omega[ws.mask] = 0.0
 
         if record:
             poses.append(np.stack([x, y, theta], axis=1))
             controls.append(np.stack([ws.u, ws.omega], axis=1))
             errors.append(np.stack([ws.x_e, ws.y_e, ws.theta_e], axis=1))
 
-        # Forward Euler on Eq. (3).
-        np.abs(ws.u, out=abs_u)
-        distance += abs_u * dt
+        # Metrics: Eq. (25) effort int(|u| + |omega|) dt, distance int |u| dt.
+        np.abs(ws.u, out=ws.abs_u)
         np.abs(ws.omega, out=ws.tmp)
-        ws.tmp += abs_u
-        effort += ws.tmp * dt
+        ws.tmp += ws.abs_u
+        ws.tmp *= dt
+        effort += ws.tmp
+        ws.abs_u *= dt
+        distance += ws.abs_u
+        # Forward Euler on Eq. (3).
         ws.c *= ws.u
         ws.c *= dt
         x += ws.c
@@ -336,7 +413,9 @@ def simulate(
         ws.omega *= dt
         theta += ws.omega
 
-        active &= ~finished_now
+        if any_finished:
+            active &= ~finished_now
+            all_active = False
         step += 1
 
     if min_pair is not None:

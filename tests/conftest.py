@@ -5,9 +5,14 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
+from hypothesis import settings as hypothesis_settings
 
 from fleet.settings import Settings, load_settings
 from fleet.transport import listening_locators, open_session
+
+# Machines are shared and noisy: a per-example deadline would make timing decide a test.
+hypothesis_settings.register_profile("parkfleet", deadline=None, print_blob=True)
+hypothesis_settings.load_profile("parkfleet")
 
 
 @pytest.fixture

@@ -23,6 +23,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "robot_agent.cli",
     "sim_agent.cli",
     "sim_agent.bench_zenoh",
+    "api.cli",
 )
 
 

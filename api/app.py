@@ -1,0 +1,131 @@
+"""The FastAPI application: ``create_app(settings)``.
+
+Its lifespan owns the fleet: the Zenoh router session, the SQLite task store, the Zenoh
+bus and the fleet service, opened in that order and closed in reverse however startup or
+shutdown goes (an unclosed Zenoh session would hang interpreter exit).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from contextlib import ExitStack, asynccontextmanager
+from typing import Any
+
+from fastapi import FastAPI
+from fastapi.openapi.utils import get_openapi
+
+from api import errors
+from api.deps import FleetAPI
+from api.routes import dashboard, events, health, obstacles, plots, robots, tasks
+from api.schemas import ValidationErrorOut
+from api.streaming import EventHub
+from fleet.service import FleetService
+from fleet.settings import Settings
+from fleet.store import SqliteTaskStore
+from fleet.transport import listening_locators, open_session
+from fleet.wire import Keys
+from fleet.zenoh_bus import ZenohFleetBus
+
+_log = logging.getLogger(__name__)
+
+DB_FILE = "parkfleet.db"
+
+DESCRIPTION = """\
+Parking tasks for a fleet of self-parking robots (Lyapunov posture control, laws (17)
+ccw and (20) cw). When `PARKFLEET_API_TOKEN` is set, POST and PUT need
+`Authorization: Bearer <token>`. Every error body is `{"detail": "..."}`.
+"""
+
+
+def open_fleet(settings: Settings, stack: ExitStack) -> tuple[FleetAPI, list[str]]:
+    """Open router session, store, bus and service on ``stack``; return the service and the
+    Zenoh endpoints the router really listens on."""
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    session = open_session(settings, "router")
+    stack.callback(session.close)
+    locators = listening_locators(session)
+    store = SqliteTaskStore(settings.data_dir / DB_FILE)
+    stack.callback(store.close)
+    bus = ZenohFleetBus(session, Keys(settings.fleet_name))
+    stack.callback(bus.close)
+    service = FleetService(settings, bus, store)
+    service.start()
+    stack.callback(service.close)
+    return service, locators
+
+
+def create_app(settings: Settings, *, service: FleetAPI | None = None) -> FastAPI:
+    """The API app. With ``service`` given (tests), the lifespan uses it and opens nothing."""
+    hub = EventHub()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        with ExitStack() as stack:
+            if service is None:
+                try:
+                    app.state.service, app.state.zenoh_locators = open_fleet(settings, stack)
+                except Exception as exc:
+                    app.state.startup_error = exc  # for the CLI's one-line error
+                    raise
+                _log.info("fleet service up; Zenoh router on %s", app.state.zenoh_locators)
+            else:
+                app.state.service, app.state.zenoh_locators = service, []
+            try:
+                yield
+            finally:
+                hub.close()
+                app.state.service = None
+
+    app = FastAPI(
+        title="parkfleet",
+        version="0.1.0",
+        description=DESCRIPTION,
+        lifespan=lifespan,
+    )
+    app.state.settings = settings
+    app.state.events = hub
+    app.state.service = None
+    app.state.zenoh_locators = []
+    app.state.startup_error = None
+    errors.install(app)
+    for module in (tasks, robots, obstacles, events, health):
+        app.include_router(module.router)
+    app.include_router(plots.router)
+    app.include_router(dashboard.router)
+    _document_validation_errors(app)
+    return app
+
+
+def _publish_yard(components: dict[str, Any], yard: tuple[float, float, float, float]) -> None:
+    """Write the configured yard into the coordinate fields' bounds (clients, fuzzers)."""
+    xmin, xmax, ymin, ymax = yard
+    for model in ("PoseIn", "ObstacleIn"):
+        props = components.get(model, {}).get("properties", {})
+        for name, low, high in (("x", xmin, xmax), ("y", ymin, ymax)):
+            if name in props:
+                props[name] |= {"minimum": low, "maximum": high}
+
+
+def _document_validation_errors(app: FastAPI) -> None:
+    """Make the OpenAPI schema describe our 422 body instead of FastAPI's default one, and
+    the configured yard as the bounds of every coordinate."""
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            schema = get_openapi(
+                title=app.title,
+                version=app.version,
+                description=app.description,
+                routes=app.routes,
+            )
+            components = schema.setdefault("components", {}).setdefault("schemas", {})
+            own = ValidationErrorOut.model_json_schema(ref_template="#/components/schemas/{model}")
+            components.update(own.pop("$defs", {}))
+            components["HTTPValidationError"] = own
+            components.pop("ValidationError", None)
+            _publish_yard(components, app.state.settings.yard)
+            app.openapi_schema = schema
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]

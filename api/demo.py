@@ -1,0 +1,164 @@
+"""``parkfleet demo``: the API and fleet service plus N simulated robots on this machine.
+
+The robots run in a ``parkfleet sim`` subprocess started only once the Zenoh router
+listens, connected to the endpoint the router really listens on, and stopped before the
+router closes. ``subprocess`` (fork + exec) is safe after a Zenoh session is open;
+``multiprocessing`` fork is not.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import shlex
+import subprocess
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from api import server
+from fleet.settings import Settings
+from fleet.tasks import FleetEvent, RobotEvent, RobotStatus, TaskEvent, TaskStatus
+
+
+@dataclass(frozen=True)
+class DemoOptions:
+    robots: int = 4
+    time_scale: float = 1.0
+    spawn: str = "random"
+    seed: int | None = None
+
+
+def pick_endpoint(locators: list[str]) -> str:
+    """The router endpoint local robots should connect to (loopback TCP preferred)."""
+    tcp = [loc for loc in locators if loc.startswith("tcp/")]
+    for loc in tcp:
+        if loc.startswith(("tcp/127.0.0.1:", "tcp/[::1]:", "tcp/localhost:")):
+            return loc
+    if not tcp:
+        raise ConnectionError(f"the Zenoh router has no TCP endpoint robots can reach: {locators}")
+    return tcp[0]
+
+
+def sim_command(endpoint: str, options: DemoOptions) -> list[str]:
+    cmd = [
+        sys.executable,
+        "-m",
+        "fleet.cli",
+        "sim",
+        "--robots",
+        str(options.robots),
+        "--connect",
+        endpoint,
+        "--time-scale",
+        str(options.time_scale),
+        "--spawn",
+        options.spawn,
+    ]
+    if options.seed is not None:
+        cmd += ["--seed", str(options.seed)]
+    return cmd
+
+
+def curl_examples(url: str, token: bool) -> list[str]:
+    auth = " -H 'Authorization: Bearer $PARKFLEET_API_TOKEN'" if token else ""
+    body = json.dumps({"goal": {"x": 3.0, "y": 2.0, "theta": 1.57}})
+    return [
+        f"curl -s -X POST {url}/tasks -H 'Content-Type: application/json'{auth} -d '{body}'",
+        f"curl -s {url}/tasks/<id>        # watch it reach succeeded",
+        f"curl -s {url}/robots",
+        f"curl -sN {url}/events           # live robot states and task changes",
+    ]
+
+
+class _Progress:
+    """Prints task transitions and robots joining or getting lost (service threads)."""
+
+    def __init__(self) -> None:
+        self._robots: dict[str, RobotStatus] = {}
+        self._tasks: dict[str, TaskStatus] = {}
+
+    def __call__(self, event: FleetEvent) -> None:
+        if isinstance(event, TaskEvent):
+            task = event.task
+            if self._tasks.get(task.id) == task.status:
+                return
+            self._tasks[task.id] = task.status
+            extra = "".join(
+                f" {name}={value}"
+                for name, value in (
+                    ("robot", task.robot_id),
+                    ("law", task.law),
+                    ("reason", task.reason),
+                )
+                if value is not None
+            )
+            goal = task.request.goal
+            print(
+                f"[demo] task {task.id}: {task.status.value} (goal {goal.x:g}, {goal.y:g}){extra}",
+                flush=True,
+            )
+        if isinstance(event, RobotEvent):
+            robot = event.robot
+            before = self._robots.get(robot.robot_id)
+            self._robots[robot.robot_id] = robot.status
+            if before is None:
+                p = robot.pose
+                print(f"[demo] robot {robot.robot_id} joined at ({p.x:.2f}, {p.y:.2f})", flush=True)
+            elif (before == RobotStatus.LOST) != (robot.status == RobotStatus.LOST):
+                print(f"[demo] robot {robot.robot_id}: {robot.status.value}", flush=True)
+
+
+async def run_demo(settings: Settings, options: DemoOptions) -> int:
+    sim: subprocess.Popen[bytes] | None = None
+    unsubscribe: list[Callable[[], None]] = []
+
+    async def on_ready(running: server.Running) -> None:
+        nonlocal sim
+        endpoint = pick_endpoint(running.zenoh)
+        unsubscribe.append(running.app.state.service.add_listener(_Progress()))
+        cmd = sim_command(endpoint, options)
+        print(
+            f"[demo] starting {options.robots} simulated robots: {shlex.join(cmd[1:])}", flush=True
+        )
+        sim = subprocess.Popen(cmd, stdin=subprocess.DEVNULL)
+        lines = [
+            "",
+            f"parkfleet demo: API on {running.url}  (docs: {running.url}/docs)",
+            f"                Zenoh router on {', '.join(running.zenoh)}",
+            f"                data in {Path(settings.data_dir) / 'parkfleet.db'}",
+            "Submit a parking task and watch it:",
+            *(f"  {line}" for line in curl_examples(running.url, settings.api_token is not None)),
+            "Ctrl-C stops the demo.",
+            "",
+        ]
+        print("\n".join(lines), flush=True)
+
+    async def stop_sim() -> None:
+        for stop in unsubscribe:
+            stop()
+        unsubscribe.clear()
+        if sim is not None:
+            await asyncio.to_thread(terminate, sim)
+
+    try:
+        return await server.serve(settings, on_ready=on_ready, on_shutdown=stop_sim)
+    finally:
+        if sim is not None:
+            terminate(sim)
+            if sim.returncode not in (0, -2, -15, 130):
+                print(f"[demo] the simulator exited with {sim.returncode}", file=sys.stderr)
+
+
+def terminate(process: subprocess.Popen[bytes], timeout: float = 5.0) -> None:
+    """SIGTERM, then SIGKILL after ``timeout``; always reaps the process."""
+    if process.poll() is None:
+        process.terminate()
+        try:
+            process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            process.kill()
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        process.wait(timeout)

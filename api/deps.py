@@ -1,0 +1,112 @@
+"""Route dependencies as ``Annotated`` aliases: the service, the settings, auth, checked bodies.
+
+The dependencies are ``async`` because none of them blocks: FastAPI would otherwise run
+each one in the thread pool. Routes that call the service (which may touch SQLite) are
+plain ``def`` and so run in the thread pool, off the event loop.
+"""
+
+from __future__ import annotations
+
+import secrets
+from collections.abc import Callable
+from typing import Annotated, Protocol
+
+from fastapi import Body, Depends, Header, HTTPException, Request, status
+from fastapi.exceptions import RequestValidationError
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+
+from api.schemas import ObstacleIn, ObstaclesIn, TaskIn, yard_errors
+from fleet.settings import Settings
+from fleet.tasks import FleetEvent, RobotView, Task, TaskRequest, TaskStatus
+from fleet.wire import Obstacle
+
+
+class FleetAPI(Protocol):
+    """What the API needs of ``fleet.service.FleetService`` (a test double may stand in)."""
+
+    @property
+    def counters(self) -> dict[str, int]: ...
+
+    def submit(self, request: TaskRequest, idempotency_key: str | None = None) -> Task: ...
+    def cancel(self, task_id: str) -> Task: ...
+    def task(self, task_id: str) -> Task: ...
+    def tasks(
+        self, status: TaskStatus | None = None, robot_id: str | None = None
+    ) -> list[Task]: ...
+    def robots(self) -> list[RobotView]: ...
+    def robot(self, robot_id: str) -> RobotView: ...
+    def obstacles(self) -> list[Obstacle]: ...
+    def set_obstacles(self, obstacles: list[Obstacle]) -> None: ...
+    def path(self, task_id: str) -> list[tuple[float, float, float, float, float, float]]: ...
+    def add_listener(self, listener: Callable[[FleetEvent], None]) -> Callable[[], None]: ...
+
+
+async def get_service(request: Request) -> FleetAPI:
+    service: FleetAPI | None = getattr(request.app.state, "service", None)
+    if service is None:  # only between lifespan shutdown and the last request
+        raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE, "fleet service not running")
+    return service
+
+
+async def get_settings(request: Request) -> Settings:
+    settings: Settings = request.app.state.settings
+    return settings
+
+
+ServiceDep = Annotated[FleetAPI, Depends(get_service)]
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+
+_bearer = HTTPBearer(auto_error=False, description="PARKFLEET_API_TOKEN, when set")
+
+
+async def require_token(
+    settings: SettingsDep,
+    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
+) -> None:
+    """401 unless ``Authorization: Bearer <PARKFLEET_API_TOKEN>`` (when a token is set)."""
+    if settings.api_token is None:
+        return
+    expected = settings.api_token.get_secret_value().encode()
+    given = b"" if credentials is None else credentials.credentials.encode()
+    # compare_digest on bytes: constant time in the token's content (length may leak).
+    if credentials is None or not secrets.compare_digest(given, expected):
+        raise HTTPException(
+            status.HTTP_401_UNAUTHORIZED,
+            "missing or wrong bearer token",
+            headers={"WWW-Authenticate": "Bearer"},
+        )
+
+
+Authorized = Depends(require_token)
+"""Use as ``dependencies=[Authorized]`` on mutating routes."""
+
+
+async def checked_task(body: Annotated[TaskIn, Body()], settings: SettingsDep) -> TaskIn:
+    """The task body, with its goal checked against the configured yard (422 otherwise)."""
+    errors = yard_errors([(("body", "goal"), body.goal.x, body.goal.y)], settings.yard)
+    if errors:
+        raise RequestValidationError(errors)
+    return body
+
+
+async def checked_obstacles(
+    body: Annotated[ObstaclesIn, Body()], settings: SettingsDep
+) -> ObstaclesIn:
+    """The obstacle list, every centre checked against the configured yard (422 otherwise)."""
+    errors = yard_errors([(("body", i), o.x, o.y) for i, o in enumerate(body)], settings.yard)
+    if errors:
+        raise RequestValidationError(errors)
+    return body
+
+
+TaskBody = Annotated[TaskIn, Depends(checked_task)]
+ObstaclesBody = Annotated[list[ObstacleIn], Depends(checked_obstacles)]
+IdempotencyKey = Annotated[
+    str | None,
+    Header(
+        alias="Idempotency-Key",
+        min_length=1,
+        max_length=200,
+        description="repeat a POST with the same key to get the same task back",
+    ),
+]

@@ -1,0 +1,114 @@
+"""Run ``parkfleet serve`` as a child process and wait until it serves (bench and tests).
+
+The child binds free ports (API ``--port 0``, Zenoh ``tcp/127.0.0.1:0``) and prints one
+ready line with the real addresses, which :func:`start_server` parses.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import re
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO
+
+READY = re.compile(r"^parkfleet serve: API on (?P<url>\S+) .*Zenoh router on (?P<zenoh>.*)$")
+
+
+@dataclass
+class ServerProcess:
+    process: subprocess.Popen[str]
+    url: str
+    zenoh: list[str]
+
+    @property
+    def zenoh_endpoint(self) -> str:
+        """A TCP endpoint of the server's router (loopback preferred)."""
+        tcp = [z for z in self.zenoh if z.startswith("tcp/")]
+        loopback = [z for z in tcp if z.startswith("tcp/127.0.0.1:")]
+        return (loopback or tcp or self.zenoh)[0]
+
+    def stop(self, timeout: float = 10.0) -> int:
+        """SIGTERM (graceful), SIGKILL after ``timeout``; returns the exit code."""
+        if self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(timeout)
+        return self.process.returncode
+
+
+def serve_command(data_dir: Path, *extra: str) -> list[str]:
+    return [
+        sys.executable,
+        "-m",
+        "fleet.cli",
+        "serve",
+        "--port",
+        "0",
+        "--zenoh-listen",
+        "tcp/127.0.0.1:0",
+        "--data-dir",
+        str(data_dir),
+        *extra,
+    ]
+
+
+def _pump(stream: IO[str], lines: queue.Queue[str | None]) -> None:
+    for line in stream:
+        lines.put(line.rstrip("\n"))
+    lines.put(None)
+
+
+@contextmanager
+def running_server(
+    data_dir: Path,
+    *extra: str,
+    env: Mapping[str, str] | None = None,
+    stderr: IO[str] | int | None = None,
+    timeout: float = 30.0,
+) -> Iterator[ServerProcess]:
+    """A live ``parkfleet serve`` child; stopped (and reaped) on exit, whatever happens."""
+    process = subprocess.Popen(
+        serve_command(data_dir, *extra),
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=stderr,
+        text=True,
+        env={**os.environ, **(env or {})},
+    )
+    server: ServerProcess | None = None
+    assert process.stdout is not None
+    lines: queue.Queue[str | None] = queue.Queue()
+    pump = threading.Thread(target=_pump, args=(process.stdout, lines), daemon=True)
+    pump.start()
+    try:
+        deadline = time.monotonic() + timeout
+        while server is None:
+            try:
+                line = lines.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                raise TimeoutError(f"parkfleet serve not ready after {timeout:.0f} s") from None
+            if line is None:
+                raise RuntimeError(f"parkfleet serve exited early with {process.wait()}")
+            match = READY.match(line)
+            if match:
+                server = ServerProcess(process, match["url"], match["zenoh"].split())
+        yield server
+    finally:
+        if server is not None:
+            server.stop()
+        elif process.poll() is None:
+            process.kill()
+        process.wait()
+        pump.join(5.0)  # EOF once the child is gone
+        process.stdout.close()

@@ -1,0 +1,239 @@
+"""Request (``...In``) and response (``...Out``) models of the REST API.
+
+Input models are strict (``extra="forbid"``, finite numbers, bounded values) so bad input
+is a 422 naming the field, never a 500 further down. Yard bounds depend on the settings
+and are checked by :func:`yard_errors`, called from the route dependencies in ``api.deps``.
+The domain models (``fleet.tasks``) stay the service's business; these are the contract.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from fleet.control import Law
+from fleet.params import Gains, Tolerance
+from fleet.tasks import Direction, RobotStatus, RobotView, Task, TaskRequest, TaskStatus
+from fleet.wire import Obstacle, Pose, RobotId
+
+Coordinate = Annotated[
+    float, Field(allow_inf_nan=False, description="metres, inside the yard (see /healthz)")
+]
+Heading = Annotated[
+    float,
+    Field(ge=-2 * math.pi, le=2 * math.pi, allow_inf_nan=False, description="radians"),
+]
+Gain = Annotated[float, Field(gt=0.0, le=100.0, allow_inf_nan=False)]
+
+Yard = tuple[float, float, float, float]
+
+
+class _In(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class PoseIn(_In):
+    """Goal posture in the world frame: x, y [m] inside the yard, theta [rad]."""
+
+    x: Coordinate
+    y: Coordinate
+    theta: Heading = 0.0
+
+
+class GainsIn(_In):
+    """Controller gains kx [1/s], ky, ktheta of laws (17)/(20); each in (0, 100]."""
+
+    kx: Gain
+    ky: Gain
+    ktheta: Gain
+
+
+class ToleranceIn(_In):
+    """Arrival tolerance: position [m] and heading [rad]."""
+
+    position: Annotated[float, Field(ge=0.001, le=10.0, allow_inf_nan=False)] = 0.1
+    heading: Annotated[float, Field(ge=0.001, le=math.pi, allow_inf_nan=False)] = 0.1
+
+
+class TaskIn(_In):
+    """Park a robot (the named one, or any) at ``goal``."""
+
+    goal: PoseIn
+    robot_id: RobotId | None = Field(default=None, description="a specific robot; omit for any")
+    direction: Direction = Field(
+        default="auto", description="auto: the fleet picks cw/ccw; cw = law (20), ccw = law (17)"
+    )
+    gains: GainsIn | None = Field(default=None, description="omit for the law's default gains")
+    tolerance: ToleranceIn = ToleranceIn()
+
+    def to_request(self) -> TaskRequest:
+        return TaskRequest(
+            goal=Pose(x=self.goal.x, y=self.goal.y, theta=self.goal.theta),
+            robot_id=self.robot_id,
+            direction=self.direction,
+            gains=None if self.gains is None else Gains(**self.gains.model_dump()),
+            tolerance=Tolerance(**self.tolerance.model_dump()),
+        )
+
+
+class ObstacleIn(_In):
+    """A static circular obstacle: centre inside the yard [m], influence radius [m]."""
+
+    x: Coordinate
+    y: Coordinate
+    radius: Annotated[float, Field(gt=0.0, le=20.0, allow_inf_nan=False)] = 1.0
+
+    def to_obstacle(self) -> Obstacle:
+        return Obstacle(x=self.x, y=self.y, radius=self.radius)
+
+
+ObstaclesIn = Annotated[list[ObstacleIn], Field(max_length=1000)]
+
+
+def yard_errors(points: list[tuple[tuple[str | int, ...], float, float]], yard: Yard) -> list[Any]:
+    """Validation errors (FastAPI's format) for the points ``(loc, x, y)`` outside the yard."""
+    xmin, xmax, ymin, ymax = yard
+    errors: list[Any] = []
+    for loc, x, y in points:
+        for name, value, low, high in (("x", x, xmin, xmax), ("y", y, ymin, ymax)):
+            if not low <= value <= high:
+                errors.append(
+                    {
+                        "type": "outside_yard",
+                        "loc": (*loc, name),
+                        "msg": f"{name}={value:g} is outside the yard [{low:g}, {high:g}]",
+                        "input": value,
+                    }
+                )
+    return errors
+
+
+# --- responses ------------------------------------------------------------------------
+
+
+class PoseOut(BaseModel):
+    x: float
+    y: float
+    theta: float
+
+    @classmethod
+    def of(cls, pose: Pose) -> PoseOut:
+        return cls(x=pose.x, y=pose.y, theta=pose.theta)
+
+
+class TaskOut(BaseModel):
+    """A parking task as the fleet knows it."""
+
+    id: str
+    status: TaskStatus
+    goal: PoseOut
+    direction: Direction
+    requested_robot_id: str | None = Field(description="the robot asked for, if any")
+    robot_id: str | None = Field(description="the robot doing it, once assigned")
+    law: Law | None = Field(description="chosen law: cw = (20), ccw = (17)")
+    gains: Gains | None
+    tolerance: Tolerance
+    reason: str | None = Field(description="why it failed or was cancelled")
+    attempts: int
+    created_at: float = Field(description="seconds since the epoch")
+    updated_at: float = Field(description="seconds since the epoch")
+
+    @classmethod
+    def of(cls, task: Task) -> TaskOut:
+        req = task.request
+        return cls(
+            id=task.id,
+            status=task.status,
+            goal=PoseOut.of(req.goal),
+            direction=req.direction,
+            requested_robot_id=req.robot_id,
+            robot_id=task.robot_id,
+            law=task.law,
+            gains=req.gains,
+            tolerance=req.tolerance,
+            reason=task.reason,
+            attempts=task.attempts,
+            created_at=task.created_at,
+            updated_at=task.updated_at,
+        )
+
+
+class RobotOut(BaseModel):
+    """The fleet's latest knowledge of one robot."""
+
+    robot_id: str
+    status: RobotStatus
+    pose: PoseOut
+    u: float = Field(description="forward speed [m/s]")
+    omega: float = Field(description="turn rate [rad/s]")
+    task_id: str | None
+    law: Law | None
+    goal: PoseOut | None
+    radius: float = Field(description="body radius [m]")
+    last_seen: float = Field(description="seconds since the epoch (service clock)")
+
+    @classmethod
+    def of(cls, robot: RobotView) -> RobotOut:
+        return cls(
+            robot_id=robot.robot_id,
+            status=robot.status,
+            pose=PoseOut.of(robot.pose),
+            u=robot.u,
+            omega=robot.omega,
+            task_id=robot.task_id,
+            law=robot.law,
+            goal=None if robot.goal is None else PoseOut.of(robot.goal),
+            radius=robot.radius,
+            last_seen=robot.last_seen,
+        )
+
+
+class ObstacleOut(BaseModel):
+    x: float
+    y: float
+    radius: float
+
+    @classmethod
+    def of(cls, obstacle: Obstacle) -> ObstacleOut:
+        return cls(x=obstacle.x, y=obstacle.y, radius=obstacle.radius)
+
+
+class PathPointOut(BaseModel):
+    """One sample of a robot's trajectory while it worked on a task."""
+
+    t: float = Field(description="seconds since the epoch")
+    x: float
+    y: float
+    theta: float
+    u: float
+    omega: float
+
+
+class HealthOut(BaseModel):
+    status: Literal["ok"] = "ok"
+    robots: int
+    yard: Yard = Field(description="xmin, xmax, ymin, ymax [m]")
+    zenoh: list[str] = Field(description="endpoints the fleet's Zenoh router listens on")
+    auth: bool = Field(description="mutating endpoints need a bearer token")
+    counters: dict[str, int]
+
+
+class ErrorOut(BaseModel):
+    """Body of every error response."""
+
+    detail: str
+
+
+class FieldError(BaseModel):
+    loc: list[str | int]
+    msg: str
+    type: str
+
+
+class ValidationErrorOut(BaseModel):
+    """Body of a 422: ``detail`` names the fields, ``errors`` lists them."""
+
+    detail: str
+    errors: list[FieldError]

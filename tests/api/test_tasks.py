@@ -1,0 +1,186 @@
+"""POST/GET /tasks and cancel: status codes, bodies and the validation contract."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import httpx
+import pytest
+
+from fleet.bus import MemoryBus
+from fleet.service import FleetService
+from fleet.wire import Obstacle
+from tests.api.conftest import add_robot
+
+pytestmark = pytest.mark.anyio
+
+
+def raw_post(client: httpx.AsyncClient, path: str, text: str) -> Any:
+    return client.post(path, content=text.encode(), headers={"Content-Type": "application/json"})
+
+
+async def test_submit_returns_201_with_the_stored_task(client: httpx.AsyncClient) -> None:
+    r = await client.post(
+        "/tasks", json={"goal": {"x": 1.5, "y": -2.0, "theta": 0.5}, "direction": "cw"}
+    )
+    assert r.status_code == 201
+    task = r.json()
+    assert task["status"] == "queued"
+    assert task["goal"] == {"x": 1.5, "y": -2.0, "theta": 0.5}
+    assert task["direction"] == "cw"
+    assert task["tolerance"] == {"position": 0.1, "heading": 0.1}
+    got = await client.get(f"/tasks/{task['id']}")
+    assert got.status_code == 200
+    assert got.json() == task
+
+
+async def test_submit_passes_gains_tolerance_and_robot(
+    client: httpx.AsyncClient, fleet: FleetService, bus: MemoryBus
+) -> None:
+    add_robot(bus, "r1", x=-3.0)
+    body = {
+        "goal": {"x": 0, "y": 0},
+        "robot_id": "r1",
+        "gains": {"kx": 2.6, "ky": 1.5, "ktheta": 1.5},
+        "tolerance": {"position": 0.05, "heading": 0.02},
+    }
+    r = await client.post("/tasks", json=body)
+    assert r.status_code == 201, r.text
+    request = fleet.task(r.json()["id"]).request
+    assert request.robot_id == "r1"
+    assert request.gains is not None and request.gains.kx == 2.6
+    assert request.tolerance.position == 0.05
+
+
+async def test_idempotency_key_returns_the_same_task(
+    client: httpx.AsyncClient, fleet: FleetService
+) -> None:
+    body = {"goal": {"x": 3, "y": 3}}
+    first = await client.post("/tasks", json=body, headers={"Idempotency-Key": "abc"})
+    again = await client.post("/tasks", json=body, headers={"Idempotency-Key": "abc"})
+    assert first.status_code == again.status_code == 201
+    assert first.json()["id"] == again.json()["id"]
+    assert len(fleet.tasks()) == 1
+
+
+async def test_list_filters_by_status_and_robot(client: httpx.AsyncClient) -> None:
+    ids = [
+        (await client.post("/tasks", json={"goal": {"x": x, "y": 0}})).json()["id"]
+        for x in (1, 3, 5)
+    ]
+    assert (await client.post(f"/tasks/{ids[1]}/cancel")).status_code == 200
+    assert [t["id"] for t in (await client.get("/tasks")).json()] == ids
+    done = (await client.get("/tasks", params={"status": "cancelled"})).json()
+    assert [t["id"] for t in done] == [ids[1]]
+    queued = (await client.get("/tasks", params={"status": "queued"})).json()
+    assert [t["id"] for t in queued] == [ids[0], ids[2]]
+    assert (await client.get("/tasks", params={"robot_id": "nobody"})).json() == []
+    assert [t["id"] for t in (await client.get("/tasks", params={"limit": 2})).json()] == ids[1:]
+    bad = await client.get("/tasks", params={"status": "sleeping"})
+    assert bad.status_code == 422
+    assert "status" in bad.json()["detail"]
+
+
+@pytest.mark.parametrize("field", ["x", "y", "theta"])
+@pytest.mark.parametrize("value", ["NaN", "Infinity", "-Infinity", "1e400"])
+async def test_non_finite_numbers_are_422_naming_the_field(
+    client: httpx.AsyncClient, field: str, value: str
+) -> None:
+    goal = {"x": "1", "y": "1", "theta": "0"} | {field: value}
+    text = '{"goal": {' + ", ".join(f'"{k}": {v}' for k, v in goal.items()) + "}}"
+    r = await raw_post(client, "/tasks", text)
+    assert r.status_code == 422
+    body = r.json()
+    assert f"goal.{field}" in body["detail"]
+    assert body["errors"][0]["loc"] == ["body", "goal", field]
+
+
+@pytest.mark.parametrize(
+    ("goal", "field"),
+    [
+        ({"x": 10.5, "y": 0}, "goal.x"),
+        ({"x": 0, "y": -5.01}, "goal.y"),
+        ({"x": -11, "y": 9}, "goal.x"),
+    ],
+)
+async def test_out_of_yard_goal_is_422_naming_the_field(
+    client: httpx.AsyncClient, goal: dict[str, float], field: str
+) -> None:
+    r = await client.post("/tasks", json={"goal": goal})
+    assert r.status_code == 422
+    assert field in r.json()["detail"]
+    assert "outside the yard" in r.json()["detail"]
+
+
+async def test_yard_edges_are_inside(client: httpx.AsyncClient) -> None:
+    r = await client.post("/tasks", json={"goal": {"x": 10, "y": -5}})
+    assert r.status_code == 201
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        "{}",
+        '{"goal": {"x": 1}}',
+        '{"goal": {"x": "one", "y": 1}}',
+        '{"goal": {"x": 1, "y": 1}, "speed": 3}',
+        '{"goal": {"x": 1, "y": 1}, "direction": "sideways"}',
+        '{"goal": {"x": 1, "y": 1}, "robot_id": "a/b*"}',
+        '{"goal": {"x": 1, "y": 1}, "gains": {"kx": 0, "ky": 1, "ktheta": 1}}',
+        '{"goal": {"x": 1, "y": 1}, "gains": {"kx": 1, "ky": 1, "ktheta": NaN}}',
+        '{"goal": {"x": 1, "y": 1}, "tolerance": {"position": -1, "heading": 0.1}}',
+        '{"goal": {"x": 1, "y": 1, "theta": 100}}',
+        "[1, 2]",
+        "not json",
+        '{"goal": ',
+    ],
+)
+async def test_bad_bodies_are_422(client: httpx.AsyncClient, body: str) -> None:
+    r = await raw_post(client, "/tasks", body)
+    assert r.status_code == 422, r.text
+    assert isinstance(r.json()["detail"], str)
+
+
+async def test_unknown_robot_is_404(client: httpx.AsyncClient) -> None:
+    r = await client.post("/tasks", json={"goal": {"x": 1, "y": 1}, "robot_id": "ghost"})
+    assert r.status_code == 404
+    assert "ghost" in r.json()["detail"]
+
+
+async def test_unknown_task_is_404(client: httpx.AsyncClient) -> None:
+    assert (await client.get("/tasks/nope")).status_code == 404
+    assert (await client.post("/tasks/nope/cancel")).status_code == 404
+    assert (await client.get("/tasks/nope/path")).status_code == 404
+
+
+async def test_goal_in_obstacle_zone_is_409_with_reason(
+    client: httpx.AsyncClient, fleet: FleetService
+) -> None:
+    fleet.set_obstacles([Obstacle(x=2, y=2, radius=1.0)])
+    r = await client.post("/tasks", json={"goal": {"x": 2.5, "y": 2}})
+    assert r.status_code == 409
+    assert "obstacle" in r.json()["detail"]
+
+
+async def test_goal_near_another_goal_is_409(client: httpx.AsyncClient) -> None:
+    assert (await client.post("/tasks", json={"goal": {"x": 1, "y": 1}})).status_code == 201
+    r = await client.post("/tasks", json={"goal": {"x": 1.5, "y": 1}})
+    assert r.status_code == 409
+    assert "apart" in r.json()["detail"]
+
+
+async def test_cancel_then_cancel_again_is_409(client: httpx.AsyncClient) -> None:
+    task_id = (await client.post("/tasks", json={"goal": {"x": 1, "y": 1}})).json()["id"]
+    r = await client.post(f"/tasks/{task_id}/cancel")
+    assert r.status_code == 200
+    assert r.json()["status"] == "cancelled"
+    again = await client.post(f"/tasks/{task_id}/cancel")
+    assert again.status_code == 409
+    assert "cancelled" in again.json()["detail"]
+
+
+async def test_path_of_a_task(client: httpx.AsyncClient) -> None:
+    task_id = (await client.post("/tasks", json={"goal": {"x": 1, "y": 1}})).json()["id"]
+    r = await client.get(f"/tasks/{task_id}/path")
+    assert r.status_code == 200
+    assert r.json() == []  # no robot has driven it yet

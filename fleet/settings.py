@@ -11,7 +11,7 @@ import os
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, SecretStr, field_validator
+from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import (
     BaseSettings,
     PydanticBaseSettingsSource,
@@ -42,11 +42,26 @@ class Settings(BaseSettings):
     lease_ms: Annotated[int, Field(ge=100)] = (
         1000  # transport lease: how fast a hung peer is seen gone
     )
+    # Security (README "Deployment"). Credentials this session presents when it connects:
     zenoh_user: str | None = None
     zenoh_password: SecretStr | None = None
+    # usrpwd dictionary (``user:password`` per line) a listening router checks; setting it
+    # makes the router refuse every session without valid credentials.
+    zenoh_credentials_file: Path | None = None
+    # TLS for ``tls/`` endpoints: the CA that signs every certificate of the deployment,
+    # and this process's certificate and key. With cert + key, mutual TLS is on: a
+    # listener refuses clients without a certificate signed by the CA.
     tls_root_ca: Path | None = None
     tls_cert: Path | None = None
     tls_key: Path | None = None
+    tls_verify_name: bool = True  # check the router's certificate names the address dialled
+    # Access control on a router (fleet/acl.py): default deny; a robot may publish only its
+    # own state and liveliness; only service identities may send assignments.
+    acl: bool = False
+    acl_identity: Literal["username", "cert_common_name"] = "username"
+    acl_robot_ids: list[str] = Field(default_factory=list)  # [] -> the credentials file's users
+    acl_service_users: list[str] = Field(default_factory=lambda: ["fleet"])
+    acl_file: Path | None = None  # a hand-written access_control block (JSON5) used verbatim
 
     # Robot agent
     robot_id: str | None = None
@@ -81,6 +96,21 @@ class Settings(BaseSettings):
     @classmethod
     def _robot_id_is_key_safe(cls, value: str | None) -> str | None:
         return None if value is None else validate_id(value)
+
+    @field_validator("acl_robot_ids", "acl_service_users")
+    @classmethod
+    def _acl_ids_are_key_safe(cls, value: list[str]) -> list[str]:
+        return [validate_id(v, "access-control id") for v in value]
+
+    @model_validator(mode="after")
+    def _security_settings_come_in_pairs(self) -> Settings:
+        if (self.zenoh_user is None) != (self.zenoh_password is None):
+            raise ValueError("zenoh_user and zenoh_password must be set together")
+        if (self.tls_cert is None) != (self.tls_key is None):
+            raise ValueError("tls_cert and tls_key must be set together")
+        if self.tls_cert is not None and self.tls_root_ca is None:
+            raise ValueError("tls_cert needs tls_root_ca (the CA that signs the peers' certs)")
+        return self
 
     @classmethod
     def settings_customise_sources(

@@ -13,7 +13,9 @@ from typing import Literal
 
 import zenoh
 
+from fleet.acl import credential_users, fleet_acl
 from fleet.settings import DEFAULT_ROUTER_ENDPOINT, Settings
+from fleet.wire import Keys
 
 _log = logging.getLogger(__name__)
 
@@ -46,18 +48,21 @@ def zenoh_config(settings: Settings, role: Role) -> zenoh.Config:
     # Keep trying the router for ever, but report failure fast on the first attempt.
     if mode == "client":
         conf.insert_json5("connect/timeout_ms", "2000")
-    if settings.zenoh_user and settings.zenoh_password:
-        conf.insert_json5(
-            "transport/auth/usrpwd",
-            json.dumps(
-                {
-                    "user": settings.zenoh_user,
-                    "password": settings.zenoh_password.get_secret_value(),
-                }
-            ),
-        )
+    usrpwd: dict[str, str] = {}
+    if settings.zenoh_user is not None and settings.zenoh_password is not None:
+        usrpwd |= {
+            "user": settings.zenoh_user,
+            "password": settings.zenoh_password.get_secret_value(),
+        }
+    if settings.zenoh_credentials_file is not None:
+        usrpwd["dictionary_file"] = str(settings.zenoh_credentials_file)
+    if usrpwd:
+        conf.insert_json5("transport/auth/usrpwd", json.dumps(usrpwd))
     if settings.tls_root_ca:
-        tls: dict[str, object] = {"root_ca_certificate": str(settings.tls_root_ca)}
+        tls: dict[str, object] = {
+            "root_ca_certificate": str(settings.tls_root_ca),
+            "verify_name_on_connect": settings.tls_verify_name,
+        }
         if settings.tls_cert and settings.tls_key:
             tls |= {
                 "listen_certificate": str(settings.tls_cert),
@@ -67,7 +72,38 @@ def zenoh_config(settings: Settings, role: Role) -> zenoh.Config:
                 "enable_mtls": True,
             }
         conf.insert_json5("transport/link/tls", json.dumps(tls))
+    # Access control is the router's job (robots may share the fleet's settings file).
+    access_control = access_control_json(settings) if mode == "router" else None
+    if access_control is not None:
+        try:
+            conf.insert_json5("access_control", access_control)
+        except zenoh.ZError as exc:
+            raise ValueError(f"invalid access_control block (acl_file?): {exc}") from exc
     return conf
+
+
+def access_control_json(settings: Settings) -> str | None:
+    """The ``access_control`` block (JSON5 text) the settings ask a router for, or None.
+
+    ``acl_file`` is used verbatim; otherwise ``acl`` generates the fleet policy
+    (:func:`fleet.acl.fleet_acl`) for ``acl_robot_ids``, or, when that list is empty, for
+    every user of ``zenoh_credentials_file`` that is not a service user.
+    """
+    if settings.acl_file is not None:
+        return settings.acl_file.read_text()
+    if not settings.acl:
+        return None
+    robots = list(settings.acl_robot_ids)
+    if not robots and settings.zenoh_credentials_file is not None:
+        users = credential_users(settings.zenoh_credentials_file.read_text())
+        robots = [u for u in users if u not in settings.acl_service_users]
+    block = fleet_acl(
+        Keys(settings.fleet_name),
+        robots,
+        service_identities=settings.acl_service_users,
+        identity=settings.acl_identity,
+    )
+    return json.dumps(block)
 
 
 def open_session(settings: Settings, role: Role) -> zenoh.Session:

@@ -1,0 +1,432 @@
+"""Security on real Zenoh: usrpwd, mutual TLS and the fleet access-control list.
+
+Certificates are generated at test time (a throw-away CA, a router certificate for
+127.0.0.1, client certificates whose common name is the identity, and a rogue CA).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import ipaddress
+import os
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+from cryptography import x509
+from cryptography.hazmat.primitives import hashes, serialization
+from cryptography.hazmat.primitives.asymmetric import ec
+from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
+
+from fleet.cli import main as parkfleet_main
+from fleet.params import Gains, Tolerance
+from fleet.settings import Settings, load_settings
+from fleet.transport import listening_locators, open_session
+from fleet.wire import Decoder, Keys, ParkAssignment, Pose, RobotState, encode
+
+pytestmark = pytest.mark.integration
+
+KEYS = Keys()
+PARKFLEET = Path(sys.executable).with_name("parkfleet")
+CLI = [str(PARKFLEET)] if PARKFLEET.exists() else [sys.executable, "-m", "fleet.cli"]
+PASSWORDS = {"fleet": "fleet-pw", "r1": "r1-pw", "r2": "r2-pw"}
+
+
+# -- certificates ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Pki:
+    folder: Path
+
+    @property
+    def ca(self) -> Path:
+        return self.folder / "ca.pem"
+
+    def cert(self, name: str) -> Path:
+        return self.folder / f"{name}.pem"
+
+    def key(self, name: str) -> Path:
+        return self.folder / f"{name}.key"
+
+
+Key = ec.EllipticCurvePrivateKey
+
+
+def _name(common_name: str) -> x509.Name:
+    return x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, common_name)])
+
+
+def _write(
+    folder: Path, name: str, cert: x509.Certificate, key: ec.EllipticCurvePrivateKey
+) -> None:
+    (folder / f"{name}.pem").write_bytes(cert.public_bytes(serialization.Encoding.PEM))
+    (folder / f"{name}.key").write_bytes(
+        key.private_bytes(
+            serialization.Encoding.PEM,
+            serialization.PrivateFormat.PKCS8,
+            serialization.NoEncryption(),
+        )
+    )
+
+
+def _builder(subject: x509.Name, issuer: x509.Name, key: Key) -> x509.CertificateBuilder:
+    now = dt.datetime.now(dt.UTC)
+    return (
+        x509.CertificateBuilder()
+        .subject_name(subject)
+        .issuer_name(issuer)
+        .public_key(key.public_key())
+        .serial_number(x509.random_serial_number())
+        .not_valid_before(now - dt.timedelta(minutes=5))
+        .not_valid_after(now + dt.timedelta(days=1))
+    )
+
+
+def _ca(common_name: str) -> tuple[x509.Certificate, Key]:
+    key = ec.generate_private_key(ec.SECP256R1())
+    usage = x509.KeyUsage(
+        digital_signature=True, content_commitment=False, key_encipherment=False,
+        data_encipherment=False, key_agreement=False, key_cert_sign=True, crl_sign=True,
+        encipher_only=False, decipher_only=False,
+    )  # fmt: skip
+    cert = (
+        _builder(_name(common_name), _name(common_name), key)
+        .add_extension(x509.BasicConstraints(ca=True, path_length=None), critical=True)
+        .add_extension(usage, critical=True)
+        .add_extension(x509.SubjectKeyIdentifier.from_public_key(key.public_key()), critical=False)
+        .sign(key, hashes.SHA256())
+    )
+    return cert, key
+
+
+def _leaf(common_name: str, ca: tuple[x509.Certificate, Key]) -> tuple[x509.Certificate, Key]:
+    """A certificate for ``common_name``, valid for localhost / 127.0.0.1, server and client."""
+    ca_cert, ca_key = ca
+    key = ec.generate_private_key(ec.SECP256R1())
+    names = [x509.DNSName("localhost"), x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]
+    usage = [ExtendedKeyUsageOID.SERVER_AUTH, ExtendedKeyUsageOID.CLIENT_AUTH]
+    cert = (
+        _builder(_name(common_name), ca_cert.subject, key)
+        .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
+        .add_extension(x509.SubjectAlternativeName(names), critical=False)
+        .add_extension(x509.ExtendedKeyUsage(usage), critical=False)
+        .add_extension(
+            x509.AuthorityKeyIdentifier.from_issuer_public_key(ca_key.public_key()), critical=False
+        )
+        .sign(ca_key, hashes.SHA256())
+    )
+    return cert, key
+
+
+@pytest.fixture(scope="module")
+def pki(tmp_path_factory: pytest.TempPathFactory) -> Pki:
+    """A CA with certificates for two routers, the fleet service and robots r1, r2; and a
+    certificate for "r1" signed by a rogue CA."""
+    folder = tmp_path_factory.mktemp("pki")
+    ca = _ca("parkfleet test CA")
+    _write(folder, "ca", *ca)
+    for name in ("router", "site-b", "fleet", "r1", "r2"):
+        _write(folder, name, *_leaf(name, ca))
+    _write(folder, "rogue-r1", *_leaf("r1", _ca("rogue CA")))
+    return Pki(folder)
+
+
+# -- helpers --------------------------------------------------------------------------------
+@pytest.fixture
+def credentials(tmp_path: Path) -> Path:
+    path = tmp_path / "users.txt"
+    path.write_text("".join(f"{user}:{pw}\n" for user, pw in PASSWORDS.items()))
+    return path
+
+
+@contextmanager
+def running_router(settings: Settings) -> Iterator[tuple[Any, str]]:
+    """A router session with its real endpoint (the ``:0`` port resolved)."""
+    scheme = settings.listen[0].split("/")[0] + "/"
+    with open_session(settings, "router") as session:
+        endpoint = next(loc for loc in listening_locators(session) if loc.startswith(scheme))
+        yield session, endpoint
+
+
+class Collector:
+    """Every (key, payload) a subscriber receives."""
+
+    def __init__(self, session: Any, key_expr: str) -> None:
+        self.lock = threading.Lock()
+        self.samples: list[tuple[str, bytes]] = []
+        self.sub = session.declare_subscriber(key_expr, self._on)
+
+    def _on(self, sample: Any) -> None:
+        with self.lock:
+            self.samples.append((str(sample.key_expr), sample.payload.to_bytes()))
+
+    def seen(self) -> set[tuple[str, bytes]]:
+        with self.lock:
+            return set(self.samples)
+
+
+def wait_for(predicate: Callable[[], bool], timeout: float, what: str) -> None:
+    end = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(0.02)
+
+
+def put_until(
+    session: Any, key: str, payload: bytes, done: Callable[[], bool], timeout: float = 10.0
+) -> None:
+    """Re-send (subscriptions take a moment to propagate) until ``done``."""
+    end = time.monotonic() + timeout
+    while not done():
+        assert time.monotonic() < end, f"{key} never arrived"
+        session.put(key, payload)
+        time.sleep(0.05)
+
+
+def alive_tokens(session: Any) -> set[str]:
+    return {
+        str(reply.ok.key_expr)
+        for reply in session.liveliness().get(KEYS.all_alive, timeout=2.0)
+        if reply.ok is not None
+    }
+
+
+# -- authentication -------------------------------------------------------------------------
+def test_wrong_or_missing_password_cannot_connect(credentials: Path) -> None:
+    router_settings = load_settings(listen=["tcp/127.0.0.1:0"], zenoh_credentials_file=credentials)
+    with running_router(router_settings) as (router, endpoint):
+        for user, password in (("r1", "wrong"), ("intruder", "r1-pw"), (None, None)):
+            settings = load_settings(connect=[endpoint], zenoh_user=user, zenoh_password=password)
+            with pytest.raises(ConnectionError), open_session(settings, "client"):
+                pass
+        inbox = Collector(router, "parkfleet/test/**")
+        good = load_settings(connect=[endpoint], zenoh_user="r1", zenoh_password="r1-pw")
+        with open_session(good, "client") as session:
+            put_until(session, "parkfleet/test/hello", b"hi", lambda: bool(inbox.seen()))
+        inbox.sub.undeclare()
+    assert inbox.seen() == {("parkfleet/test/hello", b"hi")}
+
+
+def test_client_without_a_certificate_of_the_fleet_ca_cannot_connect(pki: Pki) -> None:
+    router_settings = load_settings(
+        listen=["tls/127.0.0.1:0"], tls_root_ca=pki.ca,
+        tls_cert=pki.cert("router"), tls_key=pki.key("router"),
+    )  # fmt: skip
+    with running_router(router_settings) as (router, endpoint):
+        refused = [
+            load_settings(connect=[endpoint], tls_root_ca=pki.ca),  # no client certificate
+            load_settings(  # a certificate from another CA
+                connect=[endpoint],
+                tls_root_ca=pki.ca,
+                tls_cert=pki.cert("rogue-r1"),
+                tls_key=pki.key("rogue-r1"),
+            ),
+            load_settings(connect=[endpoint.replace("tls/", "tcp/")]),  # plain TCP to TLS
+        ]
+        for settings in refused:
+            with pytest.raises(ConnectionError), open_session(settings, "client"):
+                pass
+        inbox = Collector(router, "parkfleet/test/**")
+        good = load_settings(
+            connect=[endpoint], tls_root_ca=pki.ca, tls_cert=pki.cert("r1"), tls_key=pki.key("r1")
+        )
+        with open_session(good, "client") as session:
+            put_until(session, "parkfleet/test/hello", b"hi", lambda: bool(inbox.seen()))
+        inbox.sub.undeclare()
+    assert inbox.seen() == {("parkfleet/test/hello", b"hi")}
+
+
+# -- access control -------------------------------------------------------------------------
+def _acl_settings(
+    identity: str, pki: Pki, credentials: Path
+) -> tuple[Settings, Callable[..., Settings]]:
+    """Router settings with the generated ACL, and a factory of client settings."""
+    if identity == "username":  # usrpwd over TCP
+        router = load_settings(
+            listen=["tcp/127.0.0.1:0"], zenoh_credentials_file=credentials, acl=True
+        )
+
+        def client(endpoint: str, who: str) -> Settings:
+            return load_settings(connect=[endpoint], zenoh_user=who, zenoh_password=PASSWORDS[who])
+
+        return router, client
+    router = load_settings(
+        listen=["tls/127.0.0.1:0"], tls_root_ca=pki.ca,
+        tls_cert=pki.cert("router"), tls_key=pki.key("router"),
+        acl=True, acl_identity="cert_common_name", acl_robot_ids=["r1", "r2"],
+    )  # fmt: skip
+
+    def tls_client(endpoint: str, who: str) -> Settings:
+        return load_settings(
+            connect=[endpoint], tls_root_ca=pki.ca, tls_cert=pki.cert(who), tls_key=pki.key(who)
+        )
+
+    return router, tls_client
+
+
+@pytest.mark.parametrize("identity", ["username", "cert_common_name"])
+def test_robot_cannot_publish_another_robots_keys_or_send_assignments(
+    identity: str, pki: Pki, credentials: Path
+) -> None:
+    router_settings, client = _acl_settings(identity, pki, credentials)
+    with (
+        running_router(router_settings) as (router, endpoint),
+        open_session(client(endpoint, "r1"), "client") as r1,
+        open_session(client(endpoint, "r2"), "client") as r2,
+        open_session(client(endpoint, "fleet"), "client") as fleet,
+    ):
+        at_router = Collector(router, "parkfleet/**")  # local: sees all the router routes
+        at_service = Collector(fleet, KEYS.all_states)
+        r2_orders = Collector(r2, KEYS.assignment("r2"))
+        r1_snoops = Collector(r1, KEYS.assignment("r2"))  # eavesdropping is refused too
+        own_token = r1.liveliness().declare_token(KEYS.alive("r1"))
+        forged_token = r1.liveliness().declare_token(KEYS.alive("r2"))
+        own_state = (KEYS.state("r1"), b"own")
+        order = (KEYS.assignment("r2"), b"from-fleet")
+
+        def forge_and_send() -> None:
+            r1.put(KEYS.state("r2"), b"forged-state")
+            r1.put(KEYS.assignment("r2"), b"forged-assignment")
+            r1.put(KEYS.assignment("r1"), b"self-assignment")
+            r1.put(*own_state)
+            fleet.put(*order)
+
+        # Forged puts go first on the same links: once the allowed ones arrived, any forged
+        # put that the router let through would have arrived before them.
+        end = time.monotonic() + 10.0
+        while not (
+            own_state in at_router.seen()
+            and own_state in at_service.seen()
+            and order in r2_orders.seen()
+        ):
+            assert time.monotonic() < end, "allowed messages never arrived"
+            forge_and_send()
+            time.sleep(0.05)
+        for _ in range(5):
+            forge_and_send()
+        time.sleep(0.3)
+        wait_for(lambda: KEYS.alive("r1") in alive_tokens(router), 5.0, "r1's token")
+        tokens = alive_tokens(router)
+        own_token.undeclare()
+        forged_token.undeclare()
+        for collector in (at_router, at_service, r2_orders, r1_snoops):
+            collector.sub.undeclare()
+
+    assert at_router.seen() == {own_state, order}
+    assert at_service.seen() == {own_state}
+    assert r2_orders.seen() == {order}
+    assert order not in r1_snoops.seen()  # (r1's own forged puts loop back in its session)
+    assert tokens == {KEYS.alive("r1")}
+
+
+def test_meshed_routers_each_enforce_the_acl_for_their_own_robots(pki: Pki) -> None:
+    """Fleet host router A and site router B (``--connect`` A), mutual TLS, identities by
+    certificate common name: each router trusts the other as a service; robot r1 on B may
+    publish its own state to A, not r2's, and gets the fleet's assignment through B."""
+
+    def tls(name: str, **fields: Any) -> Settings:
+        return load_settings(
+            tls_root_ca=pki.ca, tls_cert=pki.cert(name), tls_key=pki.key(name),
+            acl_identity="cert_common_name", **fields,
+        )  # fmt: skip
+
+    host = tls(
+        "router", listen=["tls/127.0.0.1:0"], acl=True, acl_service_users=["fleet", "site-b"]
+    )
+    with running_router(host) as (router_a, endpoint_a):
+        site = tls(
+            "site-b", listen=["tls/127.0.0.1:0"], connect=[endpoint_a],
+            acl=True, acl_service_users=["router"], acl_robot_ids=["r1", "r2"],
+        )  # fmt: skip
+        with (
+            running_router(site) as (_router_b, endpoint_b),
+            open_session(tls("r1", connect=[endpoint_b]), "client") as r1,
+            open_session(tls("fleet", connect=[endpoint_a]), "client") as fleet,
+        ):
+            at_host = Collector(router_a, KEYS.all_states)
+            r1_orders = Collector(r1, KEYS.assignment("r1"))
+            own_state, order = (KEYS.state("r1"), b"own"), (KEYS.assignment("r1"), b"order")
+            end = time.monotonic() + 10.0
+            while not (own_state in at_host.seen() and order in r1_orders.seen()):
+                assert time.monotonic() < end, "allowed messages never crossed the mesh"
+                r1.put(KEYS.state("r2"), b"forged")
+                r1.put(*own_state)
+                fleet.put(*order)
+                time.sleep(0.05)
+            at_host.sub.undeclare()
+            r1_orders.sub.undeclare()
+    assert at_host.seen() == {own_state}
+    assert r1_orders.seen() == {order}
+
+
+def test_simulated_robot_works_under_the_acl(credentials: Path, tmp_path: Path) -> None:
+    """A real ``parkfleet sim`` robot with its credentials: its state and liveliness reach
+    the service, and the service's assignment reaches it (acknowledged in its state)."""
+    router_settings = load_settings(
+        listen=["tcp/127.0.0.1:0"], zenoh_credentials_file=credentials, acl=True
+    )
+    with running_router(router_settings) as (_router, endpoint):
+        env = os.environ | {
+            "PYTHONUNBUFFERED": "1",
+            "PARKFLEET_ZENOH_USER": "r1",
+            "PARKFLEET_ZENOH_PASSWORD": PASSWORDS["r1"],
+        }
+        proc = subprocess.Popen(
+            [*CLI, "sim", "--robots", "1", "--id-prefix", "r", "--connect", endpoint],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env,
+        )  # fmt: skip
+        try:
+            service = load_settings(
+                connect=[endpoint], zenoh_user="fleet", zenoh_password=PASSWORDS["fleet"]
+            )
+            with open_session(service, "client") as fleet:
+                decoder = Decoder("test")
+                states: list[RobotState] = []
+                sub = fleet.declare_subscriber(
+                    KEYS.all_states,
+                    lambda s: states.append(decoder.decode(RobotState, s.payload.to_bytes())),
+                )
+                order = ParkAssignment(
+                    robot_id="r1", task_id="t-acl", goal=Pose(x=1.0, y=0.5, theta=0.0),
+                    law="ccw", gains=Gains(kx=1.0, ky=2.0, ktheta=1.0),
+                    tolerance=Tolerance(position=0.1, heading=0.1),
+                )  # fmt: skip
+                # A loaded machine may take a while to start the robot's process.
+                wait_for(lambda: bool(states) or proc.poll() is not None, 60.0, "r1's state")
+                put_until(
+                    fleet,
+                    KEYS.assignment("r1"),
+                    encode(order),
+                    lambda: any(s is not None and s.task_id == "t-acl" for s in states),
+                    timeout=20.0,
+                )
+                tokens = alive_tokens(fleet)
+                sub.undeclare()
+        finally:
+            proc.terminate()
+            _, stderr = proc.communicate(timeout=15)
+    assert proc.returncode == 0, stderr.decode()
+    assert {s.robot_id for s in states if s is not None} == {"r1"}
+    assert KEYS.alive("r1") in tokens
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["agent", "--id", "r*", "--drive", "sim", "--connect", "tcp/127.0.0.1:9"],
+        ["agent", "--id", "fleet/**", "--drive", "sim", "--connect", "tcp/127.0.0.1:9"],
+        ["sim", "--robots", "1", "--id-prefix", "r$", "--connect", "tcp/127.0.0.1:9"],
+    ],
+)
+def test_robot_ids_with_key_expression_wildcards_are_rejected(
+    argv: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert parkfleet_main(argv) == 2
+    assert "invalid robot id" in capsys.readouterr().err

@@ -9,6 +9,15 @@ Task life cycle::
             | cancelled
     assigned/driving -> queued again when the robot is lost and ``on_robot_lost == "requeue"``
 
+Re-planning under way: each dispatch rolls out the robots already driving an ``auto`` task
+together with the new ones (``fleet.direction``). When flipping some of them is strictly
+safer than keeping their laws, their tasks get the new law and ``revision + 1`` (stored,
+then announced: event ``replanned``) and the robots get a ``ParkAssignment`` with that
+revision, re-sent until a state reports it. The rollouts start from the poses the robots
+are predicted to have when the plan reaches them (``Scene.lead_time``: the last planning
+time, converted to robot time by the robots' observed control rate, at most
+``LEAD_TIME_MAX_S``).
+
 Every transition is saved in the :class:`~fleet.store.TaskStore` before listeners hear of it.
 
 Threads: bus callbacks (``on_state``, ``on_robot_alive``, ``on_robot_gone``), API calls and
@@ -76,6 +85,10 @@ PATH_SAMPLES = 20_000
 PATHS_KEPT = 256
 #: Minimum interval of pose-only robot events per robot [s] (status changes are immediate).
 ROBOT_EVENT_INTERVAL_S = 0.1
+#: Bound of the planning lead time [s, robot time] (see the module docstring).
+LEAD_TIME_MAX_S = 10.0
+#: Window over which a robot's control rate is measured [s, service clock].
+RATE_WINDOW_S = 2.0
 
 PathSample = tuple[float, float, float, float, float, float]  # t, x, y, theta, u, omega
 Listener = Callable[[FleetEvent], None]
@@ -108,6 +121,10 @@ class FleetService:
         self._listeners: list[Listener] = []
         self._counters: Counter[str] = Counter()
         self._last_robot_event: dict[str, float] = {}
+        self._plan_seconds: float | None = None  # EWMA of planning wall time [s]
+        self._rate_anchor: dict[str, tuple[int, float]] = {}  # robot -> (seq, time)
+        self._time_scale: float | None = None  # robot seconds per service second
+        self.lead_time_max = LEAD_TIME_MAX_S
         self._wake = threading.Event()
         self._last_submit = float("-inf")  # time.monotonic() of the last submit (pacing only)
         self._stop = threading.Event()
@@ -265,6 +282,7 @@ class FleetService:
                 return
             now = self._clock()
             view, changed = self._roster.update(state, now)
+            self._measure_rate(state, now)
             task = self._task_of_robot(state.robot_id)
             if task is not None and state.task_id == task.id:
                 path = self._paths.get(task.id)
@@ -289,6 +307,26 @@ class FleetService:
         self._emit(events)
         if events and any(isinstance(e, TaskEvent) for e in events):
             self._wake.set()
+
+    def _measure_rate(self, state: RobotState, now: float) -> None:
+        """Robot seconds per service second, from state sequence numbers (a time-scaled
+        simulation runs faster than the wall clock; a real robot at 1)."""
+        anchor = self._rate_anchor.get(state.robot_id)
+        if anchor is None or state.seq < anchor[0]:
+            self._rate_anchor[state.robot_id] = (state.seq, now)
+            return
+        seq0, t0 = anchor
+        if now - t0 >= RATE_WINDOW_S:
+            scale = (state.seq - seq0) / self.settings.control_rate_hz / (now - t0)
+            self._time_scale = scale if self._time_scale is None else max(self._time_scale, scale)
+            self._rate_anchor[state.robot_id] = (state.seq, now)
+
+    def _lead_time(self) -> float:
+        """Expected delay [s, robot time] until a plan reaches the robots."""
+        if self._plan_seconds is None:
+            return 0.0
+        scale = self._time_scale if self._time_scale is not None else 1.0
+        return min(self.lead_time_max, self._plan_seconds * scale)
 
     def _stop_stray(self, state: RobotState, now: float) -> None:
         """The robot drives a task that is not its active one: cancel it if it is finished.
@@ -368,7 +406,11 @@ class FleetService:
                 if task.status not in _ACTIVE or task.robot_id is None:
                     continue
                 state = self._roster.state(task.robot_id)
-                acked = state is not None and state.task_id == task.id
+                acked = (
+                    state is not None
+                    and state.task_id == task.id
+                    and state.revision >= task.revision
+                )
                 if not acked and now - self._last_sent.get(task.id, now) >= RESEND_INTERVAL_S:
                     self._send(task, now)
                     self._counters["assignments_resent"] += 1
@@ -383,6 +425,7 @@ class FleetService:
             ParkAssignment(
                 robot_id=task.robot_id,
                 task_id=task.id,
+                revision=task.revision,
                 goal=request.goal,
                 law=task.law,
                 gains=request.gains_for(task.law),
@@ -414,10 +457,17 @@ class FleetService:
                     t for t in self._active.values() if t.status in _ACTIVE and t.robot_id in views
                 ]
                 obstacles = list(self._obstacles)
-            plan = self._plan(queued, free, movers, views, obstacles)
+                lead_time = self._lead_time()
+            began = time.monotonic()
+            plan, flips = self._plan(queued, free, movers, views, obstacles, lead_time)
+            took = time.monotonic() - began
             events: list[FleetEvent] = []
             with self._lock:
+                last = self._plan_seconds
+                self._plan_seconds = took if last is None else 0.5 * (last + took)
                 now = self._clock()
+                for task, law in flips:
+                    self._replan(task, law, now, events)
                 free_now = {v.robot_id for v in self._free_robots()}
                 for task, robot_id, law in plan:
                     current = self._active.get(task.id)
@@ -442,6 +492,23 @@ class FleetService:
                     self._send(assigned, now)
             self._emit(events)
 
+    def _replan(self, planned: Task, law: Law, now: float, events: list[FleetEvent]) -> None:
+        """Give a task under way a new law as ``revision + 1`` (stored, then sent), unless
+        it changed since the snapshot the plan was made on."""
+        current = self._active.get(planned.id)
+        if (
+            current is None
+            or current.status not in _ACTIVE
+            or current.robot_id != planned.robot_id
+            or current.law != planned.law
+            or current.revision != planned.revision
+        ):
+            return
+        revised = self._update(current, now, law=law, revision=current.revision + 1)
+        self._transition(revised, "replanned", events)
+        self._counters["replans"] += 1
+        self._send(revised, now)
+
     def _plan(
         self,
         queued: list[Task],
@@ -449,8 +516,10 @@ class FleetService:
         movers: list[Task],
         views: dict[str, RobotView],
         obstacles: list[Obstacle],
-    ) -> list[tuple[Task, str, Law]]:
-        """Pure planning on a snapshot: who takes which task, and with which law."""
+        lead_time: float = 0.0,
+    ) -> tuple[list[tuple[Task, str, Law]], list[tuple[Task, Law]]]:
+        """Pure planning on a snapshot: who takes which task, and with which law; and
+        which tasks under way should switch law (strictly safer, see the module docstring)."""
         pairs: list[tuple[Task, RobotView]] = []
         available = {v.robot_id: v for v in free}
         for task in queued:  # named tasks first come, first served
@@ -479,11 +548,11 @@ class FleetService:
             for i, j in optimal_assignment(cost):
                 pairs.append((unnamed[j], robots[i]))
         if not pairs:
-            return []
+            return [], []
 
         scene_movers: list[Mover] = []
         moving_ids: set[str] = set()
-        for t in movers:  # under way: keep their law (the protocol cannot change it mid-task)
+        for t in movers:  # under way: an auto task may be flipped (revision) if strictly safer
             assert t.robot_id is not None and t.law is not None
             v = views[t.robot_id]
             scene_movers.append(
@@ -494,7 +563,7 @@ class FleetService:
                     gains={law: t.request.gains_for(law) for law in LAWS},
                     tolerance=t.request.tolerance,
                     law=t.law,
-                    auto=False,
+                    auto=t.request.direction == "auto",
                 )
             )
             moving_ids.add(t.robot_id)
@@ -520,13 +589,22 @@ class FleetService:
             obstacles=obstacles,
             avoidance=self.settings.avoidance,
             profile=self.settings.profile,
+            lead_time=lead_time,
         )
         if any(m.auto for m in scene_movers):
-            laws = choose_directions(scene, self.settings.safety_separation_m).best.laws
+            decision = choose_directions(
+                scene,
+                self.settings.safety_separation_m,
+                dt=1.0 / self.settings.control_rate_hz,  # the agents' Euler step
+            )
+            laws = decision.best.laws
             self._counters["direction_choices"] += 1
         else:
             laws = tuple(m.law or "ccw" for m in scene_movers)
-        return [(task, v.robot_id, laws[first_new + k]) for k, (task, v) in enumerate(pairs)]
+        flips = [
+            (t, laws[k]) for k, t in enumerate(movers) if laws[k] != t.law
+        ]  # movers come first in scene_movers
+        return [(task, v.robot_id, laws[first_new + k]) for k, (task, v) in enumerate(pairs)], flips
 
     # -- API -----------------------------------------------------------------------------
 

@@ -92,6 +92,8 @@ class Task(BaseModel):
     created_at: float  # [s since epoch]
     updated_at: float
     attempts: Annotated[int, Field(ge=0)] = 0
+    #: Re-plans of the law while under way (``ParkAssignment.revision``); 0 as first sent.
+    revision: Annotated[int, Field(ge=0)] = 0
 
 
 class RobotView(BaseModel):

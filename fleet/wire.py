@@ -18,7 +18,13 @@ Protocol between the fleet service and a robot agent:
   executing (or last executed). A state carrying an assignment's ``task_id`` acknowledges
   it; the service re-sends an assignment until it sees that acknowledgement.
 * ``ParkAssignment`` with a new ``task_id`` replaces whatever the robot was doing; a repeat
-  of the current ``task_id`` is ignored (delivery is at-least-once).
+  of the current ``task_id`` with the same or a lower ``revision`` is ignored (delivery is
+  at-least-once, and a late duplicate of an older revision must not undo a newer one).
+* ``revision`` (>= 0, starting at 0): the fleet re-planned the task. A higher revision of
+  the current ``task_id`` replaces its law, gains, tolerance, limits and avoidance while the
+  robot keeps driving from where it is (an arrived or cancelled task stays so). The robot
+  reports the revision it runs (``RobotState.revision``); a state with the task id and at
+  least that revision acknowledges it, and the service re-sends the revision until then.
 * On arrival within tolerance the robot stops and reports ``mode=arrived`` with the task id;
   the service marks the task succeeded.
 * ``CancelAssignment`` for the current task stops the robot: ``mode=holding``, task id kept.
@@ -152,17 +158,24 @@ class RobotState(_Message):
     omega: FiniteFloat = 0.0  # commanded turn rate [rad/s]
     mode: RobotMode = RobotMode.IDLE
     task_id: str | None = None  # task the robot is executing or has just finished
+    revision: Annotated[int, Field(ge=0)] = 0  # revision of that task's assignment
     law: Law | None = None
     goal: Pose | None = None
     radius: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 0.2  # body radius [m]
 
 
 class ParkAssignment(_Message):
-    """Fleet -> robot: park at ``goal`` with ``law``; re-sent until acknowledged."""
+    """Fleet -> robot: park at ``goal`` with ``law``; re-sent until acknowledged.
+
+    ``revision``: the fleet re-planned this task; a higher revision of the current
+    ``task_id`` replaces its law/gains, a repeat of the same or a lower revision is ignored
+    (see the module docstring).
+    """
 
     kind: Literal["park"] = "park"
     robot_id: RobotId
     task_id: Annotated[str, Field(min_length=1, max_length=64)]
+    revision: Annotated[int, Field(ge=0)] = 0
     goal: Pose
     law: Law
     gains: Gains

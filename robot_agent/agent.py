@@ -196,6 +196,7 @@ class RobotAgent:
             omega=decision.omega,
             mode=decision.mode,
             task_id=snapshot.task_id,
+            revision=a.revision if a is not None else 0,
             law=a.law if a is not None else None,
             goal=a.goal if a is not None else None,
             radius=self.settings.profile.radius,

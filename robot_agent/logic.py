@@ -8,7 +8,11 @@ Task protocol (``fleet.wire`` module docstring), as a pure state machine
 (:func:`apply_assignment`):
 
 * a ``ParkAssignment`` with a new ``task_id`` replaces the current task; a repeat of the
-  current ``task_id`` is ignored (delivery is at-least-once);
+  current ``task_id`` with the same or a lower ``revision`` is ignored (delivery is
+  at-least-once, stale revisions may arrive late);
+* a higher ``revision`` of the current ``task_id`` (the fleet re-planned it) replaces the
+  assignment -- law, gains, tolerance, limits -- and keeps the task's status: an active task
+  drives on from where it is with the new law, an arrived or cancelled one stays so;
 * a ``CancelAssignment`` for the current task -> ``holding`` with the task id kept;
   a cancel for any other task is ignored;
 * arrival within tolerance -> stop, ``arrived`` (latched until a new task);
@@ -59,7 +63,9 @@ def apply_assignment(task: Task | None, message: ParkAssignment | CancelAssignme
     """Next task after an assignment message (see the module docstring for the rules)."""
     if isinstance(message, ParkAssignment):
         if task is not None and task.task_id == message.task_id:
-            return task  # at-least-once delivery: a repeat changes nothing
+            if message.revision <= task.assignment.revision:
+                return task  # at-least-once delivery: a repeat or a stale revision is ignored
+            return replace(task, assignment=message)  # re-planned: new law, same status
         return Task(message)
     if task is not None and task.task_id == message.task_id:
         return replace(task, status=TaskStatus.CANCELLED)

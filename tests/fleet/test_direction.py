@@ -85,3 +85,30 @@ def test_standing_robots_are_obstacles() -> None:
     blocked = evaluate(Scene(movers=[mover], standing=[(0.0, 0.0)]), ("ccw",), SEP)
     assert math.isinf(free.min_separation)
     assert blocked.min_separation < 1.0  # the rollout knows the parked robot is there
+
+
+def test_yard_seed_2_gets_a_choice_whose_whole_rollout_keeps_the_separation() -> None:
+    """The bench's random yard, seed 2 (10 robots), where ``auto`` used to collide: the
+    rollouts at 0.05 s over 60 s judged a prefix of a ~80 s run with a coarse step."""
+    from fleet.assignment import TaskSpec, optimal_assignment, predicted_times
+    from fleet.bench_fleet import random_yard_scenario
+    from fleet.params import RobotProfile
+
+    yard = random_yard_scenario(10, 2)
+    specs = [TaskSpec(g, LAWS, dict(DEFAULT_GAINS), yard.tolerance) for g in yard.goals]
+    cost = predicted_times(yard.starts, specs, RobotProfile())
+    movers = [
+        Mover(f"b{i}", yard.starts[i], yard.goals[j], dict(DEFAULT_GAINS), yard.tolerance)
+        for i, j in optimal_assignment(cost)
+    ]
+    scene = Scene(movers=movers)
+    old = evaluate(scene, ("ccw",) * len(movers), SEP, dt=0.05, horizon=60.0)
+    assert not old.done  # the old horizon cut the run short
+
+    decision = choose_directions(scene, SEP)
+    best = decision.best
+    assert best.safe and best.done and best.makespan < decision.horizon
+    assert decision.horizon > 60.0
+    # the chosen laws, rolled out at the agents' 50 Hz over a horizon well past the arrivals
+    check = evaluate(scene, best.laws, SEP, dt=0.02, horizon=300.0)
+    assert check.done and check.min_separation >= SEP

@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 
 from fleet.bus import MemoryBus
+from fleet.control import Law
 from fleet.service import RESEND_INTERVAL_S, FleetService
 from fleet.settings import Settings
 from fleet.store import MemoryTaskStore
@@ -32,6 +33,7 @@ from fleet.wire import (
     RobotMode,
     RobotState,
 )
+from robot_agent.logic import apply_assignment
 
 
 class Clock:
@@ -67,6 +69,7 @@ class Fleet:
         theta: float = 0.0,
         mode: RobotMode = RobotMode.IDLE,
         task_id: str | None = None,
+        revision: int = 0,
     ) -> None:
         self.seq += 1
         self.bus.deliver_state(
@@ -77,6 +80,7 @@ class Fleet:
                 pose=Pose(x=x, y=y, theta=theta),
                 mode=mode,
                 task_id=task_id,
+                revision=revision,
             )
         )
 
@@ -391,3 +395,80 @@ def test_background_thread_dispatches(fleet: Fleet) -> None:
     with service:
         service.start()  # idempotent
     service.close()
+
+
+def _other(law: Law | None) -> Law:
+    return "cw" if law == "ccw" else "ccw"
+
+
+def test_a_strictly_safer_replan_sends_the_next_revision_with_the_new_law(fleet: Fleet) -> None:
+    """Two robots swap sides; the second one's task fixes the opposite sense of the first
+    one's law, which would make them meet head on (mixed senses collide). Flipping the
+    robot under way is strictly safer: it gets revision 1 with the new law."""
+    fleet.service.lead_time_max = 0.0  # plan from the reported poses (deterministic)
+    q = math.pi / 4
+    fleet.join("r0", 4.0, 0.0)
+    fleet.join("r1", -4.0, 0.0)
+    fleet.robot("r0", 4.0, 0.0, math.pi + q)
+    fleet.robot("r1", -4.0, 0.0, q)
+    first = fleet.service.submit(
+        TaskRequest(goal=Pose(x=-4.0, y=0.0, theta=math.pi - q), robot_id="r0")
+    )
+    fleet.service.tick()
+    (park0,) = fleet.parks("r0")
+    assert park0.revision == 0
+    fleet.robot("r0", 4.0, 0.0, math.pi + q, RobotMode.DRIVING, first.id)
+    assert fleet.service.task(first.id).status == TaskStatus.DRIVING
+
+    second = fleet.service.submit(
+        TaskRequest(goal=Pose(x=4.0, y=0.0, theta=-q), robot_id="r1", direction=_other(park0.law))
+    )
+    fleet.service.tick()
+    revised = fleet.service.task(first.id)
+    assert revised.law == _other(park0.law) and revised.revision == 1
+    assert revised.status == TaskStatus.DRIVING
+    assert fleet.service.task(second.id).law == _other(park0.law)
+    _, park1 = fleet.parks("r0")
+    assert (park1.task_id, park1.revision, park1.law) == (first.id, 1, revised.law)
+    assert park1.gains == revised.request.gains_for(revised.law)
+    # stored before announced, as every transition
+    assert [ev for _, ev, _ in fleet.store.history(first.id)][-1] == "replanned"
+    assert fleet.task_statuses(first.id)[-1] == TaskStatus.DRIVING
+    assert fleet.service.counters["replans"] == 1
+
+    # Re-sent until a state reports the revision; then no more.
+    fleet.clock.advance(RESEND_INTERVAL_S)
+    fleet.service.tick()
+    assert [p.revision for p in fleet.parks("r0")] == [0, 1, 1]
+    fleet.robot("r0", 3.9, 0.0, math.pi + q, RobotMode.DRIVING, first.id, revision=1)
+    fleet.clock.advance(RESEND_INTERVAL_S)
+    fleet.service.tick()
+    assert len(fleet.parks("r0")) == 3
+
+    # The robot's side: revision 1 replaces the law; late copies of revision 0 do not.
+    task = None
+    for msg in [park0, park1, park0, park1, park0]:
+        task = apply_assignment(task, msg)
+    assert task is not None and task.assignment.law == revised.law
+    assert task.assignment.revision == 1
+
+
+def test_a_safe_robot_under_way_is_not_replanned(fleet: Fleet) -> None:
+    fleet.service.lead_time_max = 0.0
+    q = math.pi / 4
+    fleet.join("r0", 4.0, 0.0)
+    fleet.join("r1", -4.0, 0.0)
+    fleet.robot("r0", 4.0, 0.0, math.pi + q)
+    fleet.robot("r1", -4.0, 0.0, q)
+    first = fleet.service.submit(
+        TaskRequest(goal=Pose(x=-4.0, y=0.0, theta=math.pi - q), robot_id="r0")
+    )
+    fleet.service.tick()
+    (park0,) = fleet.parks("r0")
+    fleet.robot("r0", 4.0, 0.0, math.pi + q, RobotMode.DRIVING, first.id)
+    fleet.service.submit(
+        TaskRequest(goal=Pose(x=4.0, y=0.0, theta=-q), robot_id="r1", direction=park0.law)
+    )
+    fleet.service.tick()
+    assert fleet.parks("r0") == [park0]
+    assert fleet.service.task(first.id).revision == 0

@@ -77,6 +77,37 @@ def test_cancel_only_affects_the_current_task() -> None:
     assert apply_assignment(cancelled, park("t1")) is cancelled
 
 
+def test_higher_revision_replaces_the_law_and_stale_revisions_are_ignored() -> None:
+    t1 = apply_assignment(None, park("t1", law="ccw"))
+    assert t1 is not None and t1.assignment.revision == 0
+    r1 = apply_assignment(t1, park("t1", law="cw", revision=1))
+    assert r1 is not None and r1.task_id == "t1" and r1.status is TaskStatus.ACTIVE
+    assert r1.assignment.law == "cw" and r1.assignment.revision == 1
+    # late duplicates of revision 0 or 1 change nothing
+    assert apply_assignment(r1, park("t1", law="ccw")) is r1
+    assert apply_assignment(r1, park("t1", law="ccw", revision=1)) is r1
+    # the robot drives on with the new law: omega <= 0 for cw (Eq. 20)
+    assert tick((0.0, 1.0, 0.0), r1).omega <= 0.0
+    r2 = apply_assignment(r1, park("t1", law="ccw", revision=2))
+    assert r2 is not None and r2.assignment.law == "ccw"
+    assert tick((0.0, 1.0, 0.0), r2).omega >= 0.0
+
+
+def test_a_revision_keeps_an_arrived_or_cancelled_task_stopped() -> None:
+    t1 = apply_assignment(None, park("t1"))
+    assert t1 is not None
+    for status in (TaskStatus.ARRIVED, TaskStatus.CANCELLED):
+        stopped = Task(t1.assignment, status)
+        revised = apply_assignment(stopped, park("t1", law="cw", revision=1))
+        assert revised is not None and revised.status is status
+        assert not tick((0.0, 1.0, 0.0), revised).moving
+
+
+def test_revision_must_not_be_negative() -> None:
+    with pytest.raises(ValueError):
+        park("t1", revision=-1)
+
+
 # -- modes -------------------------------------------------------------------------------
 def test_no_task_is_idle_and_still() -> None:
     d = tick((0.0, 0.0, 0.0), None)

@@ -141,7 +141,10 @@ class RobotMode(StrEnum):
 
 
 class _Message(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    # Additive changes stay compatible: a receiver ignores top-level fields it does not
+    # know (a robot on an older release keeps obeying a newer service); an incompatible
+    # change bumps ``v``, which older receivers drop and count.
+    model_config = ConfigDict(frozen=True, extra="ignore")
 
     v: Literal[1] = 1  # SCHEMA_VERSION
 
@@ -237,7 +240,9 @@ class Decoder:
         with self._lock:
             return sum(self.dropped.values())
 
-    def _drop(self, reason: str, detail: str) -> None:
+    def drop(self, reason: str, detail: str) -> None:
+        """Count (and log, sampled) a message dropped for ``reason``; also for callers'
+        own checks such as a state published on another robot's key."""
         with self._lock:
             self.dropped[reason] += 1
             count = self.dropped[reason]
@@ -249,7 +254,7 @@ class Decoder:
     def _raw(self, payload: bytes | bytearray | memoryview | str) -> bytes | None:
         raw = payload.encode() if isinstance(payload, str) else bytes(payload)
         if len(raw) > MAX_PAYLOAD_BYTES:
-            self._drop("oversized", f"{len(raw)} bytes")
+            self.drop("oversized", f"{len(raw)} bytes")
             return None
         return raw
 
@@ -261,7 +266,7 @@ class Decoder:
         try:
             return model.model_validate_json(raw)
         except ValidationError as exc:
-            self._drop("invalid", f"{model.__name__}: {exc.error_count()} error(s)")
+            self.drop("invalid", f"{model.__name__}: {exc.error_count()} error(s)")
             return None
 
     def decode_assignment(
@@ -274,5 +279,5 @@ class Decoder:
         try:
             return _assignment_adapter.validate_json(raw)
         except ValidationError as exc:
-            self._drop("invalid", f"assignment: {exc.error_count()} error(s)")
+            self.drop("invalid", f"assignment: {exc.error_count()} error(s)")
             return None

@@ -109,7 +109,7 @@ class RobotAgent:
         if message is None:
             return
         if message.robot_id != self.robot_id:
-            self.decoder._drop("wrong_robot", f"{message.robot_id} on {sample.key_expr}")
+            self.decoder.drop("wrong_robot", f"{message.robot_id} on {sample.key_expr}")
             return
         self.submit(message)
 

@@ -106,7 +106,7 @@ class WorldView:
         if state is None:
             return
         if self.keys.robot_of(str(sample.key_expr)) != state.robot_id:
-            self.decoder._drop("key_mismatch", f"{state.robot_id} on {sample.key_expr}")
+            self.decoder.drop("key_mismatch", f"{state.robot_id} on {sample.key_expr}")
             return
         self.update_state(state)
 

@@ -93,3 +93,12 @@ def test_unknown_versions_wildcards_nan_and_oversize_are_dropped(payload: bytes)
     assert decoder.decode(RobotState, payload) is None
     assert decoder.decode_assignment(payload) is None
     assert decoder.dropped_total == 2
+
+
+def test_unknown_top_level_fields_are_ignored_so_releases_can_mix() -> None:
+    """A field added by a newer release must not make an older robot drop the message."""
+    decoder = Decoder()
+    newer = _STATE[:-1] + b', "battery": 0.8}'
+    state = decoder.decode(RobotState, newer)
+    assert state is not None and state.robot_id == "r1"
+    assert decoder.dropped_total == 0

@@ -39,9 +39,8 @@ class Settings(BaseSettings):
     zenoh_mode: Literal["router", "peer", "client"] | None = None  # None: role decides
     listen: list[str] = Field(default_factory=list)
     connect: list[str] = Field(default_factory=list)
-    lease_ms: Annotated[int, Field(ge=100)] = (
-        1000  # transport lease: how fast a hung peer is seen gone
-    )
+    # Transport lease [ms]: how fast a hung (not killed) peer is seen gone.
+    lease_ms: Annotated[int, Field(ge=100)] = 1000
     # Security (README "Deployment"). Credentials this session presents when it connects:
     zenoh_user: str | None = None
     zenoh_password: SecretStr | None = None
@@ -77,12 +76,8 @@ class Settings(BaseSettings):
     api_host: str = "127.0.0.1"
     api_port: Annotated[int, Field(ge=0, le=65535)] = 8000
     api_token: SecretStr | None = None
-    yard: tuple[float, float, float, float] = (
-        -10.0,
-        10.0,
-        -10.0,
-        10.0,
-    )  # xmin, xmax, ymin, ymax [m]
+    # Yard rectangle: x_min, x_max, y_min, y_max [m]; goals outside it are rejected.
+    yard: tuple[float, float, float, float] = (-10.0, 10.0, -10.0, 10.0)
     task_timeout_s: Annotated[float, Field(gt=0)] = 120.0
     on_robot_lost: Literal["fail", "requeue"] = "fail"
     safety_separation_m: Annotated[float, Field(gt=0)] = 0.5

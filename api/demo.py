@@ -9,7 +9,6 @@ router closes. ``subprocess`` (fork + exec) is safe after a Zenoh session is ope
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import json
 import shlex
 import subprocess
@@ -19,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from api import server
+from fleet import processes
 from fleet.settings import Settings
 from fleet.tasks import FleetEvent, RobotEvent, RobotStatus, TaskEvent, TaskStatus
 
@@ -43,23 +43,13 @@ def pick_endpoint(locators: list[str]) -> str:
 
 
 def sim_command(endpoint: str, options: DemoOptions) -> list[str]:
-    cmd = [
-        sys.executable,
-        "-m",
-        "fleet.cli",
-        "sim",
-        "--robots",
-        str(options.robots),
-        "--connect",
+    return processes.sim_command(
         endpoint,
-        "--time-scale",
-        str(options.time_scale),
-        "--spawn",
-        options.spawn,
-    ]
-    if options.seed is not None:
-        cmd += ["--seed", str(options.seed)]
-    return cmd
+        options.robots,
+        time_scale=options.time_scale,
+        spawn=options.spawn,
+        seed=options.seed,
+    )
 
 
 def curl_examples(url: str, token: bool) -> list[str]:
@@ -141,24 +131,12 @@ async def run_demo(settings: Settings, options: DemoOptions) -> int:
             stop()
         unsubscribe.clear()
         if sim is not None:
-            await asyncio.to_thread(terminate, sim)
+            await asyncio.to_thread(processes.terminate, sim, 5.0)
 
     try:
         return await server.serve(settings, on_ready=on_ready, on_shutdown=stop_sim)
     finally:
         if sim is not None:
-            terminate(sim)
+            processes.terminate(sim, timeout=5.0)
             if sim.returncode not in (0, -2, -15, 130):
                 print(f"[demo] the simulator exited with {sim.returncode}", file=sys.stderr)
-
-
-def terminate(process: subprocess.Popen[bytes], timeout: float = 5.0) -> None:
-    """SIGTERM, then SIGKILL after ``timeout``; always reaps the process."""
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(timeout)
-        except subprocess.TimeoutExpired:
-            process.kill()
-    with contextlib.suppress(subprocess.TimeoutExpired):
-        process.wait(timeout)

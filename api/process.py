@@ -10,7 +10,6 @@ import os
 import queue
 import re
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Iterator, Mapping
@@ -18,6 +17,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
+
+from fleet.processes import parkfleet_command, terminate
 
 READY = re.compile(r"^parkfleet serve: API on (?P<url>\S+) .*Zenoh router on (?P<zenoh>.*)$")
 
@@ -37,21 +38,13 @@ class ServerProcess:
 
     def stop(self, timeout: float = 10.0) -> int:
         """SIGTERM (graceful), SIGKILL after ``timeout``; returns the exit code."""
-        if self.process.poll() is None:
-            self.process.terminate()
-            try:
-                self.process.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait(timeout)
-        return self.process.returncode
+        code = terminate(self.process, timeout)
+        assert code is not None
+        return code
 
 
 def serve_command(data_dir: Path, *extra: str) -> list[str]:
-    return [
-        sys.executable,
-        "-m",
-        "fleet.cli",
+    return parkfleet_command(
         "serve",
         "--port",
         "0",
@@ -60,7 +53,7 @@ def serve_command(data_dir: Path, *extra: str) -> list[str]:
         "--data-dir",
         str(data_dir),
         *extra,
-    ]
+    )
 
 
 def _pump(stream: IO[str], lines: queue.Queue[str | None]) -> None:

@@ -32,9 +32,7 @@ from __future__ import annotations
 import json
 import math
 import os
-import signal
 import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -48,6 +46,7 @@ from pydantic import BaseModel
 
 from fleet.control import Law
 from fleet.params import Avoidance, Gains, Tolerance
+from fleet.processes import sim_command, terminate
 from fleet.scenarios import SCENARIOS
 from fleet.service import FleetService
 from fleet.settings import Settings, load_settings
@@ -241,20 +240,7 @@ def run_scenario(
     env["PARKFLEET_FLEET_NAME"] = fleet_name
     env["PARKFLEET_AVOIDANCE__K_AVOID"] = str(avoidance.k_avoid)
     proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "fleet.cli",
-            "sim",
-            "--robots",
-            str(len(ids)),
-            "--connect",
-            endpoint,
-            "--time-scale",
-            str(time_scale),
-            "--spawn",
-            str(spawn),
-        ],
+        sim_command(endpoint, len(ids), time_scale=time_scale, spawn=str(spawn)),
         env=env,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
@@ -319,13 +305,7 @@ def run_scenario(
             path_ratio=round(float(np.mean(ratios)) if ratios else math.nan, 3),
         )
     finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
-            try:
-                proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+        terminate(proc, timeout=15)
         subscriber.undeclare()
         service.close()
         store.close()

@@ -24,6 +24,7 @@ import httpx
 import pytest
 
 from api.process import ServerProcess, running_server
+from fleet.processes import sim_command, terminate
 
 pytestmark = pytest.mark.integration
 
@@ -41,20 +42,9 @@ def server(tmp_path: Path) -> Iterator[ServerProcess]:
 
 
 def start_sim(endpoint: str, robots: int, log: Path) -> subprocess.Popen[bytes]:
-    cmd = [sys.executable, "-m", "fleet.cli", "sim", "--robots", str(robots)]
-    cmd += ["--connect", endpoint, "--time-scale", SIM_TIME_SCALE, "--spawn", "grid"]
+    cmd = sim_command(endpoint, robots, time_scale=float(SIM_TIME_SCALE))
     with log.open("w") as out:
         return subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=out)
-
-
-def stop(process: subprocess.Popen[Any]) -> None:
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-    process.wait(10)
 
 
 def wait_for(client: httpx.Client, task_id: str, status: str, timeout: float = 90.0) -> Any:
@@ -99,7 +89,7 @@ def test_task_reaches_succeeded_with_a_simulated_fleet(
             again = client.post(f"/tasks/{task['id']}/cancel")
             assert again.status_code == 409
     finally:
-        stop(sim)
+        terminate(sim)
 
 
 async def _collect_events(url: str, task_id_box: list[str], seen: list[tuple[str, Any]]) -> None:
@@ -149,7 +139,7 @@ def test_events_stream_robot_states_and_task_changes(server: ServerProcess, tmp_
         assert robot_frames
         assert {"robot_id", "pose", "status", "task_id"} <= set(robot_frames[-1])
     finally:
-        stop(sim)
+        terminate(sim)
 
 
 def test_accepted_tasks_survive_a_restart_and_resume(tmp_path: Path) -> None:
@@ -181,7 +171,7 @@ def test_accepted_tasks_survive_a_restart_and_resume(tmp_path: Path) -> None:
             for task_id in ids[:2]:  # resumed: robots get them after the restart
                 wait_for(client, task_id, "succeeded")
         finally:
-            stop(sim)
+            terminate(sim)
 
 
 async def _post_many(url: str, n: int, concurrency: int) -> list[httpx.Response]:
@@ -253,6 +243,6 @@ def test_demo_prints_a_working_curl_example(tmp_path: Path) -> None:
         assert demo.wait(20) == 0
         drain.join(5)
     finally:
-        stop(demo)
+        terminate(demo)
         if demo.stdout is not None:
             demo.stdout.close()

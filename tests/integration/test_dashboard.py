@@ -12,7 +12,6 @@ import math
 import os
 import shutil
 import subprocess
-import sys
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +21,7 @@ import httpx
 import pytest
 
 from api.process import ServerProcess, running_server
+from fleet.processes import sim_command, terminate
 
 if TYPE_CHECKING:
     from playwright.sync_api import Browser, ConsoleMessage, Error, Page
@@ -89,16 +89,6 @@ class Fleet:
     http: httpx.Client
 
 
-def _stop(process: subprocess.Popen[Any]) -> None:
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-    process.wait(10)
-
-
 @pytest.fixture(scope="module")
 def fleet(browser: Browser, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
     """``parkfleet serve`` plus ``parkfleet sim --robots 2`` connected to its router."""
@@ -108,10 +98,8 @@ def fleet(browser: Browser, tmp_path_factory: pytest.TempPathFactory) -> Iterato
         (tmp / "sim.log").open("w") as sim_log,
         running_server(tmp / "data", env=FLEET_ENV, stderr=serve_log) as server,
     ):
-        command = [sys.executable, "-m", "fleet.cli", "sim", "--robots", "2", "--spawn", "grid"]
-        command += ["--connect", server.zenoh_endpoint, "--time-scale", TIME_SCALE]
         sim = subprocess.Popen(
-            command,
+            sim_command(server.zenoh_endpoint, 2, time_scale=float(TIME_SCALE)),
             stdin=subprocess.DEVNULL,
             stdout=sim_log,
             env={**os.environ, **FLEET_ENV},
@@ -121,7 +109,7 @@ def fleet(browser: Browser, tmp_path_factory: pytest.TempPathFactory) -> Iterato
             with httpx.Client(base_url=server.url, timeout=10) as http:
                 yield Fleet(server, http)
         finally:
-            _stop(sim)
+            terminate(sim)
 
 
 @dataclass

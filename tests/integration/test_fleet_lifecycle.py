@@ -9,7 +9,6 @@ from __future__ import annotations
 import json
 import signal
 import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -17,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from fleet.processes import sim_command, terminate
 from fleet.service import FleetService
 from fleet.settings import Settings, load_settings
 from fleet.store import SqliteTaskStore
@@ -46,33 +46,14 @@ def sim_robots(
     spawn = tmp_path / "spawn.json"
     spawn.write_text(json.dumps([{"id": r, "x": x, "y": y, "theta": t} for r, x, y, t in robots]))
     proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "fleet.cli",
-            "sim",
-            "--robots",
-            str(len(robots)),
-            "--connect",
-            endpoint,
-            "--time-scale",
-            str(TIME_SCALE),
-            "--spawn",
-            str(spawn),
-        ],
+        sim_command(endpoint, len(robots), time_scale=TIME_SCALE, spawn=str(spawn)),
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
     )
     try:
         yield proc
     finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+        terminate(proc)
         if proc.stderr is not None:
             proc.stderr.close()
 

@@ -32,8 +32,11 @@ demo: $(STAMP)  ## the main job
 reproduce: $(STAMP)
 	$(BIN)/parkfleet reproduce
 
-bench: $(STAMP)
+bench: $(STAMP)  ## every benchmark (numbers and ratios, no pass/fail)
 	$(BIN)/parkfleet bench sim
+	$(BIN)/parkfleet bench zenoh
+	$(BIN)/parkfleet bench api
+	$(BIN)/parkfleet bench fleet
 
 clean:
 	rm -rf $(VENV) .mypy_cache .pytest_cache .ruff_cache build *.egg-info

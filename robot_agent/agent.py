@@ -9,7 +9,11 @@ read the pose, apply pending assignment messages, decide with the pure
 * subscriber on ``keys.assignment(id)`` (park / cancel, decoded by ``wire.Decoder``:
   malformed payloads are dropped and counted, never reach the loop);
 * a :class:`~robot_agent.world.WorldView` with peers' states (``keys.all_states``) and the
-  obstacles (subscribed and queried once at start), owned or shared with other agents.
+  obstacles (subscribed and queried once at start), owned or shared with other agents;
+* a :class:`~robot_agent.link.LinkMonitor` (owned or shared): when the link to the router
+  is lost (no router, or nothing heard for ``Settings.link_timeout_s``) an active task
+  holds (``holding``, wheels stopped) and resumes when the link returns. A fleet *service*
+  that is gone while the router and peers are still visible does not stop the robot.
 
 Exceptions in callbacks are caught, counted and logged (``callback_errors``); an exception
 in a tick stops the robot and is counted (``tick_errors``), the loop goes on.
@@ -40,6 +44,7 @@ from fleet.wire import (
 )
 from robot_agent.clock import Clock, MonotonicClock, run_periodic
 from robot_agent.drive import Drive
+from robot_agent.link import LinkMonitor
 from robot_agent.logic import Decision, Task, TaskStatus, apply_assignment, decide
 from robot_agent.world import CallbackGuard, WorldView
 
@@ -72,6 +77,7 @@ class RobotAgent:
         *,
         clock: Clock | None = None,
         world: WorldView | None = None,
+        link: LinkMonitor | None = None,
         wall_clock: Callable[[], float] = time.time,
     ) -> None:
         self.keys = Keys(settings.fleet_name)
@@ -85,6 +91,14 @@ class RobotAgent:
         self._wall = wall_clock
         self._owns_world = world is None
         self.world = world or WorldView(self.keys)
+        self._owns_link = link is None
+        self.link = link or LinkMonitor(
+            session,
+            self.keys,
+            settings.link_timeout_s,
+            check_router=(settings.zenoh_mode or "client") == "client",
+            heard_elsewhere=lambda: self.world.last_heard,
+        )
         self.decoder = Decoder(f"agent {robot_id}")
         self.guard = CallbackGuard(f"agent {robot_id}")
         self._inbox: queue.SimpleQueue[ParkAssignment | CancelAssignment] = queue.SimpleQueue()
@@ -125,6 +139,8 @@ class RobotAgent:
         try:
             if self._owns_world:
                 self.world.attach(self.session)
+            if self._owns_link:
+                self.link.attach()
             self._publisher = self.session.declare_publisher(self.keys.state(self.robot_id))
             self._handles.append(self._publisher)
             self._handles.append(
@@ -162,6 +178,7 @@ class RobotAgent:
                 self.settings.profile,
                 self.settings.avoidance,
                 self.settings.pose_stale_s,
+                link_ok=self.link.ok() if active else True,
             )
             self._task = decision.task
             if decision.moving:
@@ -254,6 +271,8 @@ class RobotAgent:
                 handle.undeclare()
             except Exception:
                 _log.debug("undeclare failed", exc_info=True)
+        if self._owns_link:
+            self.link.detach()
         if self._owns_world:
             self.world.detach()
 

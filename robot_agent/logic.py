@@ -16,14 +16,18 @@ Task protocol (``fleet.wire`` module docstring), as a pure state machine
 * a ``CancelAssignment`` for the current task -> ``holding`` with the task id kept;
   a cancel for any other task is ignored;
 * arrival within tolerance -> stop, ``arrived`` (latched until a new task);
-* no task -> stand still, ``idle``.
+* no task -> stand still, ``idle``;
+* own pose stale or link to the fleet network lost -> stop, ``holding``, task kept (still
+  active: it resumes when the pose or the link comes back).
 
 Control of an active task (:func:`decide`): error of Eq. (5), law (17) ``ccw`` or (20)
 ``cw``, plus the repulsion -K_avoid/x_OA of Eq. (27) from every peer within the peer
 influence radius and every static obstacle within its own radius (mode ``avoiding``
-while any is inside), then the wheel-speed limit (scaled together, curvature kept) and
-Eq. (2) to wheel speeds. Arrival uses the batch simulator's stop rule: the pre-step
-error is within tolerance (||(x_e, y_e)|| < position and |theta_e| < heading).
+while any is inside), then the wheel-speed limit (scaled together, curvature kept), a
+contact guard (no forward motion towards a peer within two body radii plus the x_OA
+guard; see :func:`_towards_contact`) and Eq. (2) to wheel speeds. Arrival uses the batch
+simulator's stop rule: the pre-step error is within tolerance (||(x_e, y_e)|| < position
+and |theta_e| < heading).
 """
 
 from __future__ import annotations
@@ -111,6 +115,27 @@ def obstacle_arrays(obstacles: Sequence[Obstacle]) -> tuple[FloatArray, FloatArr
     return centres, radii
 
 
+def _towards_contact(
+    p: FloatArray, peers: FloatArray, u: float, profile: RobotProfile, avoid: Avoidance
+) -> bool:
+    """Whether driving at speed ``u`` moves towards a peer already within contact range.
+
+    Contact guard (not in the paper): Eq. (27) slows a robot near a peer but does not
+    forbid contact -- a robot whose goal lies behind a standing (e.g. dead) peer settles
+    where the law's pull and the repulsion balance, which with the default gains is
+    closer than two body radii. Within ``2 * radius + min_x_oa`` of a peer centre the
+    robot may turn on the spot or move away, never towards it.
+    """
+    contact = 2.0 * profile.radius + avoid.min_x_oa
+    dx = peers[:, 0] - p[0]
+    dy = peers[:, 1] - p[1]
+    near = dx * dx + dy * dy < contact * contact
+    if not bool(near.any()):
+        return False
+    ahead = math.cos(p[2]) * dx[near] + math.sin(p[2]) * dy[near]  # x_OA of each close peer
+    return bool((ahead > 0).any()) if u > 0 else bool((ahead < 0).any())
+
+
 def decide(
     pose: Sequence[float],
     pose_age: float,
@@ -120,6 +145,7 @@ def decide(
     profile: RobotProfile,
     avoidance: Avoidance,
     pose_stale_s: float,
+    link_ok: bool = True,
 ) -> Decision:
     """Decide one control tick.
 
@@ -141,6 +167,12 @@ def decide(
     avoidance : Avoidance
         The robot's own K_avoid, peer influence radius and x_OA guard (from
         ``Settings.avoidance``); an assignment that sets ``avoidance`` explicitly wins.
+    pose_stale_s : float
+        Maximum pose age [s] before the robot holds.
+    link_ok : bool
+        Whether the robot still hears the fleet's Zenoh network
+        (:class:`robot_agent.link.LinkMonitor`); without it the robot cannot see its
+        peers, so an active task holds (``holding``) until the link returns.
     """
     if task is None:
         return _stopped(RobotMode.IDLE, None)
@@ -149,6 +181,8 @@ def decide(
     if task.status is TaskStatus.CANCELLED:
         return _stopped(RobotMode.HOLDING, task)
     if not pose_age <= pose_stale_s:  # also catches NaN
+        return _stopped(RobotMode.HOLDING, task)
+    if not link_ok:  # blind to its peers: stop, keep the task, resume when the link returns
         return _stopped(RobotMode.HOLDING, task)
 
     a = task.assignment
@@ -180,6 +214,13 @@ def decide(
     if a.max_wheel_speed is not None:
         limit = min(limit, a.max_wheel_speed)  # never above the robot's own limit
     u_s, w_s = saturate(float(u) + repulsion, omega, profile.wheel_radius, profile.half_axle, limit)
+    if (
+        peers.shape[0]
+        and float(u_s) != 0.0
+        and _towards_contact(p, peers, float(u_s), profile, avoid)
+    ):
+        u_s = u_s * 0.0  # contact guard: turn on the spot, never drive into a peer
+        active = True
     right, left = to_wheel_speeds(u_s, w_s, profile.wheel_radius, profile.half_axle)
     return Decision(
         mode=RobotMode.AVOIDING if active else RobotMode.DRIVING,

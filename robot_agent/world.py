@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -58,6 +59,8 @@ class WorldView:
         self._rows: dict[str, int] = {}  # robot id -> row of _positions
         self._positions: FloatArray = np.zeros((16, 2))
         self._handles: list[Any] = []
+        #: time.monotonic() of the last valid message from the network (link evidence)
+        self.last_heard = float("-inf")
 
     # -- data (pure, thread-safe) -------------------------------------------------------
     def update_state(self, state: RobotState) -> None:
@@ -108,11 +111,13 @@ class WorldView:
         if self.keys.robot_of(str(sample.key_expr)) != state.robot_id:
             self.decoder.drop("key_mismatch", f"{state.robot_id} on {sample.key_expr}")
             return
+        self.last_heard = time.monotonic()
         self.update_state(state)
 
     def _on_obstacles(self, sample: Any) -> None:
         obstacles = self.decoder.decode(ObstacleSet, sample.payload.to_bytes())
         if obstacles is not None:
+            self.last_heard = time.monotonic()
             self.set_obstacles(obstacles)
 
     def _on_obstacle_reply(self, reply: Any) -> None:

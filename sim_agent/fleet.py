@@ -25,6 +25,7 @@ from fleet.settings import Settings
 from fleet.wire import Keys, validate_id
 from robot_agent.agent import RobotAgent
 from robot_agent.clock import SteppedClock, run_periodic
+from robot_agent.link import LinkMonitor
 from robot_agent.world import WorldView
 from sim_agent.drive import SimDrive
 
@@ -127,6 +128,14 @@ class SimFleet:
         self.period = 1.0 / settings.control_rate_hz  # control period = Euler step [sim s]
         self.clock = SteppedClock()
         self.world = WorldView(Keys(settings.fleet_name))
+        world = self.world
+        self.link = LinkMonitor(  # one link per session, shared by its agents
+            session,
+            Keys(settings.fleet_name),
+            settings.link_timeout_s,
+            check_router=(settings.zenoh_mode or "client") == "client",
+            heard_elsewhere=lambda: world.last_heard,
+        )
         rng = np.random.default_rng(seed)
         self.drives: dict[str, SimDrive] = {}
         self.agents: list[RobotAgent] = []
@@ -148,6 +157,7 @@ class SimFleet:
                     settings,
                     clock=self.clock,
                     world=self.world,
+                    link=self.link,
                 )
             )
         self._stop = threading.Event()
@@ -164,6 +174,7 @@ class SimFleet:
             self._opened = True
             try:
                 self.world.attach(self.session)
+                self.link.attach()
                 for agent in self.agents:
                     agent.open()
             except BaseException:
@@ -236,6 +247,7 @@ class SimFleet:
         self._thread = None
         for agent in self.agents:
             agent.close()
+        self.link.detach()
         self.world.detach()
 
     def __enter__(self) -> SimFleet:

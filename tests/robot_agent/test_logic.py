@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from fleet.control import FloatArray
 from fleet.params import Avoidance, Gains, RobotProfile, Tolerance
 from fleet.wire import CancelAssignment, Obstacle, ParkAssignment, Pose, RobotMode
+from robot_agent.link import link_is_up
 from robot_agent.logic import (
     Decision,
     Task,
@@ -216,3 +217,73 @@ def test_wheel_speeds_never_exceed_the_limit_and_keep_the_curvature(
     assert r / (2 * b) * (d.right - d.left) == pytest.approx(d.omega, abs=1e-9)
     if d.mode is not RobotMode.ARRIVED:
         assert (d.omega >= 0) if law == "ccw" else (d.omega <= 0)
+
+
+# -- link loss and contact guard ---------------------------------------------------------
+def test_lost_link_holds_the_task_and_resumes_when_it_returns() -> None:
+    task = Task(park())
+    blind = decide(
+        (0.0, 0.0, 0.0),
+        0.0,
+        task,
+        NO_PEERS,
+        NO_OBSTACLES,
+        PROFILE,
+        DEFAULT_AVOIDANCE,
+        0.5,
+        link_ok=False,
+    )
+    assert blind.mode is RobotMode.HOLDING and not blind.moving and blind.task == task
+    back = decide(
+        (0.0, 0.0, 0.0),
+        0.0,
+        task,
+        NO_PEERS,
+        NO_OBSTACLES,
+        PROFILE,
+        DEFAULT_AVOIDANCE,
+        0.5,
+        link_ok=True,
+    )
+    assert back.mode is RobotMode.DRIVING and back.u > 0
+
+
+@pytest.mark.parametrize(
+    ("now", "last_heard", "router", "up"),
+    [(10.0, 9.0, True, True), (10.0, 6.0, True, False), (10.0, 9.9, False, False)],
+)
+def test_link_rule_needs_a_router_and_recent_traffic(
+    now: float, last_heard: float, router: bool, up: bool
+) -> None:
+    assert link_is_up(now, last_heard, router, timeout_s=3.0) is up
+
+
+@settings(max_examples=200)
+@given(
+    st.floats(-math.pi, math.pi),
+    st.floats(0.0, 2 * math.pi),
+    st.floats(0.05, 0.44),
+    st.tuples(st.floats(-4, 4), st.floats(-4, 4), st.floats(-math.pi, math.pi)),
+)
+def test_contact_guard_never_drives_towards_a_peer_within_contact_range(
+    heading: float, bearing: float, distance: float, goal: tuple[float, float, float]
+) -> None:
+    """Within 2 radii + x_OA guard (0.45 m) of a peer the robot may turn or back off only.
+
+    A weak repulsion (a small configured K_avoid) lets the law's pull win at short range:
+    that is when only the guard keeps the bodies apart.
+    """
+    peer = np.array([[distance * math.cos(bearing), distance * math.sin(bearing)]])
+    weak = Avoidance(k_avoid=0.05)
+    decision = tick((0.0, 0.0, heading), Task(park(goal=goal)), peers=peer, avoidance=weak)
+    towards = math.cos(heading) * peer[0, 0] + math.sin(heading) * peer[0, 1]  # x_OA
+    assert decision.u * towards <= 1e-12  # never closing the distance along the heading
+
+
+def test_contact_guard_leaves_a_robot_free_beyond_contact_range() -> None:
+    peer = np.array([[0.6, 0.0]])  # ahead, inside the 1 m influence zone, beyond 0.45 m
+    decision = tick((0.0, 0.0, 0.0), Task(park(goal=(9.0, 0.0, 0.0))), peers=peer)
+    assert decision.mode is RobotMode.AVOIDING
+    # Eq. (17) u = 9 m/s plus Eq. (27) -4/0.6 m/s is still forward: the guard lets it be,
+    # and the wheel limit caps it at r * max_wheel_speed.
+    assert decision.u == pytest.approx(PROFILE.max_speed)

@@ -137,6 +137,10 @@ class TaskOut(BaseModel):
     tolerance: Tolerance
     reason: str | None = Field(description="why it failed or was cancelled")
     attempts: int
+    revision: int = Field(
+        description="re-plans of the law while under way (0 as first sent); each one is "
+        "sent to the robot as a new revision of its assignment"
+    )
     created_at: float = Field(description="seconds since the epoch")
     updated_at: float = Field(description="seconds since the epoch")
 
@@ -155,6 +159,7 @@ class TaskOut(BaseModel):
             tolerance=req.tolerance,
             reason=task.reason,
             attempts=task.attempts,
+            revision=task.revision,
             created_at=task.created_at,
             updated_at=task.updated_at,
         )

@@ -8,12 +8,16 @@ it conflicts with, when it lies
   Eq. (27) would fight the posture law for ever;
 * within the peer influence radius [m] of another active task's goal or of a parked robot
   (two robots parked that close would push each other through Eq. (27)).
+
+:class:`GoalIndex` keeps the active goals in a uniform grid (cells of the peer radius)
+updated as tasks come and go, so the spacing check of a new goal looks at the few goals in
+the neighbouring cells instead of every active task.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 from fleet.tasks import GoalRejected
@@ -62,3 +66,71 @@ def validate_goal(
                 f"({other.x:.2f}, {other.y:.2f}); goals must be more than the peer influence "
                 f"radius {peer_radius:g} m apart"
             )
+
+
+class GoalIndex:
+    """Points by key in a uniform grid of ``cell`` [m]; ``near`` finds those within a radius.
+
+    ``add``/``remove`` cost O(1); ``near(x, y, r)`` looks at the cells overlapping the
+    square of half-side ``r`` around (x, y), so it costs O(points in those cells) -- with
+    ``cell`` of the order of ``r`` and points kept more than ``r`` apart, a handful.
+    """
+
+    def __init__(self, cell: float) -> None:
+        if not (cell > 0 and math.isfinite(cell)):
+            raise ValueError("cell must be a positive finite length")
+        self.cell = float(cell)
+        self._points: dict[str, Occupied] = {}
+        self._cells: dict[tuple[int, int], dict[str, Occupied]] = {}
+
+    def _cell_of(self, x: float, y: float) -> tuple[int, int]:
+        return (math.floor(x / self.cell), math.floor(y / self.cell))
+
+    def __len__(self) -> int:
+        return len(self._points)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self._points
+
+    def add(self, key: str, point: Occupied) -> None:
+        """Insert (or move) ``key`` at ``point``; coordinates must be finite."""
+        if not (math.isfinite(point.x) and math.isfinite(point.y)):
+            raise ValueError("point must be finite")
+        self.remove(key)
+        self._points[key] = point
+        self._cells.setdefault(self._cell_of(point.x, point.y), {})[key] = point
+
+    def remove(self, key: str) -> None:
+        """Drop ``key`` (nothing if absent)."""
+        point = self._points.pop(key, None)
+        if point is None:
+            return
+        c = self._cell_of(point.x, point.y)
+        bucket = self._cells[c]
+        del bucket[key]
+        if not bucket:
+            del self._cells[c]
+
+    def near(self, x: float, y: float, radius: float) -> Iterator[Occupied]:
+        """Points at a distance <= ``radius`` [m] from (x, y), nearest first."""
+        if not (math.isfinite(x) and math.isfinite(y)) or radius < 0:
+            return iter(())
+        i0, j0 = self._cell_of(x - radius, y - radius)
+        i1, j1 = self._cell_of(x + radius, y + radius)
+        found: list[tuple[float, Occupied]] = []
+        if (i1 - i0 + 1) * (j1 - j0 + 1) > len(self._cells):  # huge radius: scan the cells
+            buckets: Iterable[dict[str, Occupied]] = self._cells.values()
+        else:
+            buckets = (
+                b
+                for i in range(i0, i1 + 1)
+                for j in range(j0, j1 + 1)
+                if (b := self._cells.get((i, j))) is not None
+            )
+        for bucket in buckets:
+            for p in bucket.values():
+                d = math.hypot(x - p.x, y - p.y)
+                if d <= radius:
+                    found.append((d, p))
+        found.sort(key=lambda dp: dp[0])
+        return iter([p for _, p in found])

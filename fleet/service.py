@@ -28,8 +28,13 @@ take a while) runs under a separate ``_dispatch_lock`` and releases ``_lock`` wh
 computes: it snapshots, plans, then re-checks and applies.
 
 Dispatch is asynchronous: :meth:`FleetService.submit` stores the task (``queued``) and
-wakes the tick thread, which assigns it. Unit tests drive :meth:`FleetService.tick` with a
-fake clock instead of starting the thread.
+wakes the tick thread, which assigns it. ``submit`` validates the goal and reserves it
+(``GoalIndex``, a grid of the active goals) under ``_lock``, then writes the task *without*
+the lock, so concurrent submits share one commit of the store (group commit), and adds it
+to the in-memory state (where dispatch sees it) only once it is stored. The in-memory
+state keeps indexes of the active tasks (queued, under way, task of each robot), so a
+submit, a state message or a tick costs O(robots + tasks under way), not O(all tasks).
+Unit tests drive :meth:`FleetService.tick` with a fake clock instead of starting the thread.
 """
 
 from __future__ import annotations
@@ -46,7 +51,7 @@ from fleet.assignment import TaskSpec, optimal_assignment, predicted_times
 from fleet.bus import FleetBus
 from fleet.control import LAWS, Law
 from fleet.direction import Mover, Scene, choose_directions
-from fleet.goals import Occupied, validate_goal
+from fleet.goals import GoalIndex, Occupied, validate_goal
 from fleet.roster import Roster
 from fleet.settings import Settings
 from fleet.store import TaskStore
@@ -68,6 +73,7 @@ from fleet.wire import (
     Obstacle,
     ObstacleSet,
     ParkAssignment,
+    Pose,
     RobotMode,
     RobotState,
 )
@@ -113,6 +119,13 @@ class FleetService:
         self._dispatch_lock = threading.Lock()
         self._roster = Roster()
         self._active: dict[str, Task] = {}  # every non-final task, by id
+        # Indexes of _active, kept by _put/_drop so no hot path walks every task:
+        self._queued: dict[str, Task] = {}  # status queued
+        self._under_way: dict[str, Task] = {}  # status assigned/driving (with a robot)
+        self._robot_task: dict[str, str] = {}  # robot -> its assigned/driving task
+        self._claims: Counter[str] = Counter()  # robot -> active tasks naming or holding it
+        self._goals = GoalIndex(max(settings.avoidance.peer_radius, 0.1))  # + pending submits
+        self._keys_in_flight: dict[str, threading.Event] = {}  # idempotency keys being stored
         self._last_sent: dict[str, float] = {}
         self._deadline: dict[str, float] = {}
         self._cancel_sent: dict[str, float] = {}  # robot id -> last cancel re-sent
@@ -155,7 +168,7 @@ class FleetService:
 
     def _recover(self, now: float) -> None:
         for task in self._store.unfinished():
-            self._active[task.id] = task
+            self._put(task)
             if task.status in _ACTIVE:
                 self._deadline[task.id] = now + self.settings.task_timeout_s
                 self._last_sent[task.id] = float("-inf")
@@ -236,15 +249,50 @@ class FleetService:
 
     # -- transitions (call with _lock held) ----------------------------------------------
 
+    def _put(self, task: Task) -> None:
+        """Insert or replace a non-final task in ``_active`` and its indexes."""
+        old = self._active.get(task.id)
+        if old is not None:
+            self._unindex(old)
+        goal = task.request.goal
+        self._goals.add(task.id, Occupied(goal.x, goal.y, f"the goal of task {task.id}"))
+        self._active[task.id] = task
+        if task.status == TaskStatus.QUEUED:
+            self._queued[task.id] = task
+        elif task.status in _ACTIVE and task.robot_id is not None:
+            self._under_way[task.id] = task
+            self._robot_task[task.robot_id] = task.id
+        for rid in {task.robot_id, task.request.robot_id}:
+            if rid is not None:
+                self._claims[rid] += 1
+
+    def _unindex(self, task: Task) -> None:
+        self._queued.pop(task.id, None)
+        self._under_way.pop(task.id, None)
+        if task.robot_id is not None and self._robot_task.get(task.robot_id) == task.id:
+            del self._robot_task[task.robot_id]
+        for rid in {task.robot_id, task.request.robot_id}:
+            if rid is not None:
+                self._claims[rid] -= 1
+                if self._claims[rid] <= 0:
+                    del self._claims[rid]
+
+    def _drop(self, task_id: str) -> None:
+        """Remove a task that became final from ``_active`` and its indexes."""
+        old = self._active.pop(task_id, None)
+        if old is not None:
+            self._unindex(old)
+        self._goals.remove(task_id)
+        self._deadline.pop(task_id, None)
+        self._last_sent.pop(task_id, None)
+
     def _transition(self, task: Task, event: str, events: list[FleetEvent]) -> None:
         """Store ``task`` (durably), update the in-memory view, queue the event."""
         self._store.save(task, event)
         if task.status.final:
-            self._active.pop(task.id, None)
-            self._deadline.pop(task.id, None)
-            self._last_sent.pop(task.id, None)
+            self._drop(task.id)
         else:
-            self._active[task.id] = task
+            self._put(task)
         events.append(TaskEvent(task=task))
 
     def _update(self, task: Task, now: float, **changes: object) -> Task:
@@ -267,10 +315,8 @@ class FleetService:
         return done
 
     def _task_of_robot(self, robot_id: str) -> Task | None:
-        for task in self._active.values():
-            if task.robot_id == robot_id and task.status in _ACTIVE:
-                return task
-        return None
+        task_id = self._robot_task.get(robot_id)
+        return None if task_id is None else self._under_way.get(task_id)
 
     # -- bus callbacks -------------------------------------------------------------------
 
@@ -397,13 +443,14 @@ class FleetService:
         events: list[FleetEvent] = []
         with self._lock:
             now = self._clock()
-            for task in list(self._active.values()):
+            # Only tasks under way have deadlines and assignments (queued ones wait cheaply).
+            for task in list(self._under_way.values()):
                 deadline = self._deadline.get(task.id)
-                if task.status in _ACTIVE and deadline is not None and now >= deadline:
+                if deadline is not None and now >= deadline:
                     reason = f"timeout: not arrived within {self.settings.task_timeout_s:g} s"
                     self._finish(task, TaskStatus.FAILED, reason, now, events, True)
-            for task in self._active.values():
-                if task.status not in _ACTIVE or task.robot_id is None:
+            for task in self._under_way.values():
+                if task.robot_id is None:
                     continue
                 state = self._roster.state(task.robot_id)
                 acked = (
@@ -435,7 +482,7 @@ class FleetService:
         )
 
     def _free_robots(self) -> list[RobotView]:
-        busy = {t.robot_id for t in self._active.values() if t.status in _ACTIVE}
+        busy = self._robot_task
         return [
             v
             for v in self._roster.views()
@@ -448,21 +495,27 @@ class FleetService:
             with self._lock:
                 if self._closed:
                     return
-                queued = [t for t in self._active.values() if t.status == TaskStatus.QUEUED]
-                free = self._free_robots()
-                if not queued or not free:
+                if not self._queued:
                     return
+                free = self._free_robots()
+                if not free:
+                    return
+                # Oldest first (a requeued task keeps its place), as named tasks are served
+                # first come, first served; O(queued) only when some robot is free.
+                queued = sorted(self._queued.values(), key=lambda t: t.created_at)
                 views = {v.robot_id: v for v in self._roster.views()}
-                movers = [
-                    t for t in self._active.values() if t.status in _ACTIVE and t.robot_id in views
-                ]
+                movers = [t for t in self._under_way.values() if t.robot_id in views]
                 obstacles = list(self._obstacles)
                 lead_time = self._lead_time()
-            began = time.monotonic()
+            began, cpu = time.monotonic(), time.thread_time()
             plan, flips = self._plan(queued, free, movers, views, obstacles, lead_time)
-            took = time.monotonic() - began
+            took, cpu = time.monotonic() - began, time.thread_time() - cpu
+            _log.info("planned %d task(s): %.2f s wall, %.2f s CPU", len(plan), took, cpu)
             events: list[FleetEvent] = []
             with self._lock:
+                self._counters["plans"] += 1
+                self._counters["plan_cpu_ms"] += round(1e3 * cpu)
+                self._counters["plan_wall_ms"] += round(1e3 * took)
                 last = self._plan_seconds
                 self._plan_seconds = took if last is None else 0.5 * (last + took)
                 now = self._clock()
@@ -608,14 +661,11 @@ class FleetService:
 
     # -- API -----------------------------------------------------------------------------
 
-    def _occupied(self, exclude_robot: str | None) -> list[Occupied]:
-        """Active goals and parked robots (arrived, holding or lost, with no active task)."""
-        out = [
-            Occupied(t.request.goal.x, t.request.goal.y, f"the goal of task {t.id}")
-            for t in self._active.values()
-        ]
-        busy = {t.robot_id for t in self._active.values() if t.robot_id is not None}
-        busy |= {t.request.robot_id for t in self._active.values() if t.request.robot_id}
+    def _occupied(self, goal: Pose, exclude_robot: str | None) -> list[Occupied]:
+        """Active (and pending) goals within the peer radius of ``goal``, nearest first,
+        and parked robots (arrived, holding or lost, with no active task)."""
+        out = list(self._goals.near(goal.x, goal.y, self.settings.avoidance.peer_radius))
+        busy = self._claims
         for v in self._roster.views():
             if v.robot_id == exclude_robot or v.robot_id in busy:
                 continue
@@ -629,33 +679,67 @@ class FleetService:
         Raises :class:`GoalRejected` (with the reason) or :class:`RobotNotFound`. A repeated
         ``idempotency_key`` returns the task first created with it, whatever the body.
         """
-        events: list[FleetEvent] = []
-        with self._lock:
+        while True:
             if idempotency_key is not None:
                 existing = self._store.find_by_idempotency_key(idempotency_key)
                 if existing is not None:
                     return existing
-            rid = request.robot_id
-            if rid is not None and not self._roster.known(rid):
-                raise RobotNotFound(f"robot {rid} not found")
-            validate_goal(
-                request.goal,
-                self.settings.yard,
-                self._obstacles,
-                self._occupied(rid),
-                self.settings.avoidance.peer_radius,
-            )
-            now = self._clock()
-            task = Task(id=uuid.uuid4().hex, request=request, created_at=now, updated_at=now)
+            with self._lock:
+                # A request with the same key is being stored: wait for it (its task is
+                # the answer), instead of rejecting this one as too near its goal.
+                writing = self._keys_in_flight.get(idempotency_key or "")
+            if writing is None:
+                break
+            writing.wait(10.0)
+        now = self._clock()
+        task = Task(id=uuid.uuid4().hex, request=request, created_at=now, updated_at=now)
+        if not self._reserve(task, idempotency_key):
+            return self.submit(request, idempotency_key)  # lost a race: wait as above
+        try:
             stored = self._store.save_new(task, idempotency_key)
-            if stored.id != task.id:
-                return stored  # a concurrent request with the same key won
-            self._active[task.id] = stored
+        except BaseException:
+            with self._lock:
+                self._goals.remove(task.id)
+            raise
+        finally:
+            if idempotency_key is not None:
+                with self._lock:
+                    self._keys_in_flight.pop(idempotency_key).set()
+        events: list[FleetEvent] = []
+        with self._lock:
+            if stored.id != task.id:  # a concurrent request with the same key won
+                self._goals.remove(task.id)
+                return stored
+            self._put(stored)  # stored: now the tick thread may dispatch it
             events.append(TaskEvent(task=stored))
         self._emit(events)
         self._last_submit = time.monotonic()
         self._wake.set()
         return stored
+
+    def _reserve(self, task: Task, idempotency_key: str | None) -> bool:
+        """Validate ``task``'s goal and reserve it (and its key) for the write; False if a
+        request with the same key is being written meanwhile."""
+        request, goal = task.request, task.request.goal
+        with self._lock:
+            if idempotency_key is not None and idempotency_key in self._keys_in_flight:
+                return False
+            rid = request.robot_id
+            if rid is not None and not self._roster.known(rid):
+                raise RobotNotFound(f"robot {rid} not found")
+            validate_goal(
+                goal,
+                self.settings.yard,
+                self._obstacles,
+                self._occupied(goal, rid),
+                self.settings.avoidance.peer_radius,
+            )
+            # Reserve the goal while the task is written (outside the lock, so concurrent
+            # submits share one commit): a concurrent submit near it is rejected meanwhile.
+            self._goals.add(task.id, Occupied(goal.x, goal.y, f"the goal of task {task.id}"))
+            if idempotency_key is not None:
+                self._keys_in_flight[idempotency_key] = threading.Event()
+        return True
 
     def cancel(self, task_id: str) -> Task:
         """Cancel a task; :class:`TaskNotFound`, or :class:`TaskConflict` if already final."""

@@ -303,15 +303,24 @@ def simulate(
     max_time: float = 60.0,
     record: bool = False,
     track_separation: bool = False,
+    group: int = 0,
 ) -> SimResult:
     """Simulate the closed-loop batch until every robot is done or ``max_time`` [s] passes.
 
     ``record`` keeps poses, controls and errors (memory T x N); ``track_separation``
     keeps the minimum centre distance of every pair over the run (cost N^2 per step).
+    ``group`` > 0 splits the batch into independent consecutive blocks of ``group`` rows
+    (e.g. copies of one scene): peers repel, and separations are tracked, only within a
+    block (cost N x group per step instead of N^2); pairs across blocks get an infinite
+    ``min_pair_distance``. Static obstacles still act on every row.
     """
     if dt <= 0 or not np.isfinite(dt):
         raise ValueError("dt must be a positive finite number of seconds")
     n = problem.size
+    if group < 0 or (group > 0 and n % group != 0):
+        raise ValueError("group must divide the batch size")
+    g = group if group > 0 else n
+    blocks = n // g if g > 0 else 0
     x = problem.start[:, 0].copy()
     y = problem.start[:, 1].copy()
     theta = problem.start[:, 2].copy()
@@ -339,10 +348,11 @@ def simulate(
     effort = np.zeros(n)
     distance = np.zeros(n)
     peer_radius = np.zeros((0, 0))
-    if peers:  # (N, N): only when peers repel, never for large batches without them
-        peer_radius = np.full((n, n), problem.peer_radius)
-        np.fill_diagonal(peer_radius, 0.0)
-    min_pair = np.full((n, n), np.inf) if track_separation else None
+    if peers:  # (N, group): only when peers repel, never for large batches without them
+        peer_radius = np.full((blocks, g, g), problem.peer_radius)
+        peer_radius[:, np.arange(g), np.arange(g)] = 0.0
+        peer_radius = peer_radius.reshape(n, g)
+    min_pair = np.full((blocks, g, g), np.inf) if track_separation else None
     poses: list[FloatArray] = []
     controls: list[FloatArray] = []
     errors: list[FloatArray] = []
@@ -351,7 +361,8 @@ def simulate(
     step = 0
     while step < max_steps and (all_active or active.any()):
         if min_pair is not None:
-            d = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
+            xb, yb = x.reshape(blocks, g), y.reshape(blocks, g)
+            d = np.hypot(xb[:, :, None] - xb[:, None, :], yb[:, :, None] - yb[:, None, :])
             np.minimum(min_pair, d, out=min_pair)
         _pose_error_into(x, y, theta, goal_x, goal_y, goal_theta_wrapped, cw, ws)
         # Stop rule: pre-step error inside tolerance -> done at this step (still applied).
@@ -379,7 +390,8 @@ def simulate(
                     problem.min_x_oa,
                 )
             if peers:
-                positions = np.broadcast_to(np.stack([x, y], axis=1)[None, :, :], (n, n, 2))
+                xy = np.stack([x, y], axis=1).reshape(blocks, 1, g, 2)
+                positions = np.broadcast_to(xy, (blocks, g, g, 2)).reshape(n, g, 2)
                 ws.u += obstacle_repulsion(
                     pose, positions, peer_radius, problem.k_avoid, problem.min_x_oa
                 )
@@ -418,10 +430,18 @@ def simulate(
             all_active = False
         step += 1
 
+    min_pair_full = None
     if min_pair is not None:
-        d = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
+        xb, yb = x.reshape(blocks, g), y.reshape(blocks, g)
+        d = np.hypot(xb[:, :, None] - xb[:, None, :], yb[:, :, None] - yb[:, None, :])
         np.minimum(min_pair, d, out=min_pair)
-        np.fill_diagonal(min_pair, np.inf)
+        if blocks == 1:
+            min_pair_full = min_pair.reshape(n, n)
+        else:
+            min_pair_full = np.full((n, n), np.inf)
+            for b in range(blocks):
+                min_pair_full[b * g : (b + 1) * g, b * g : (b + 1) * g] = min_pair[b]
+        np.fill_diagonal(min_pair_full, np.inf)
     done = done_step >= 0
     trajectory = None
     if record:
@@ -438,6 +458,6 @@ def simulate(
         distance=distance,
         final_pose=np.stack([x, y, theta], axis=1),
         steps=step,
-        min_pair_distance=min_pair,
+        min_pair_distance=min_pair_full,
         trajectory=trajectory,
     )

@@ -29,6 +29,7 @@ async def test_submit_returns_201_with_the_stored_task(client: httpx.AsyncClient
     assert task["goal"] == {"x": 1.5, "y": -2.0, "theta": 0.5}
     assert task["direction"] == "cw"
     assert task["tolerance"] == {"position": 0.1, "heading": 0.1}
+    assert task["revision"] == 0  # the law's re-plans under way (Task.revision)
     got = await client.get(f"/tasks/{task['id']}")
     assert got.status_code == 200
     assert got.json() == task

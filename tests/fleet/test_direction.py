@@ -8,7 +8,7 @@ import math
 import pytest
 
 from fleet.control import LAWS, Law
-from fleet.direction import Mover, Scene, choose_directions, evaluate
+from fleet.direction import SCREEN_DT, Mover, Scene, choose_directions, evaluate
 from fleet.params import Tolerance
 from fleet.tasks import DEFAULT_GAINS
 
@@ -112,3 +112,16 @@ def test_yard_seed_2_gets_a_choice_whose_whole_rollout_keeps_the_separation() ->
     # the chosen laws, rolled out at the agents' 50 Hz over a horizon well past the arrivals
     check = evaluate(scene, best.laws, SEP, dt=0.02, horizon=300.0)
     assert check.done and check.min_separation >= SEP
+
+
+@pytest.mark.parametrize("n", [2, 4, 8])
+def test_screened_choice_is_verified_safe_at_the_agents_step(n: int) -> None:
+    """Screening at 0.05 s, then verifying at 0.02 s: the chosen laws are safe when rolled
+    out again at 0.02 s, and as fast as the search at 0.02 s alone."""
+    scene = swap(n, 6.0, -math.pi / 4, math.pi / 4)
+    screened = choose_directions(scene, SEP, screen_dt=SCREEN_DT)
+    assert any("verified" in s for s in screened.searched)
+    check = evaluate(scene, screened.best.laws, SEP, dt=0.02, horizon=300.0)
+    assert check.safe and check.done and check.min_separation >= SEP
+    fine = choose_directions(scene, SEP)
+    assert screened.best.makespan <= fine.best.makespan + 0.5

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Iterator
 from typing import Any
 
@@ -19,6 +20,7 @@ from fleet.tasks import (
     RobotEvent,
     RobotNotFound,
     RobotStatus,
+    Task,
     TaskConflict,
     TaskEvent,
     TaskNotFound,
@@ -472,3 +474,124 @@ def test_a_safe_robot_under_way_is_not_replanned(fleet: Fleet) -> None:
     fleet.service.tick()
     assert fleet.parks("r0") == [park0]
     assert fleet.service.task(first.id).revision == 0
+
+
+def _assert_indexes_match(service: FleetService) -> None:
+    """The service's incremental indexes equal the ones recomputed from every active task."""
+    active = dict(service._active)
+    assert service._queued == {k: t for k, t in active.items() if t.status == TaskStatus.QUEUED}
+    under_way = {
+        k: t
+        for k, t in active.items()
+        if t.status in (TaskStatus.ASSIGNED, TaskStatus.DRIVING) and t.robot_id is not None
+    }
+    assert service._under_way == under_way
+    assert service._robot_task == {t.robot_id: k for k, t in under_way.items()}
+    claims: dict[str, int] = {}
+    for t in active.values():
+        for rid in {t.robot_id, t.request.robot_id} - {None}:
+            assert rid is not None
+            claims[rid] = claims.get(rid, 0) + 1
+    assert dict(service._claims) == claims
+    assert len(service._goals) == len(active)
+    for t in active.values():
+        assert t.id in service._goals
+
+
+def test_incremental_indexes_follow_every_transition() -> None:
+    f = Fleet(on_robot_lost="requeue", task_timeout_s=30.0)
+    try:
+        for i, rid in enumerate(("r1", "r2", "r3")):
+            f.join(rid, -6.0 + 3.0 * i, -6.0)
+        tasks = [f.service.submit(req(-6.0 + 3.0 * k, 6.0)) for k in range(5)]
+        named = f.service.submit(req(6.0, 0.0, robot="r2"))
+        _assert_indexes_match(f.service)
+        f.service.tick()
+        _assert_indexes_match(f.service)
+        under_way = [t for t in f.service._active.values() if t.robot_id is not None]
+        assert len(under_way) == 3
+        a, b, c = under_way
+        assert a.robot_id and b.robot_id and c.robot_id
+        f.robot(a.robot_id, 0.0, 0.0, mode=RobotMode.DRIVING, task_id=a.id)
+        _assert_indexes_match(f.service)
+        g = a.request.goal
+        f.robot(a.robot_id, g.x, g.y, mode=RobotMode.ARRIVED, task_id=a.id)
+        _assert_indexes_match(f.service)
+        f.service.cancel(b.id)
+        _assert_indexes_match(f.service)
+        f.bus.robot_gone(c.robot_id)  # requeued
+        _assert_indexes_match(f.service)
+        f.service.tick()
+        _assert_indexes_match(f.service)
+        f.clock.t += 31.0  # every task under way times out
+        f.service.tick()
+        _assert_indexes_match(f.service)
+        for t in [*tasks, named]:
+            if not f.service.task(t.id).status.final:
+                f.service.cancel(t.id)
+        _assert_indexes_match(f.service)
+        assert not f.service._active and len(f.service._goals) == 0
+    finally:
+        f.service.close()
+
+
+def test_a_goal_is_reserved_while_its_task_is_written() -> None:
+    """Two submits of the same spot: the second is rejected even while the first is still
+    being stored (the reservation is taken under the lock, the write happens outside it)."""
+    f = Fleet()
+    try:
+        entered, release = threading.Event(), threading.Event()
+        save_new = f.store.save_new
+
+        def slow_save_new(task: Task, key: str | None) -> Task:
+            entered.set()
+            release.wait(5.0)
+            return save_new(task, key)
+
+        f.store.save_new = slow_save_new  # type: ignore[method-assign]
+        first: list[Task] = []
+        writer = threading.Thread(target=lambda: first.append(f.service.submit(req(1.0, 1.0))))
+        writer.start()
+        assert entered.wait(5.0)
+        assert f.service._active == {}  # not dispatchable before it is stored
+        with pytest.raises(GoalRejected, match="the goal of task"):
+            f.service.submit(req(1.2, 1.0))
+        release.set()
+        writer.join(5.0)
+        assert f.service.task(first[0].id).status == TaskStatus.QUEUED
+        _assert_indexes_match(f.service)
+    finally:
+        f.service.close()
+
+
+def test_concurrent_requests_with_one_idempotency_key_get_one_task() -> None:
+    """Same key, same goal, while the first is still being written: the others wait for it
+    and get its task (not a 'too near the goal' rejection)."""
+    f = Fleet()
+    try:
+        entered, release = threading.Event(), threading.Event()
+        save_new = f.store.save_new
+
+        def slow_save_new(task: Task, key: str | None) -> Task:
+            entered.set()
+            release.wait(5.0)
+            return save_new(task, key)
+
+        f.store.save_new = slow_save_new  # type: ignore[method-assign]
+        got: list[Task] = []
+        first = threading.Thread(target=lambda: got.append(f.service.submit(req(1, 1), "k")))
+        first.start()
+        assert entered.wait(5.0)
+        others = [
+            threading.Thread(target=lambda: got.append(f.service.submit(req(1, 1), "k")))
+            for _ in range(3)
+        ]
+        for t in others:
+            t.start()
+        release.set()
+        for t in [first, *others]:
+            t.join(10.0)
+        assert len(got) == 4 and len({t.id for t in got}) == 1
+        _assert_indexes_match(f.service)
+    finally:
+        f.service.close()

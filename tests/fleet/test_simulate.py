@@ -171,3 +171,62 @@ def test_parallel_parking_experiment_matches_section_5(law: str, side: float, fa
         assert (right[moving] >= left[moving]).all()
     else:
         assert (left[moving] >= right[moving]).all()
+
+
+@settings(max_examples=15)
+@given(st.integers(min_value=1, max_value=4), st.integers(min_value=0, max_value=10_000))
+def test_groups_simulate_like_separate_batches(copies: int, seed: int) -> None:
+    """``group``: copies of a scene in one batch behave like each copy on its own (peers
+    and separations only within a copy), up to rounding."""
+    rng = np.random.default_rng(seed)
+    starts = rng.uniform(-2, 2, size=(3, 3))
+    goals = rng.uniform(-2, 2, size=(3, 3))
+    gains = Gains(kx=1.0, ky=2.0, ktheta=2.0)
+    tol = Tolerance(position=0.1, heading=0.1)
+    laws = [["ccw", "cw"][int(b)] for b in rng.integers(0, 2, size=3 * copies)]
+    alone = [
+        simulate(
+            BatchProblem.build(
+                starts, goals, gains, laws[3 * k : 3 * k + 3], tol, k_avoid=1.0, peer_radius=1.0
+            ),
+            dt=0.05,
+            max_time=20.0,
+            track_separation=True,
+        )
+        for k in range(copies)
+    ]
+    # copies placed next to each other (overlapping!): only ``group`` keeps them apart
+    together = simulate(
+        BatchProblem.build(
+            np.tile(starts, (copies, 1)),
+            np.tile(goals, (copies, 1)),
+            gains,
+            laws,
+            tol,
+            k_avoid=1.0,
+            peer_radius=1.0,
+        ),
+        dt=0.05,
+        max_time=20.0,
+        track_separation=True,
+        group=3,
+    )
+    assert together.min_pair_distance is not None
+    for k, one in enumerate(alone):
+        s = slice(3 * k, 3 * k + 3)
+        assert one.min_pair_distance is not None
+        np.testing.assert_allclose(together.final_pose[s], one.final_pose, atol=1e-9)
+        np.testing.assert_allclose(together.min_pair_distance[s, s], one.min_pair_distance)
+        assert np.array_equal(together.done[s], one.done)
+    off_block = np.ones((3 * copies, 3 * copies), dtype=bool)
+    for k in range(copies):
+        off_block[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] = False
+    assert np.isinf(together.min_pair_distance[off_block]).all()
+
+
+def test_group_must_divide_the_batch() -> None:
+    problem = BatchProblem.build(
+        [(0.0, 0.0, 0.0)] * 3, [(1.0, 0.0, 0.0)] * 3, Gains(kx=1.0, ky=2.0, ktheta=2.0), "ccw"
+    )
+    with pytest.raises(ValueError, match="group"):
+        simulate(problem, group=2)

@@ -106,3 +106,53 @@ def test_closed_store_raises(tmp_path: Path) -> None:
     store.close()
     with pytest.raises(RuntimeError, match="closed"):
         store.get("a")
+
+
+def test_concurrent_saves_share_commits_and_all_land(tmp_path: Path) -> None:
+    """Group commit: concurrent writers each return only after their write is committed;
+    a failing write (duplicate id) fails alone; every other write is on disk."""
+    store = SqliteTaskStore(tmp_path / "tasks.db")
+    errors: list[BaseException] = []
+    barrier = threading.Barrier(8)
+
+    def writer(w: int) -> None:
+        barrier.wait()
+        for k in range(25):
+            try:
+                store.save_new(_task(f"w{w}-{k}", t=float(k)), f"key-{w}-{k}")
+                if k == 0:
+                    store.save_new(_task(f"w{w}-{k}"), None)  # duplicate id: must fail alone
+            except ValueError as e:
+                errors.append(e)
+
+    threads = [threading.Thread(target=writer, args=(w,)) for w in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(errors) == 8 and all("already exists" in str(e) for e in errors)
+    assert store.writes == 8 * 26 and 1 <= store.commits <= store.writes
+    store.close()
+    reopened = SqliteTaskStore(tmp_path / "tasks.db")  # a new connection sees every write
+    assert len(reopened.list()) == 8 * 25
+    assert reopened.find_by_idempotency_key("key-7-24") is not None
+    reopened.close()
+
+
+def test_same_idempotency_key_in_one_group_yields_one_task(tmp_path: Path) -> None:
+    store = SqliteTaskStore(tmp_path / "tasks.db")
+    barrier = threading.Barrier(6)
+    results: list[Task] = []
+
+    def writer(w: int) -> None:
+        barrier.wait()
+        results.append(store.save_new(_task(f"t{w}"), "same-key"))
+
+    threads = [threading.Thread(target=writer, args=(w,)) for w in range(6)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len({r.id for r in results}) == 1
+    assert len(store.list()) == 1
+    store.close()

@@ -1,0 +1,145 @@
+"""A burst of 1 000 tasks while robots come and go: every accepted task ends final.
+
+Real Zenoh router, the fleet service in this process with a real SQLite file, and two
+``parkfleet sim`` processes: the first is SIGKILLed in the middle of the burst (its tasks
+are requeued), the second joins later. Short task timeouts keep the run bounded: the
+point is that nothing accepted is lost or left hanging, not that every robot arrives.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from fleet.processes import sim_command, terminate
+from fleet.service import FleetService
+from fleet.settings import load_settings
+from fleet.store import SqliteTaskStore
+from fleet.tasks import GoalRejected, TaskRequest, TaskStatus
+from fleet.transport import open_session
+from fleet.wire import Keys, Pose
+from fleet.zenoh_bus import ZenohFleetBus
+
+pytestmark = pytest.mark.integration
+
+TASKS = 1000
+FINAL = {s.value for s in TaskStatus if s.final}
+
+
+ROBOTS = 10  # per sim process
+
+
+def _spawn_file(path: Path, prefix: str, row: float) -> Path:
+    """Robots spread among the goals, half a grid step off every goal (1.06 m from it)."""
+    robots = [
+        {"id": f"{prefix}{i}", "x": -27.75 + 6.0 * i, "y": row, "theta": 0.0} for i in range(ROBOTS)
+    ]
+    path.write_text(json.dumps(robots))
+    return path
+
+
+def _under_way(service: FleetService, prefix: str) -> int:
+    """Tasks being driven right now by robots whose id starts with ``prefix``."""
+    return sum(
+        1
+        for t in service.tasks(status=TaskStatus.DRIVING)
+        if t.robot_id is not None and t.robot_id.startswith(prefix)
+    )
+
+
+def _wait(predicate: object, timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():  # type: ignore[operator]
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def test_every_accepted_task_of_a_burst_ends_final_while_robots_come_and_go(
+    router_endpoint: str, tmp_path: Path
+) -> None:
+    settings = load_settings(
+        connect=[router_endpoint],
+        yard=(-40.0, 40.0, -40.0, 40.0),
+        task_timeout_s=1.0,
+        on_robot_lost="requeue",
+    )
+    goals = [
+        Pose(x=-30.0 + 1.5 * (k % 40), y=-30.0 + 1.5 * (k // 40), theta=0.0) for k in range(TASKS)
+    ]
+    first = second = None
+    store = SqliteTaskStore(tmp_path / "parkfleet.db")
+    with open_session(settings, "client") as session:
+        service = FleetService(settings, ZenohFleetBus(session, Keys()), store)
+        service.start()
+        try:
+            first = subprocess.Popen(
+                sim_command(
+                    router_endpoint,
+                    ROBOTS,
+                    time_scale=10.0,
+                    spawn=str(_spawn_file(tmp_path / "a.json", "a", -20.25)),
+                ),
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+            assert _wait(lambda: len(service.robots()) == ROBOTS, 30), "first robots never joined"
+
+            accepted: list[str] = []
+            rejected = 0
+            for k, goal in enumerate(goals):
+                try:
+                    accepted.append(service.submit(TaskRequest(goal=goal, direction="cw")).id)
+                except GoalRejected:
+                    rejected += 1  # refused with a reason: never accepted, so never stored
+                if k == TASKS // 2:
+                    # Robots go while they drive tasks of the burst ...
+                    assert _wait(lambda: _under_way(service, "a") >= 3, 60), "nothing driving"
+                    first.kill()
+                    first.wait(10)
+                    second = subprocess.Popen(  # ... and others come
+                        sim_command(
+                            router_endpoint,
+                            ROBOTS,
+                            time_scale=10.0,
+                            spawn=str(_spawn_file(tmp_path / "b.json", "b", -5.25)),
+                        ),
+                        stdout=subprocess.DEVNULL,
+                        stderr=subprocess.DEVNULL,
+                    )
+            assert len(accepted) == TASKS - rejected and len(accepted) > 0.9 * TASKS
+
+            def all_final() -> bool:
+                return all(t.status.final for t in service.tasks())
+
+            # Bounded: 1 s timeouts over 10 robots drain 1 000 tasks in about two minutes at worst.
+            assert _wait(all_final, 420), (
+                f"{sum(not t.status.final for t in service.tasks())} tasks still open"
+            )
+            # The killed robots' tasks were requeued and assigned again (on_robot_lost).
+            assert any(t.attempts > 1 for t in service.tasks()), "no task was requeued"
+        finally:
+            service.close()
+            for proc in (first, second):
+                if proc is not None:
+                    terminate(proc)
+    store.close()
+
+    # What the store holds is what was accepted: once each, every one final.
+    with sqlite3.connect(tmp_path / "parkfleet.db") as db:
+        tables = {row[0] for row in db.execute("select name from sqlite_master where type='table'")}
+        assert "tasks" in tables
+        rows = db.execute("select id from tasks").fetchall()
+    assert sorted(r[0] for r in rows) == sorted(accepted)
+    reopened = SqliteTaskStore(tmp_path / "parkfleet.db")
+    try:
+        assert {t.status.value for t in reopened.list()} <= FINAL
+        assert len(reopened.list()) == len(accepted)
+    finally:
+        reopened.close()

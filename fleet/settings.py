@@ -68,8 +68,9 @@ class Settings(BaseSettings):
     profile: RobotProfile = RobotProfile()
     avoidance: Avoidance = Avoidance()
     pose_stale_s: Annotated[float, Field(gt=0)] = 0.5  # own pose older than this -> stop
-    peer_stale_s: Annotated[float, Field(gt=0)] = 2.0  # peer silent this long -> kept at last pose
-    link_timeout_s: Annotated[float, Field(gt=0)] = 3.0  # no fleet contact this long -> hold
+    # Router link silent this long (no peer, service or echo reply) -> hold; a silent peer
+    # is never forgotten: it stays an obstacle at its last pose.
+    link_timeout_s: Annotated[float, Field(gt=0)] = 3.0
 
     # Fleet service / API
     data_dir: Path = Path("var")

@@ -120,10 +120,10 @@ def _towards_contact(
 ) -> bool:
     """Whether driving at speed ``u`` moves towards a peer already within contact range.
 
-    Contact guard (not in the paper): Eq. (27) slows a robot near a peer but does not
-    forbid contact -- a robot whose goal lies behind a standing (e.g. dead) peer settles
-    where the law's pull and the repulsion balance, which with the default gains is
-    closer than two body radii. Within ``2 * radius + min_x_oa`` of a peer centre the
+    Contact guard (not in the paper; on whenever avoidance is, i.e. k_avoid > 0): Eq. (27)
+    slows a robot near a peer but does not forbid contact -- a robot whose goal lies
+    behind a standing (e.g. dead) peer settles where the law's pull and the repulsion
+    balance, which with the default gains is closer than two body radii. Within ``2 * radius + min_x_oa`` of a peer centre the
     robot may turn on the spot or move away, never towards it.
     """
     contact = 2.0 * profile.radius + avoid.min_x_oa
@@ -215,7 +215,8 @@ def decide(
         limit = min(limit, a.max_wheel_speed)  # never above the robot's own limit
     u_s, w_s = saturate(float(u) + repulsion, omega, profile.wheel_radius, profile.half_axle, limit)
     if (
-        peers.shape[0]
+        avoid.k_avoid > 0  # part of avoidance: k_avoid = 0 switches both off
+        and peers.shape[0]
         and float(u_s) != 0.0
         and _towards_contact(p, peers, float(u_s), profile, avoid)
     ):

@@ -123,8 +123,9 @@ def _towards_contact(
     Contact guard (not in the paper; on whenever avoidance is, i.e. k_avoid > 0): Eq. (27)
     slows a robot near a peer but does not forbid contact -- a robot whose goal lies
     behind a standing (e.g. dead) peer settles where the law's pull and the repulsion
-    balance, which with the default gains is closer than two body radii. Within ``2 * radius + min_x_oa`` of a peer centre the
-    robot may turn on the spot or move away, never towards it.
+    balance, which with the default gains is closer than two body radii. Within
+    ``2 * radius + min_x_oa`` of a peer centre the robot may turn on the spot or move
+    away, never towards it.
     """
     contact = 2.0 * profile.radius + avoid.min_x_oa
     dx = peers[:, 0] - p[0]

@@ -535,20 +535,27 @@ def test_incremental_indexes_follow_every_transition() -> None:
         f.service.close()
 
 
+def _hold_task_writes(f: Fleet) -> tuple[threading.Event, threading.Event]:
+    """Make the store's task writes wait: ``entered`` is set when one starts, and it
+    completes once ``release`` is set."""
+    entered, release = threading.Event(), threading.Event()
+    save_new = f.store.save_new
+
+    def slow_save_new(task: Task, key: str | None) -> Task:
+        entered.set()
+        release.wait(5.0)
+        return save_new(task, key)
+
+    f.store.save_new = slow_save_new  # type: ignore[method-assign]
+    return entered, release
+
+
 def test_a_goal_is_reserved_while_its_task_is_written() -> None:
     """Two submits of the same spot: the second is rejected even while the first is still
     being stored (the reservation is taken under the lock, the write happens outside it)."""
     f = Fleet()
     try:
-        entered, release = threading.Event(), threading.Event()
-        save_new = f.store.save_new
-
-        def slow_save_new(task: Task, key: str | None) -> Task:
-            entered.set()
-            release.wait(5.0)
-            return save_new(task, key)
-
-        f.store.save_new = slow_save_new  # type: ignore[method-assign]
+        entered, release = _hold_task_writes(f)
         first: list[Task] = []
         writer = threading.Thread(target=lambda: first.append(f.service.submit(req(1.0, 1.0))))
         writer.start()
@@ -569,15 +576,7 @@ def test_concurrent_requests_with_one_idempotency_key_get_one_task() -> None:
     and get its task (not a 'too near the goal' rejection)."""
     f = Fleet()
     try:
-        entered, release = threading.Event(), threading.Event()
-        save_new = f.store.save_new
-
-        def slow_save_new(task: Task, key: str | None) -> Task:
-            entered.set()
-            release.wait(5.0)
-            return save_new(task, key)
-
-        f.store.save_new = slow_save_new  # type: ignore[method-assign]
+        entered, release = _hold_task_writes(f)
         got: list[Task] = []
         first = threading.Thread(target=lambda: got.append(f.service.submit(req(1, 1), "k")))
         first.start()

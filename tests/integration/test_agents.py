@@ -4,18 +4,18 @@ from __future__ import annotations
 
 import math
 import os
-import select
 import signal
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 import zenoh
+from support import read_line, wait_for
 
 from fleet.control import pose_error
 from fleet.params import Gains, Tolerance
@@ -41,14 +41,6 @@ PARKFLEET = Path(sys.executable).with_name("parkfleet")
 CLI = [str(PARKFLEET)] if PARKFLEET.exists() else [sys.executable, "-m", "fleet.cli"]
 GAINS = Gains(kx=1.0, ky=2.0, ktheta=1.0)
 TOL = Tolerance(position=0.1, heading=0.1)
-
-
-def wait_for(predicate: Callable[[], bool], timeout: float, what: str) -> None:
-    end = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(0.01)
 
 
 class StateWatcher:
@@ -118,14 +110,6 @@ def start_cli(procs: list[subprocess.Popen[bytes]], *args: str) -> subprocess.Po
     )
     procs.append(proc)
     return proc
-
-
-def read_line(proc: subprocess.Popen[bytes], timeout: float) -> str:
-    assert proc.stdout is not None
-    ready, _, _ = select.select([proc.stdout], [], [], timeout)
-    if not ready:
-        raise AssertionError(f"no output from {proc.args!r} within {timeout} s")
-    return proc.stdout.readline().decode()
 
 
 def park(rid: str, task_id: str, goal: tuple[float, float, float]) -> ParkAssignment:

@@ -20,19 +20,19 @@ from __future__ import annotations
 import json
 import math
 import os
-import select
 import signal
 import sqlite3
 import subprocess
 import sys
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
 import pytest
+from support import read_line, wait_for
 
 from api.process import running_server
 from fleet.params import Gains, Tolerance
@@ -55,14 +55,6 @@ CLI = [sys.executable, "-m", "fleet.cli"]
 FINAL = {"succeeded", "failed", "cancelled"}
 
 
-def wait_for(predicate: Callable[[], bool], timeout: float, what: str) -> None:
-    end = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(0.01)
-
-
 @contextmanager
 def child(*args: str, log: Path | None = None) -> Iterator[subprocess.Popen[bytes]]:
     """A ``parkfleet`` subprocess (stdout piped), SIGKILLed and reaped on exit."""
@@ -82,14 +74,6 @@ def child(*args: str, log: Path | None = None) -> Iterator[subprocess.Popen[byte
         proc.communicate(timeout=10)
         if log is not None:
             err.close()  # type: ignore[union-attr]
-
-
-def read_line(proc: subprocess.Popen[bytes], timeout: float) -> str:
-    assert proc.stdout is not None
-    ready, _, _ = select.select([proc.stdout], [], [], timeout)
-    if not ready:
-        raise AssertionError(f"no output from {proc.args!r} within {timeout} s")
-    return proc.stdout.readline().decode()
 
 
 @contextmanager

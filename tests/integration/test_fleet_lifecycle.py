@@ -10,11 +10,12 @@ import json
 import signal
 import subprocess
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from support import wait_for
 
 from fleet.processes import sim_command, terminate
 from fleet.service import FleetService
@@ -28,15 +29,6 @@ from fleet.zenoh_bus import ZenohFleetBus
 pytestmark = pytest.mark.integration
 
 TIME_SCALE = 4.0
-
-
-def wait_for(predicate: Callable[[], bool], timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.02)
-    raise AssertionError(f"timed out waiting for {what}")
 
 
 @contextmanager

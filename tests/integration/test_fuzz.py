@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +19,7 @@ import zenoh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pydantic import BaseModel, ValidationError
+from support import wait_for
 
 from fleet.params import Gains, Tolerance
 from fleet.service import FleetService
@@ -46,14 +46,6 @@ pytestmark = pytest.mark.integration
 KEYS = Keys()
 BLOCK = zenoh.CongestionControl.BLOCK  # about handling, not delivery under load
 FUZZ = settings(max_examples=150, suppress_health_check=list(HealthCheck), derandomize=True)
-
-
-def wait_for(predicate: Callable[[], bool], timeout: float, what: str) -> None:
-    end = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(0.01)
 
 
 def deep(n: int) -> bytes:

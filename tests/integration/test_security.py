@@ -24,6 +24,7 @@ from cryptography import x509
 from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
+from support import wait_for
 
 from fleet.cli import main as parkfleet_main
 from fleet.params import Gains, Tolerance
@@ -169,14 +170,6 @@ class Collector:
     def seen(self) -> set[tuple[str, bytes]]:
         with self.lock:
             return set(self.samples)
-
-
-def wait_for(predicate: Callable[[], bool], timeout: float, what: str) -> None:
-    end = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(0.02)
 
 
 def put_until(

@@ -153,11 +153,15 @@ def _wait_for_robots(page: Page, n: int) -> list[dict[str, Any]]:
 
 def test_page_loads_without_console_errors(page: tuple[Page, Console]) -> None:
     browser_page, console = page
+    from playwright.sync_api import expect
+
     _wait_for_robots(browser_page, 2)
     assert browser_page.title().startswith("parkfleet")
-    assert browser_page.locator("#conn").get_attribute("data-state") == "live"
-    assert browser_page.locator("#robots-body tr").count() == 2
-    assert browser_page.locator("#legend-modes li").count() == 6
+    expect(browser_page.locator("#conn")).to_have_attribute("data-state", "live")
+    # The table is drawn on animation frames (throttled), after the state holds the robots:
+    # wait for the rows rather than reading them once.
+    expect(browser_page.locator("#robots-body tr")).to_have_count(2)
+    expect(browser_page.locator("#legend-modes li")).to_have_count(6)
     assert console.errors == []
 
 

@@ -1,0 +1,62 @@
+"""``parkfleet`` command line: the composition root of the project.
+
+Each command lives in its own module exposing ``register(commands, bench)``; this module
+only builds the parser and imports those modules (by name, lazily, so ``fleet`` keeps no
+static dependency on the agent, simulator or API packages).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+from collections.abc import Sequence
+
+#: Modules that register sub-commands, in help order.
+COMMAND_MODULES: tuple[str, ...] = (
+    "fleet.cli.reproduce",
+    "fleet.cli.plot",
+    "fleet.cli.router",
+    "fleet.cli.agent",
+    "fleet.cli.sim",
+    "fleet.cli.serve",
+    "fleet.cli.demo",
+    "fleet.cli.bench_sim",
+    "fleet.cli.bench_zenoh",
+    "fleet.cli.bench_api",
+    "fleet.cli.bench_fleet",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="parkfleet",
+        description="Fleet service for self-parking robots (Lyapunov posture control over Zenoh).",
+    )
+    parser.add_argument(
+        "-v", "--verbose", action="count", default=0, help="more logging (-vv: debug)"
+    )
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    bench_parser = commands.add_parser("bench", help="benchmarks that print numbers and ratios")
+    bench = bench_parser.add_subparsers(dest="bench", metavar="BENCH", required=True)
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(commands, bench)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    level = logging.WARNING - 10 * min(int(args.verbose), 2)
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        return 130
+    except (ValueError, FileNotFoundError, ConnectionError) as exc:
+        print(f"parkfleet: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,156 @@
+"""Task and robot models of the fleet service, and its domain errors.
+
+Shared by the service (``fleet.service``), its store and the API.
+Pure module: no I/O, no clock.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from fleet.core.params import Gains, Tolerance
+from fleet.core.types import Law
+from fleet.core.wire import Pose, RobotId, RobotMode
+
+Direction = Literal["auto", "cw", "ccw"]
+
+
+class TaskStatus(StrEnum):
+    """Life cycle: queued -> assigned -> driving -> succeeded | failed | cancelled."""
+
+    QUEUED = "queued"
+    ASSIGNED = "assigned"
+    DRIVING = "driving"
+    SUCCEEDED = "succeeded"
+    FAILED = "failed"
+    CANCELLED = "cancelled"
+
+    @property
+    def final(self) -> bool:
+        return self in (TaskStatus.SUCCEEDED, TaskStatus.FAILED, TaskStatus.CANCELLED)
+
+
+class RobotStatus(StrEnum):
+    """Fleet view of a robot: what it reports, or ``lost`` when its liveliness token is gone."""
+
+    IDLE = "idle"
+    DRIVING = "driving"
+    AVOIDING = "avoiding"
+    ARRIVED = "arrived"
+    HOLDING = "holding"
+    LOST = "lost"
+
+    @classmethod
+    def from_mode(cls, mode: RobotMode) -> RobotStatus:
+        return cls(mode.value)
+
+
+#: Default gains per law when a task names none (the paper's Table 1, first scenario).
+DEFAULT_GAINS: dict[Law, Gains] = {
+    "ccw": Gains(kx=2.6, ky=1.5, ktheta=1.5),
+    "cw": Gains(kx=2.1, ky=1.25, ktheta=1.25),
+}
+
+
+class TaskRequest(BaseModel):
+    """What a user asks for: park a robot (named or any) at ``goal``."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    goal: Pose
+    robot_id: RobotId | None = None
+    direction: Direction = "auto"
+    gains: Gains | None = None  # None: law_gains, else DEFAULT_GAINS of the chosen law
+    tolerance: Tolerance = Tolerance(position=0.1, heading=0.1)
+    #: Gains per law, used when ``gains`` is None (e.g. ``auto`` with the paper's per-law
+    #: gains of Table 8); a law missing here falls back to DEFAULT_GAINS.
+    law_gains: dict[Law, Gains] | None = None
+
+    def gains_for(self, law: Law) -> Gains:
+        """The gains the robot uses with ``law``: gains, else law_gains[law], else default."""
+        if self.gains is not None:
+            return self.gains
+        if self.law_gains is not None and law in self.law_gains:
+            return self.law_gains[law]
+        return DEFAULT_GAINS[law]
+
+
+class Task(BaseModel):
+    """A task as stored and reported. ``law`` is set once the direction is chosen."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    id: str
+    request: TaskRequest
+    status: TaskStatus = TaskStatus.QUEUED
+    robot_id: str | None = None
+    law: Law | None = None
+    reason: str | None = None  # why it failed or was cancelled
+    created_at: float  # [s since epoch]
+    updated_at: float
+    attempts: Annotated[int, Field(ge=0)] = 0
+    #: Re-plans of the law while under way (``ParkAssignment.revision``); 0 as first sent.
+    revision: Annotated[int, Field(ge=0)] = 0
+
+
+class RobotView(BaseModel):
+    """The fleet's latest knowledge of one robot."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    robot_id: str
+    status: RobotStatus
+    pose: Pose
+    u: float = 0.0
+    omega: float = 0.0
+    task_id: str | None = None
+    law: Law | None = None
+    goal: Pose | None = None
+    radius: float = 0.2
+    last_seen: float  # [s since epoch], service clock
+
+
+class RobotEvent(BaseModel):
+    """A robot's view changed (status, task, or a throttled pose update)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    type: Literal["robot"] = "robot"
+    robot: RobotView
+
+
+class TaskEvent(BaseModel):
+    """A task changed state; sent only after the change is stored."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    type: Literal["task"] = "task"
+    task: Task
+
+
+#: What :meth:`fleet.service.FleetService.add_listener` callbacks receive. A plain union,
+#: so ``isinstance(event, FleetEvent)`` works; serialise with ``event.model_dump_json()``.
+FleetEvent = RobotEvent | TaskEvent
+
+
+class FleetError(Exception):
+    """Base of the service's domain errors; ``str(err)`` is the user-facing reason."""
+
+
+class TaskNotFound(FleetError):
+    pass
+
+
+class RobotNotFound(FleetError):
+    pass
+
+
+class GoalRejected(FleetError):
+    """The goal is outside the yard, inside an obstacle's zone, or too near another goal."""
+
+
+class TaskConflict(FleetError):
+    """The request conflicts with the task's state (e.g. cancelling a finished task)."""

@@ -1,0 +1,262 @@
+"""Wire contract: Zenoh key expressions and the JSON messages carried on them.
+
+Pure module (no Zenoh, no logging): builds keys, validates ids, encodes and parses messages.
+Every message carries the schema version ``v``. Parsing never raises: a malformed, oversized
+or unknown payload comes back as a :class:`Rejected` with the reason; the I/O edge
+(:class:`fleet.io.decoder.Decoder`) drops, logs and counts it.
+
+Key expressions::
+
+    parkfleet/<fleet>/robot/<id>/state        robot -> all     RobotState
+    parkfleet/<fleet>/robot/<id>/assignment   fleet -> robot   ParkAssignment | CancelAssignment
+    parkfleet/<fleet>/obstacles               fleet -> all     ObstacleSet (also a queryable)
+    parkfleet/<fleet>/alive/<id>              liveliness token of each robot
+    parkfleet/<fleet>/alive/_service          liveliness token of the fleet service
+
+Protocol between the fleet service and a robot agent:
+
+* A robot publishes ``RobotState`` at its control rate; ``task_id`` names the task it is
+  executing (or last executed). A state carrying an assignment's ``task_id`` acknowledges
+  it; the service re-sends an assignment until it sees that acknowledgement.
+* ``ParkAssignment`` with a new ``task_id`` replaces whatever the robot was doing; a repeat
+  of the current ``task_id`` with the same or a lower ``revision`` is ignored (delivery is
+  at-least-once, and a late duplicate of an older revision must not undo a newer one).
+* ``revision`` (>= 0, starting at 0): the fleet re-planned the task. A higher revision of
+  the current ``task_id`` replaces its law, gains, tolerance, limits and avoidance while the
+  robot keeps driving from where it is (an arrived or cancelled task stays so). The robot
+  reports the revision it runs (``RobotState.revision``); a state with the task id and at
+  least that revision acknowledges it, and the service re-sends the revision until then.
+* On arrival within tolerance the robot stops and reports ``mode=arrived`` with the task id;
+  the service marks the task succeeded.
+* ``CancelAssignment`` for the current task stops the robot: ``mode=holding``, task id kept.
+* With no assignment the robot stands still in ``mode=idle`` with ``task_id=None``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import Annotated, Literal, TypeVar
+
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
+
+from fleet.core.params import Avoidance, Gains, Tolerance
+from fleet.core.types import Law
+
+SCHEMA_VERSION = 1
+MAX_PAYLOAD_BYTES = 64 * 1024
+SERVICE_TOKEN = "_service"
+
+_ID_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+
+
+def validate_id(value: str, what: str = "robot id") -> str:
+    """Return ``value`` if it is a safe key-expression chunk, else raise ValueError.
+
+    1-64 characters from ``[A-Za-z0-9_.-]``, starting with a letter or digit: no
+    ``/ * $ ? #`` wildcards or separators, never empty, never the service token.
+    """
+    if not isinstance(value, str) or not _ID_RE.fullmatch(value):
+        raise ValueError(
+            f"invalid {what} {value!r}: use 1-64 characters from A-Z a-z 0-9 _ . -, "
+            "starting with a letter or digit"
+        )
+    return value
+
+
+RobotId = Annotated[str, Field(pattern=_ID_RE.pattern)]
+
+
+class Keys:
+    """Key expressions of one fleet (``parkfleet/<fleet>/...``)."""
+
+    def __init__(self, fleet: str = "default") -> None:
+        self.fleet = validate_id(fleet, "fleet name")
+        self.root = f"parkfleet/{self.fleet}"
+
+    def state(self, robot_id: str) -> str:
+        return f"{self.root}/robot/{validate_id(robot_id)}/state"
+
+    def assignment(self, robot_id: str) -> str:
+        return f"{self.root}/robot/{validate_id(robot_id)}/assignment"
+
+    @property
+    def all_states(self) -> str:
+        return f"{self.root}/robot/*/state"
+
+    @property
+    def obstacles(self) -> str:
+        return f"{self.root}/obstacles"
+
+    def alive(self, robot_id: str) -> str:
+        return f"{self.root}/alive/{validate_id(robot_id)}"
+
+    @property
+    def all_alive(self) -> str:
+        return f"{self.root}/alive/*"
+
+    @property
+    def service_alive(self) -> str:
+        return f"{self.root}/alive/{SERVICE_TOKEN}"
+
+    def robot_of(self, key: str) -> str | None:
+        """Robot id in a ``.../robot/<id>/...`` or ``.../alive/<id>`` key, else None."""
+        parts = key.split("/")
+        if (
+            len(parts) >= 4
+            and parts[:2] == ["parkfleet", self.fleet]
+            and parts[2] in ("robot", "alive")
+            and _ID_RE.fullmatch(parts[3])
+        ):
+            return parts[3]
+        return None
+
+
+class Pose(BaseModel):
+    """Planar posture in the world frame: x, y [m], theta [rad]."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    x: FiniteFloat
+    y: FiniteFloat
+    theta: FiniteFloat = 0.0
+
+    def as_tuple(self) -> tuple[float, float, float]:
+        return (self.x, self.y, self.theta)
+
+
+class RobotMode(StrEnum):
+    """What a robot says it is doing (``lost`` is decided by the fleet, never sent)."""
+
+    IDLE = "idle"
+    DRIVING = "driving"
+    AVOIDING = "avoiding"
+    ARRIVED = "arrived"
+    HOLDING = "holding"
+
+
+class _Message(BaseModel):
+    # Additive changes stay compatible: a receiver ignores top-level fields it does not
+    # know (a robot on an older release keeps obeying a newer service); an incompatible
+    # change bumps ``v``, which older receivers drop and count.
+    model_config = ConfigDict(frozen=True, extra="ignore")
+
+    v: Literal[1] = 1  # SCHEMA_VERSION
+
+
+class RobotState(_Message):
+    """State a robot publishes at its control rate on ``robot/<id>/state``."""
+
+    kind: Literal["state"] = "state"
+    robot_id: RobotId
+    seq: Annotated[int, Field(ge=0)]
+    stamp: FiniteFloat  # sender's wall clock [s since epoch]
+    pose: Pose
+    u: FiniteFloat = 0.0  # commanded forward speed [m/s]
+    omega: FiniteFloat = 0.0  # commanded turn rate [rad/s]
+    mode: RobotMode = RobotMode.IDLE
+    task_id: str | None = None  # task the robot is executing or has just finished
+    revision: Annotated[int, Field(ge=0)] = 0  # revision of that task's assignment
+    law: Law | None = None
+    goal: Pose | None = None
+    radius: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 0.2  # body radius [m]
+
+
+class ParkAssignment(_Message):
+    """Fleet -> robot: park at ``goal`` with ``law``; re-sent until acknowledged.
+
+    ``revision``: the fleet re-planned this task; a higher revision of the current
+    ``task_id`` replaces its law/gains, a repeat of the same or a lower revision is ignored
+    (see the module docstring).
+    """
+
+    kind: Literal["park"] = "park"
+    robot_id: RobotId
+    task_id: Annotated[str, Field(min_length=1, max_length=64)]
+    revision: Annotated[int, Field(ge=0)] = 0
+    goal: Pose
+    law: Law
+    gains: Gains
+    tolerance: Tolerance = Tolerance()
+    max_wheel_speed: Annotated[float, Field(gt=0)] | None = None  # [rad/s]; None = robot's own
+    avoidance: Avoidance = Avoidance()
+
+
+class CancelAssignment(_Message):
+    """Fleet -> robot: stop working on ``task_id`` and hold still."""
+
+    kind: Literal["cancel"] = "cancel"
+    robot_id: RobotId
+    task_id: Annotated[str, Field(min_length=1, max_length=64)]
+
+
+Assignment = Annotated[ParkAssignment | CancelAssignment, Field(discriminator="kind")]
+
+
+class Obstacle(BaseModel):
+    """A static circular obstacle: centre (x, y) [m] and influence radius [m] (Section 6)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    x: FiniteFloat
+    y: FiniteFloat
+    radius: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 1.0
+
+
+class ObstacleSet(_Message):
+    """All static obstacles of the yard, published whole (latest wins)."""
+
+    kind: Literal["obstacles"] = "obstacles"
+    obstacles: list[Obstacle] = Field(default_factory=list, max_length=1000)
+
+
+M = TypeVar("M", bound=BaseModel)
+_assignment_adapter: TypeAdapter[ParkAssignment | CancelAssignment] = TypeAdapter(Assignment)
+
+
+def encode(message: BaseModel) -> bytes:
+    """Serialise a message to compact JSON bytes."""
+    return message.model_dump_json().encode()
+
+
+@dataclass(frozen=True)
+class Rejected:
+    """Why a payload is not a valid message: ``reason`` (a short counter key) and detail."""
+
+    reason: str
+    detail: str
+
+
+Payload = bytes | bytearray | memoryview | str
+
+
+def _raw(payload: Payload) -> bytes | Rejected:
+    raw = payload.encode() if isinstance(payload, str) else bytes(payload)
+    if len(raw) > MAX_PAYLOAD_BYTES:
+        return Rejected("oversized", f"{len(raw)} bytes")
+    return raw
+
+
+def parse(model: type[M], payload: Payload) -> M | Rejected:
+    """Validate ``payload`` (JSON) as ``model``, or say why it is not one."""
+    raw = _raw(payload)
+    if isinstance(raw, Rejected):
+        return raw
+    try:
+        return model.model_validate_json(raw)
+    except ValidationError as exc:
+        return Rejected("invalid", f"{model.__name__}: {exc.error_count()} error(s)")
+
+
+def parse_assignment(payload: Payload) -> ParkAssignment | CancelAssignment | Rejected:
+    """Validate a park or cancel assignment, or say why it is not one."""
+    raw = _raw(payload)
+    if isinstance(raw, Rejected):
+        return raw
+    try:
+        return _assignment_adapter.validate_json(raw)
+    except ValidationError as exc:
+        return Rejected("invalid", f"assignment: {exc.error_count()} error(s)")

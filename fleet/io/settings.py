@@ -1,0 +1,159 @@
+"""One settings model for every entry point: env prefix ``PARKFLEET_``, optional TOML file.
+
+Precedence (highest first): explicit arguments (CLI flags), ``PARKFLEET_*`` environment
+variables, the TOML file named by ``--config`` or ``PARKFLEET_CONFIG``, the defaults here.
+Nested fields use ``__`` in the environment, e.g. ``PARKFLEET_PROFILE__MAX_WHEEL_SPEED=15``.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import Field, SecretStr, field_validator, model_validator
+from pydantic_settings import (
+    BaseSettings,
+    PydanticBaseSettingsSource,
+    SettingsConfigDict,
+    TomlConfigSettingsSource,
+)
+
+from fleet.core.params import Avoidance, RobotProfile
+from fleet.core.wire import validate_id
+
+DEFAULT_ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"
+
+
+class Settings(BaseSettings):
+    """Every tunable of parkfleet; see README "Configuration" for the list."""
+
+    model_config = SettingsConfigDict(
+        env_prefix="PARKFLEET_", env_nested_delimiter="__", extra="forbid", validate_default=True
+    )
+
+    config_file: Path | None = Field(default=None, exclude=True)
+
+    # Zenoh
+    fleet_name: str = "default"
+    zenoh_mode: Literal["router", "peer", "client"] | None = None  # None: role decides
+    listen: list[str] = Field(default_factory=list)
+    connect: list[str] = Field(default_factory=list)
+    # Transport lease [ms]: how fast a hung (not killed) peer is seen gone.
+    lease_ms: Annotated[int, Field(ge=100)] = 1000
+    # Security (README "Deployment"). Credentials this session presents when it connects:
+    zenoh_user: str | None = None
+    zenoh_password: SecretStr | None = None
+    # usrpwd dictionary (``user:password`` per line) a listening router checks; setting it
+    # makes the router refuse every session without valid credentials.
+    zenoh_credentials_file: Path | None = None
+    # TLS for ``tls/`` endpoints: the CA that signs every certificate of the deployment,
+    # and this process's certificate and key. With cert + key, mutual TLS is on: a
+    # listener refuses clients without a certificate signed by the CA.
+    tls_root_ca: Path | None = None
+    tls_cert: Path | None = None
+    tls_key: Path | None = None
+    tls_verify_name: bool = True  # check the router's certificate names the address dialled
+    # Access control on a router (fleet/acl.py): default deny; a robot may publish only its
+    # own state and liveliness; only service identities may send assignments.
+    acl: bool = False
+    acl_identity: Literal["username", "cert_common_name"] = "username"
+    acl_robot_ids: list[str] = Field(default_factory=list)  # [] -> the credentials file's users
+    acl_service_users: list[str] = Field(default_factory=lambda: ["fleet"])
+    acl_file: Path | None = None  # a hand-written access_control block (JSON5) used verbatim
+
+    # Robot agent
+    robot_id: str | None = None
+    control_rate_hz: Annotated[float, Field(gt=0, le=1000)] = 50.0
+    profile: RobotProfile = RobotProfile()
+    avoidance: Avoidance = Avoidance()
+    pose_stale_s: Annotated[float, Field(gt=0)] = 0.5  # own pose older than this -> stop
+    # Router link silent this long (no peer, service or echo reply) -> hold; a silent peer
+    # is never forgotten: it stays an obstacle at its last pose.
+    link_timeout_s: Annotated[float, Field(gt=0)] = 3.0
+    # Drive of ``parkfleet agent``: ``module:factory`` or a name in DRIVES ("sim"), and the
+    # simulated drive's start posture (x [m], y [m], theta [rad]).
+    drive: str | None = None
+    sim_start: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    # Fleet service / API
+    data_dir: Path = Path("var")
+    api_host: str = "127.0.0.1"
+    api_port: Annotated[int, Field(ge=0, le=65535)] = 8000
+    api_token: SecretStr | None = None
+    # Yard rectangle: x_min, x_max, y_min, y_max [m]; goals outside it are rejected.
+    yard: tuple[float, float, float, float] = (-10.0, 10.0, -10.0, 10.0)
+    task_timeout_s: Annotated[float, Field(gt=0)] = 120.0
+    on_robot_lost: Literal["fail", "requeue"] = "fail"
+    safety_separation_m: Annotated[float, Field(gt=0)] = 0.5
+
+    @field_validator("fleet_name")
+    @classmethod
+    def _fleet_name_is_key_safe(cls, value: str) -> str:
+        return validate_id(value, "fleet name")
+
+    @field_validator("robot_id")
+    @classmethod
+    def _robot_id_is_key_safe(cls, value: str | None) -> str | None:
+        return None if value is None else validate_id(value)
+
+    @field_validator("acl_robot_ids", "acl_service_users")
+    @classmethod
+    def _acl_ids_are_key_safe(cls, value: list[str]) -> list[str]:
+        return [validate_id(v, "access-control id") for v in value]
+
+    @model_validator(mode="after")
+    def _security_settings_come_in_pairs(self) -> Settings:
+        if (self.zenoh_user is None) != (self.zenoh_password is None):
+            raise ValueError("zenoh_user and zenoh_password must be set together")
+        if (self.tls_cert is None) != (self.tls_key is None):
+            raise ValueError("tls_cert and tls_key must be set together")
+        if self.tls_cert is not None and self.tls_root_ca is None:
+            raise ValueError("tls_cert needs tls_root_ca (the CA that signs the peers' certs)")
+        return self
+
+    @classmethod
+    def settings_customise_sources(
+        cls,
+        settings_cls: type[BaseSettings],
+        init_settings: PydanticBaseSettingsSource,
+        env_settings: PydanticBaseSettingsSource,
+        dotenv_settings: PydanticBaseSettingsSource,
+        file_secret_settings: PydanticBaseSettingsSource,
+    ) -> tuple[PydanticBaseSettingsSource, ...]:
+        sources: list[PydanticBaseSettingsSource] = [init_settings, env_settings]
+        toml_path = os.environ.get("PARKFLEET_CONFIG")
+        if toml_path:
+            sources.append(TomlConfigSettingsSource(settings_cls, toml_file=Path(toml_path)))
+        return tuple(sources)
+
+
+def load_settings(config_file: Path | None = None, **overrides: Any) -> Settings:
+    """Settings from an optional TOML file, the environment and explicit overrides.
+
+    ``None`` overrides are ignored so CLI flags left unset fall through to lower layers.
+    """
+    given = {k: v for k, v in overrides.items() if v is not None}
+    if config_file is None:
+        return Settings(**given)
+    if not config_file.is_file():
+        raise FileNotFoundError(f"config file not found: {config_file}")
+
+    class _FromFile(Settings):
+        @classmethod
+        def settings_customise_sources(
+            cls,
+            settings_cls: type[BaseSettings],
+            init_settings: PydanticBaseSettingsSource,
+            env_settings: PydanticBaseSettingsSource,
+            dotenv_settings: PydanticBaseSettingsSource,
+            file_secret_settings: PydanticBaseSettingsSource,
+        ) -> tuple[PydanticBaseSettingsSource, ...]:
+            return (
+                init_settings,
+                env_settings,
+                TomlConfigSettingsSource(settings_cls, toml_file=config_file),
+            )
+
+    loaded = _FromFile(**given)
+    return Settings.model_validate(loaded.model_dump() | {"config_file": config_file})

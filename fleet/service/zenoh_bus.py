@@ -1,0 +1,163 @@
+"""Zenoh implementation of :class:`fleet.service.bus.FleetBus` (the service's I/O edge).
+
+On :meth:`ZenohFleetBus.start` it declares
+
+* a subscriber on ``robot/*/state`` -> ``sink.on_state`` (the key's robot id must match
+  the payload's, else the sample is dropped);
+* a liveliness subscriber on ``alive/*`` *with history* (robots already up are reported at
+  once) -> ``sink.on_robot_alive`` / ``sink.on_robot_gone``; the service's own token is
+  skipped;
+* a queryable on ``obstacles`` answering late joiners with the current ``ObstacleSet``;
+* the service's liveliness token ``alive/_service``.
+
+Malformed payloads are dropped and counted (``fleet.core.wire.Decoder``); exceptions raised by
+the sink inside Zenoh callbacks are caught, logged and counted (Zenoh would print and
+swallow them). The session belongs to the caller; :meth:`ZenohFleetBus.close` only
+undeclares what the bus declared.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections import Counter
+from collections.abc import Callable
+from typing import Any
+
+import zenoh
+
+from fleet.core.wire import (
+    SERVICE_TOKEN,
+    CancelAssignment,
+    Keys,
+    ObstacleSet,
+    ParkAssignment,
+    RobotState,
+    encode,
+)
+from fleet.io.decoder import Decoder
+from fleet.service.bus import FleetSink
+
+_log = logging.getLogger(__name__)
+
+
+class ZenohFleetBus:
+    """:class:`fleet.service.bus.FleetBus` over a Zenoh session."""
+
+    def __init__(self, session: zenoh.Session, keys: Keys) -> None:
+        self._session = session
+        self._keys = keys
+        self._decoder = Decoder("fleet-service")
+        self._lock = threading.Lock()
+        self._counters: Counter[str] = Counter()
+        self._sink: FleetSink | None = None
+        self._declared: list[Any] = []
+        self._closed = False
+
+    # -- outgoing ------------------------------------------------------------------------
+
+    def publish_assignment(self, msg: ParkAssignment | CancelAssignment) -> None:
+        self._put(self._keys.assignment(msg.robot_id), encode(msg), "assignments_sent")
+
+    def publish_obstacles(self, msg: ObstacleSet) -> None:
+        self._put(self._keys.obstacles, encode(msg), "obstacle_sets_sent")
+
+    def _put(self, key: str, payload: bytes, counter: str) -> None:
+        with self._lock:
+            if self._closed:
+                return
+        try:
+            self._session.put(key, payload)
+        except zenoh.ZError:
+            self._count("publish_errors")
+            _log.exception("could not publish on %s", key)
+            return
+        self._count(counter)
+
+    # -- incoming ------------------------------------------------------------------------
+
+    def start(self, sink: FleetSink) -> None:
+        """Declare subscribers, queryable and token, delivering to ``sink``; once only."""
+        with self._lock:
+            if self._sink is not None or self._closed:
+                return
+            self._sink = sink
+        session, keys = self._session, self._keys
+        self._declared.append(
+            session.declare_subscriber(keys.all_states, self._guard("state", self._on_state))
+        )
+        self._declared.append(
+            session.liveliness().declare_subscriber(
+                keys.all_alive, self._guard("liveliness", self._on_alive), history=True
+            )
+        )
+        self._declared.append(
+            session.declare_queryable(keys.obstacles, self._guard("query", self._on_query))
+        )
+        self._declared.append(session.liveliness().declare_token(keys.service_alive))
+
+    def _guard(self, what: str, fn: Callable[[Any], None]) -> Callable[[Any], None]:
+        def callback(arg: Any) -> None:
+            try:
+                fn(arg)
+            except Exception:
+                self._count(f"{what}_callback_errors")
+                _log.exception("fleet bus: %s callback failed", what)
+
+        return callback
+
+    def _on_state(self, sample: zenoh.Sample) -> None:
+        sink = self._sink
+        if sink is None:
+            return
+        state = self._decoder.decode(RobotState, sample.payload.to_bytes())
+        if state is None:
+            return
+        if self._keys.robot_of(str(sample.key_expr)) != state.robot_id:
+            self._count("state_key_mismatch")
+            return
+        sink.on_state(state)
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        sink = self._sink
+        robot_id = self._keys.robot_of(str(sample.key_expr))
+        if sink is None or robot_id is None or robot_id == SERVICE_TOKEN:
+            return
+        if sample.kind == zenoh.SampleKind.DELETE:
+            sink.on_robot_gone(robot_id)
+        else:
+            sink.on_robot_alive(robot_id)
+
+    def _on_query(self, query: zenoh.Query) -> None:
+        sink = self._sink
+        if sink is None:
+            return
+        msg = ObstacleSet(obstacles=sink.obstacles())
+        query.reply(self._keys.obstacles, encode(msg))
+        self._count("obstacle_queries")
+
+    def _count(self, key: str) -> None:
+        with self._lock:
+            self._counters[key] += 1
+
+    @property
+    def counters(self) -> dict[str, int]:
+        with self._lock:
+            out = dict(self._counters)
+        for reason, n in self._decoder.dropped.items():
+            out[f"dropped_{reason}"] = n
+        return out
+
+    def close(self) -> None:
+        """Undeclare everything the bus declared; idempotent. The session stays open."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            declared, self._declared = self._declared, []
+            self._sink = None
+        for entity in reversed(declared):
+            try:
+                entity.undeclare()
+            except zenoh.ZError:
+                _log.debug("undeclare failed (session closed?)", exc_info=True)

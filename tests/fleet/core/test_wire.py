@@ -1,0 +1,104 @@
+"""Key expressions, id validation and the drop-and-count decoder."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from fleet.core.params import Gains
+from fleet.core.wire import (
+    MAX_PAYLOAD_BYTES,
+    CancelAssignment,
+    Keys,
+    ParkAssignment,
+    Pose,
+    RobotState,
+    encode,
+    validate_id,
+)
+from fleet.io.decoder import Decoder
+
+
+@pytest.mark.parametrize(
+    "bad", ["", "a/b", "r*", "r$1", "what?", "#1", "**", "_service", "a b", "x" * 65]
+)
+def test_ids_with_wildcards_or_separators_are_rejected(bad: str) -> None:
+    with pytest.raises(ValueError, match="invalid robot id"):
+        validate_id(bad)
+    with pytest.raises(ValueError):
+        Keys().state(bad)
+
+
+def test_keys_follow_the_design_layout() -> None:
+    keys = Keys("yard-1")
+    assert keys.state("robot-1") == "parkfleet/yard-1/robot/robot-1/state"
+    assert keys.assignment("robot-1") == "parkfleet/yard-1/robot/robot-1/assignment"
+    assert keys.alive("robot-1") == "parkfleet/yard-1/alive/robot-1"
+    assert keys.service_alive == "parkfleet/yard-1/alive/_service"
+    assert keys.robot_of("parkfleet/yard-1/robot/robot-1/state") == "robot-1"
+    assert keys.robot_of("parkfleet/other/robot/robot-1/state") is None
+
+
+def test_messages_round_trip_and_carry_the_schema_version() -> None:
+    park = ParkAssignment(
+        robot_id="r1",
+        task_id="t1",
+        goal=Pose(x=1, y=2, theta=0.5),
+        law="cw",
+        gains=Gains(kx=1, ky=2, ktheta=3),
+    )
+    decoder = Decoder()
+    assert decoder.decode_assignment(encode(park)) == park
+    cancel = CancelAssignment(robot_id="r1", task_id="t1")
+    assert decoder.decode_assignment(encode(cancel)) == cancel
+    state = RobotState(robot_id="r1", seq=3, stamp=1.5, pose=Pose(x=0, y=0))
+    assert json.loads(encode(state))["v"] == 1
+    assert decoder.decode(RobotState, encode(state)) == state
+    assert decoder.dropped_total == 0
+
+
+@given(st.binary(max_size=300))
+def test_arbitrary_bytes_are_dropped_and_counted_never_raised(payload: bytes) -> None:
+    decoder = Decoder()
+    result = decoder.decode(RobotState, payload)
+    assert result is None or isinstance(result, RobotState)
+    assert decoder.dropped_total == (0 if result is not None else 1)
+
+
+_STATE = (
+    b'{"v": 1, "kind": "state", "robot_id": "r1", "seq": 1, "stamp": 0, "pose": {"x": 0, "y": 0}}'
+)
+
+
+def test_the_reference_state_payload_is_valid() -> None:
+    assert Decoder().decode(RobotState, _STATE) is not None
+
+
+@pytest.mark.parametrize(
+    "payload",
+    [
+        _STATE.replace(b'"v": 1', b'"v": 2'),
+        _STATE.replace(b'"r1"', b'"r*"'),
+        _STATE.replace(b'"x": 0', b'"x": NaN'),
+        b'{"v": 1, "kind": "teleport", "robot_id": "r1"}',
+        b"\xff\xfe",
+        b"x" * (MAX_PAYLOAD_BYTES + 1),
+    ],
+)
+def test_unknown_versions_wildcards_nan_and_oversize_are_dropped(payload: bytes) -> None:
+    decoder = Decoder()
+    assert decoder.decode(RobotState, payload) is None
+    assert decoder.decode_assignment(payload) is None
+    assert decoder.dropped_total == 2
+
+
+def test_unknown_top_level_fields_are_ignored_so_releases_can_mix() -> None:
+    """A field added by a newer release must not make an older robot drop the message."""
+    decoder = Decoder()
+    newer = _STATE[:-1] + b', "battery": 0.8}'
+    state = decoder.decode(RobotState, newer)
+    assert state is not None and state.robot_id == "r1"
+    assert decoder.dropped_total == 0

@@ -1,0 +1,158 @@
+"""TaskStore contract on a real SQLite file (and the in-memory twin)."""
+
+from __future__ import annotations
+
+import sqlite3
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from fleet.core.tasks import Task, TaskRequest, TaskStatus
+from fleet.core.wire import Pose
+from fleet.service.store import MemoryTaskStore, SqliteTaskStore, TaskStore
+
+
+def _task(task_id: str, t: float = 1.0, robot: str | None = None) -> Task:
+    request = TaskRequest(goal=Pose(x=1.0, y=2.0, theta=0.5), robot_id=robot)
+    return Task(id=task_id, request=request, created_at=t, updated_at=t)
+
+
+@pytest.fixture(params=["sqlite", "memory"])
+def store(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[TaskStore]:
+    s: TaskStore = (
+        SqliteTaskStore(tmp_path / "nested" / "tasks.db")
+        if request.param == "sqlite"
+        else MemoryTaskStore()
+    )
+    yield s
+    s.close()
+
+
+def test_save_get_list_and_history(store: TaskStore) -> None:
+    a = store.save_new(_task("a", 1.0, "r1"), None)
+    store.save_new(_task("b", 2.0), None)
+    assert store.get("a") == a
+    assert store.get("missing") is None
+    driving = a.model_copy(update={"status": TaskStatus.DRIVING, "updated_at": 3.0})
+    store.save(driving, "acknowledged")
+    assert store.get("a") == driving
+    assert [t.id for t in store.list()] == ["a", "b"]
+    assert [t.id for t in store.list(status=TaskStatus.DRIVING)] == ["a"]
+    assert [t.id for t in store.list(robot_id="r1")] == ["a"]
+    assert [t.id for t in store.unfinished()] == ["a", "b"]
+    events = [(ev, t.status) for _, ev, t in store.history("a")]
+    assert events == [("created", TaskStatus.QUEUED), ("acknowledged", TaskStatus.DRIVING)]
+
+
+def test_idempotency_key_returns_the_first_task(store: TaskStore) -> None:
+    first = store.save_new(_task("a"), "key-1")
+    again = store.save_new(_task("b"), "key-1")
+    assert again.id == first.id == "a"
+    assert store.get("b") is None
+    assert store.find_by_idempotency_key("key-1") == first
+    assert store.find_by_idempotency_key("key-2") is None
+
+
+def test_finished_tasks_are_not_unfinished(store: TaskStore) -> None:
+    a = store.save_new(_task("a"), None)
+    store.save(a.model_copy(update={"status": TaskStatus.SUCCEEDED}), "succeeded")
+    assert store.unfinished() == []
+
+
+def test_concurrent_save_new_with_one_key_creates_one_task(store: TaskStore) -> None:
+    results: list[str] = []
+    lock = threading.Lock()
+
+    def worker(i: int) -> None:
+        got = store.save_new(_task(f"t{i}"), "same")
+        with lock:
+            results.append(got.id)
+
+    threads = [threading.Thread(target=worker, args=(i,)) for i in range(16)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(set(results)) == 1
+    assert len(store.list()) == 1
+
+
+def test_sqlite_survives_reopen_and_uses_wal(tmp_path: Path) -> None:
+    path = tmp_path / "data" / "tasks.db"
+    store = SqliteTaskStore(path)
+    a = store.save_new(_task("a"), "k")
+    store.save(a.model_copy(update={"status": TaskStatus.ASSIGNED, "robot_id": "r1"}), "assigned")
+    store.close()
+    store.close()  # idempotent
+
+    reopened = SqliteTaskStore(path)
+    try:
+        got = reopened.get("a")
+        assert got is not None and got.status == TaskStatus.ASSIGNED and got.robot_id == "r1"
+        assert reopened.find_by_idempotency_key("k") == got
+        assert [t.id for t in reopened.unfinished()] == ["a"]
+        assert len(reopened.history("a")) == 2
+    finally:
+        reopened.close()
+    with sqlite3.connect(path) as db:
+        assert db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    db.close()
+
+
+def test_closed_store_raises(tmp_path: Path) -> None:
+    store = SqliteTaskStore(tmp_path / "x.db")
+    store.close()
+    with pytest.raises(RuntimeError, match="closed"):
+        store.get("a")
+
+
+def test_concurrent_saves_share_commits_and_all_land(tmp_path: Path) -> None:
+    """Group commit: concurrent writers each return only after their write is committed;
+    a failing write (duplicate id) fails alone; every other write is on disk."""
+    store = SqliteTaskStore(tmp_path / "tasks.db")
+    errors: list[BaseException] = []
+    barrier = threading.Barrier(8)
+
+    def writer(w: int) -> None:
+        barrier.wait()
+        for k in range(25):
+            try:
+                store.save_new(_task(f"w{w}-{k}", t=float(k)), f"key-{w}-{k}")
+                if k == 0:
+                    store.save_new(_task(f"w{w}-{k}"), None)  # duplicate id: must fail alone
+            except ValueError as e:
+                errors.append(e)
+
+    threads = [threading.Thread(target=writer, args=(w,)) for w in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(errors) == 8 and all("already exists" in str(e) for e in errors)
+    assert store.writes == 8 * 26 and 1 <= store.commits <= store.writes
+    store.close()
+    reopened = SqliteTaskStore(tmp_path / "tasks.db")  # a new connection sees every write
+    assert len(reopened.list()) == 8 * 25
+    assert reopened.find_by_idempotency_key("key-7-24") is not None
+    reopened.close()
+
+
+def test_same_idempotency_key_in_one_group_yields_one_task(tmp_path: Path) -> None:
+    store = SqliteTaskStore(tmp_path / "tasks.db")
+    barrier = threading.Barrier(6)
+    results: list[Task] = []
+
+    def writer(w: int) -> None:
+        barrier.wait()
+        results.append(store.save_new(_task(f"t{w}"), "same-key"))
+
+    threads = [threading.Thread(target=writer, args=(w,)) for w in range(6)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len({r.id for r in results}) == 1
+    assert len(store.list()) == 1
+    store.close()

@@ -1,0 +1,80 @@
+"""Helpers shared by the test modules (importable as ``support``; see pytest ``pythonpath``)."""
+
+from __future__ import annotations
+
+import select
+import subprocess
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from fleet.core.params import Gains, Tolerance
+from fleet.core.types import Law, Posture
+from fleet.core.wire import Keys, ParkAssignment, Pose
+from fleet.io.settings import Settings
+from fleet.io.transport import open_session
+from fleet.service.fleet_service import FleetService
+from fleet.service.store import SqliteTaskStore
+from fleet.service.zenoh_bus import ZenohFleetBus
+
+#: Gains and tolerance of the hand-made assignments in the tests.
+TEST_GAINS = Gains(kx=1.0, ky=2.0, ktheta=1.0)
+TEST_TOLERANCE = Tolerance(position=0.1, heading=0.1)
+
+
+def wait_for(predicate: Callable[[], bool], timeout: float, what: str) -> None:
+    """Poll ``predicate`` until true; fail the test after ``timeout`` [s] naming ``what``."""
+    end = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(0.01)
+
+
+def read_line(proc: subprocess.Popen[bytes], timeout: float) -> str:
+    """One line of a child's stdout, or fail the test after ``timeout`` [s]."""
+    assert proc.stdout is not None
+    ready, _, _ = select.select([proc.stdout], [], [], timeout)
+    if not ready:
+        raise AssertionError(f"no output from {proc.args!r} within {timeout} s")
+    return proc.stdout.readline().decode()
+
+
+def park(
+    robot_id: str = "r1",
+    task_id: str = "t1",
+    goal: Posture = (3.0, 0.0, 0.0),
+    law: Law = "ccw",
+    **fields: Any,
+) -> ParkAssignment:
+    """A ParkAssignment with the tests' gains and tolerance (``fields`` override the rest)."""
+    return ParkAssignment(
+        robot_id=robot_id,
+        task_id=task_id,
+        goal=Pose(x=goal[0], y=goal[1], theta=goal[2]),
+        law=law,
+        gains=fields.pop("gains", TEST_GAINS),
+        tolerance=fields.pop("tolerance", TEST_TOLERANCE),
+        **fields,
+    )
+
+
+@contextmanager
+def zenoh_fleet_service(settings: Settings, db: Path) -> Iterator[FleetService]:
+    """The fleet service in this process: client session, Zenoh bus, SQLite store at ``db``;
+    closed (service, session, store) on exit."""
+    store = SqliteTaskStore(db)
+    try:
+        with open_session(settings, "client") as session:
+            service = FleetService(
+                settings, ZenohFleetBus(session, Keys(settings.fleet_name)), store
+            )
+            try:
+                service.start()
+                yield service
+            finally:
+                service.close()
+    finally:
+        store.close()

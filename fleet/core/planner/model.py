@@ -1,0 +1,127 @@
+"""What the planner reads and what it decides: pure, immutable data.
+
+The fleet service takes a :class:`PlanningSnapshot` under its lock (cheap copies), runs
+:func:`fleet.core.planner.plan` on its planner thread without the lock, and applies the
+:class:`Plan` only if the tasks it decides on have not changed since (see
+:class:`TaskDecision`). Times are robot seconds from the moment the plan reaches the robots
+(``PlanningSnapshot.lead_time_s`` after the snapshot); poses are world-frame
+``(x [m], y [m], theta [rad])``.
+
+Decisions, per task (see :class:`TaskDecision`):
+
+* ``assign`` -- a queued task gets a robot, a law, a start delay (the robot stands still
+  that long after it receives the assignment, then drives) or ``hold`` (it stands still
+  until a later revision: the planner found no safe option; the task is ``waiting``);
+* ``revise`` -- a task under way gets ``revision + 1`` with a new law, delay or hold (a flip
+  of the law, a hold, or a resume after a hold);
+* ``keep`` -- nothing to send.
+
+A plan never starts or resumes a robot it predicts unsafe: such robots hold, with the reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+from fleet.core.params import Avoidance, Gains, RobotProfile, Tolerance
+from fleet.core.tasks import Direction, RobotStatus, TaskStatus
+from fleet.core.types import Law, Posture
+from fleet.core.wire import Obstacle
+
+Action = Literal["assign", "revise", "keep"]
+
+
+@dataclass(frozen=True)
+class RobotSnapshot:
+    """One robot as the service last saw it.
+
+    ``available``: it may take a new task (known, not lost, no active task, in service).
+    ``task_id``/``law``/``revision``: what its last state says it runs.
+    ``age_s``: how old ``pose`` is [s, robot time] at the snapshot.
+    """
+
+    robot_id: str
+    pose: Posture
+    status: RobotStatus
+    available: bool
+    task_id: str | None = None
+    law: Law | None = None
+    revision: int = 0
+    age_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class TaskSnapshot:
+    """One active task: queued (``robot_id`` None) or under way (assigned, driving, waiting).
+
+    ``gains`` holds the gains the robot would use with each law; ``named_robot`` is the robot
+    the request names (None: the fleet chooses). ``law``, ``revision``, ``hold`` and
+    ``start_delay_s`` are what was last sent (under way only).
+    """
+
+    task_id: str
+    goal: Posture
+    direction: Direction
+    gains: dict[Law, Gains]
+    tolerance: Tolerance
+    status: TaskStatus
+    created_at: float
+    named_robot: str | None = None
+    robot_id: str | None = None
+    law: Law | None = None
+    revision: int = 0
+    hold: bool = False
+    start_delay_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class PlanningSnapshot:
+    """Everything a plan depends on. ``version`` identifies the snapshot (the service
+    increments it on every change it makes to tasks or robots)."""
+
+    version: int
+    robots: tuple[RobotSnapshot, ...]
+    tasks: tuple[TaskSnapshot, ...]
+    obstacles: tuple[Obstacle, ...] = ()
+    profile: RobotProfile = field(default_factory=RobotProfile)
+    avoidance: Avoidance = field(default_factory=Avoidance)
+    separation_m: float = 0.5  # minimum centre distance a plan must keep [m]
+    lead_time_s: float = 0.0  # until the plan reaches the robots [s, robot time]
+    control_dt: float = 0.02  # the agents' control period = Euler step [s]
+
+
+@dataclass(frozen=True)
+class TaskDecision:
+    """What to do with one task (see the module docstring).
+
+    ``revision`` is the task revision the decision was made from: the service applies it
+    only if the task still has that revision (and the same robot and status family), else
+    the decision is stale and dropped. ``corridor`` samples the predicted path
+    ``(t [s], x [m], y [m])`` so the service can see when the robot leaves it.
+    """
+
+    task_id: str
+    robot_id: str
+    action: Action
+    law: Law
+    revision: int = 0
+    start_delay_s: float = 0.0
+    hold: bool = False
+    reason: str | None = None
+    predicted_arrival_s: float | None = None
+    corridor: tuple[tuple[float, float, float], ...] = ()
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A plan and how it was found."""
+
+    snapshot_version: int
+    decisions: tuple[TaskDecision, ...]
+    safe: bool  # every robot it moves keeps ``separation_m`` in the prediction
+    min_separation_m: float  # predicted, over pairs involving a moving robot [m]
+    rollouts: int = 0  # closed-loop rollouts simulated
+    clusters: int = 0  # independent groups of interacting robots searched
+    waiting: int = 0  # robots held because no option was safe
+    notes: tuple[str, ...] = ()

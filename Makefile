@@ -14,12 +14,13 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)  ## create .venv and install parkfleet with its test extras
 
-lint: $(STAMP)  ## ruff lint + format check
+lint: $(STAMP)  ## ruff lint + format check + the layer contracts (import-linter)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(BIN)/lint-imports
 
-typecheck: $(STAMP)  ## mypy --strict on the pure core and service
-	$(BIN)/mypy --strict fleet
+typecheck: $(STAMP)  ## mypy --strict on all four packages
+	$(BIN)/mypy --strict fleet robot_agent sim_agent api
 
 pytest: $(STAMP)
 	$(BIN)/pytest -q

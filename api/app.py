@@ -20,12 +20,12 @@ from api.deps import FleetAPI
 from api.routes import dashboard, events, health, obstacles, plots, robots, tasks
 from api.schemas import ValidationErrorOut
 from api.streaming import EventHub
-from fleet.service import FleetService
-from fleet.settings import Settings
-from fleet.store import SqliteTaskStore
-from fleet.transport import listening_locators, open_session
-from fleet.wire import Keys
-from fleet.zenoh_bus import ZenohFleetBus
+from fleet.core.wire import Keys
+from fleet.io.settings import Settings
+from fleet.io.transport import listening_locators, open_session
+from fleet.service.fleet_service import FleetService
+from fleet.service.store import SqliteTaskStore
+from fleet.service.zenoh_bus import ZenohFleetBus
 
 _log = logging.getLogger(__name__)
 

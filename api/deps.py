@@ -16,13 +16,13 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from api.schemas import ObstacleIn, ObstaclesIn, TaskIn, yard_errors
-from fleet.settings import Settings
-from fleet.tasks import FleetEvent, RobotView, Task, TaskRequest, TaskStatus
-from fleet.wire import Obstacle
+from fleet.core.tasks import FleetEvent, RobotView, Task, TaskRequest, TaskStatus
+from fleet.core.wire import Obstacle
+from fleet.io.settings import Settings
 
 
 class FleetAPI(Protocol):
-    """What the API needs of ``fleet.service.FleetService`` (a test double may stand in)."""
+    """What the API needs of :class:`fleet.service.FleetService` (a test double may stand in)."""
 
     @property
     def counters(self) -> dict[str, int]: ...

@@ -14,7 +14,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from api.schemas import FieldError, ValidationErrorOut
-from fleet.tasks import FleetError, GoalRejected, RobotNotFound, TaskConflict, TaskNotFound
+from fleet.core.tasks import FleetError, GoalRejected, RobotNotFound, TaskConflict, TaskNotFound
 
 _log = logging.getLogger(__name__)
 

@@ -3,7 +3,7 @@
 Input models are strict (``extra="forbid"``, finite numbers, bounded values) so bad input
 is a 422 naming the field, never a 500 further down. Yard bounds depend on the settings
 and are checked by :func:`yard_errors`, called from the route dependencies in ``api.deps``.
-The domain models (``fleet.tasks``) stay the service's business; these are the contract.
+The domain models (``fleet.core.tasks``) stay the service's business; these are the contract.
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from fleet.control import Law
-from fleet.params import Gains, Tolerance
-from fleet.tasks import Direction, RobotStatus, RobotView, Task, TaskRequest, TaskStatus
-from fleet.wire import Obstacle, Pose, RobotId
+from fleet.core.params import Gains, Tolerance
+from fleet.core.tasks import Direction, RobotStatus, RobotView, Task, TaskRequest, TaskStatus
+from fleet.core.types import Law
+from fleet.core.wire import Obstacle, Pose, RobotId
 
 Coordinate = Annotated[
     float, Field(allow_inf_nan=False, description="metres, inside the yard (see /healthz)")

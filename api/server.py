@@ -23,7 +23,7 @@ import uvicorn
 from fastapi import FastAPI
 
 from api.app import create_app
-from fleet.settings import Settings
+from fleet.io.settings import Settings
 
 _log = logging.getLogger(__name__)
 

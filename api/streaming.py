@@ -18,7 +18,7 @@ from collections.abc import AsyncIterator
 
 from api.deps import FleetAPI
 from api.schemas import RobotOut, TaskOut
-from fleet.tasks import FleetEvent, RobotEvent, RobotStatus, RobotView, TaskEvent
+from fleet.core.tasks import FleetEvent, RobotEvent, RobotStatus, RobotView, TaskEvent
 
 _log = logging.getLogger(__name__)
 

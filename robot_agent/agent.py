@@ -8,7 +8,8 @@ read the pose, apply pending assignment messages, decide with the pure
 * liveliness token ``keys.alive(id)``;
 * subscriber on ``keys.assignment(id)`` (park / cancel, decoded by ``wire.Decoder``:
   malformed payloads are dropped and counted, never reach the loop);
-* a :class:`~robot_agent.world.WorldView` with peers' states (``keys.all_states``) and the
+* a :class:`~robot_agent.world_feed.WorldFeed` filling a :class:`~robot_agent.world.WorldView`
+  with peers' states (``keys.all_states``) and the
   obstacles (subscribed and queried once at start), owned or shared with other agents;
 * a :class:`~robot_agent.link.LinkMonitor` (owned or shared): when the link to the router
   is lost (no router, or nothing heard for ``Settings.link_timeout_s``) an active task
@@ -31,10 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from fleet.settings import Settings
-from fleet.wire import (
+from fleet.core.wire import (
     CancelAssignment,
-    Decoder,
     Keys,
     ParkAssignment,
     Pose,
@@ -42,11 +41,14 @@ from fleet.wire import (
     RobotState,
     encode,
 )
+from fleet.io.decoder import CallbackGuard, Decoder
+from fleet.io.settings import Settings
 from robot_agent.clock import Clock, MonotonicClock, run_periodic
 from robot_agent.drive import Drive
 from robot_agent.link import LinkMonitor
-from robot_agent.logic import Decision, Task, TaskStatus, apply_assignment, decide
-from robot_agent.world import CallbackGuard, WorldView
+from robot_agent.logic import AgentTask, AgentTaskStatus, TickResult, apply_assignment, decide
+from robot_agent.world import WorldView
+from robot_agent.world_feed import WorldFeed
 
 _log = logging.getLogger(__name__)
 _NO_PEERS = np.zeros((0, 2))  # peers only matter while driving
@@ -60,7 +62,7 @@ class AgentSnapshot:
     mode: RobotMode
     task_id: str | None
     seq: int
-    decision: Decision
+    decision: TickResult
 
 
 class RobotAgent:
@@ -76,7 +78,7 @@ class RobotAgent:
         settings: Settings,
         *,
         clock: Clock | None = None,
-        world: WorldView | None = None,
+        feed: WorldFeed | None = None,
         link: LinkMonitor | None = None,
         wall_clock: Callable[[], float] = time.time,
     ) -> None:
@@ -89,20 +91,21 @@ class RobotAgent:
         self.clock: Clock = clock or MonotonicClock()
         self.period = 1.0 / settings.control_rate_hz  # [s]
         self._wall = wall_clock
-        self._owns_world = world is None
-        self.world = world or WorldView(self.keys)
+        self._owns_feed = feed is None
+        self.feed = feed or WorldFeed(WorldView(), self.keys)
+        self.world = self.feed.world
         self._owns_link = link is None
         self.link = link or LinkMonitor(
             session,
             self.keys,
             settings.link_timeout_s,
             check_router=(settings.zenoh_mode or "client") == "client",
-            heard_elsewhere=lambda: self.world.last_heard,
+            heard_elsewhere=lambda: self.feed.last_heard,
         )
         self.decoder = Decoder(f"agent {robot_id}")
         self.guard = CallbackGuard(f"agent {robot_id}")
         self._inbox: queue.SimpleQueue[ParkAssignment | CancelAssignment] = queue.SimpleQueue()
-        self._task: Task | None = None
+        self._task: AgentTask | None = None
         self._seq = 0
         self._pose = Pose(x=0.0, y=0.0, theta=0.0)
         self.tick_errors = 0
@@ -116,7 +119,7 @@ class RobotAgent:
     # -- Zenoh edges ----------------------------------------------------------------------
     @property
     def callback_errors(self) -> int:
-        return self.guard.errors + self.world.guard.errors
+        return self.guard.errors + self.feed.guard.errors
 
     def _on_assignment(self, sample: Any) -> None:
         message = self.decoder.decode_assignment(sample.payload.to_bytes())
@@ -137,8 +140,8 @@ class RobotAgent:
             return self
         self._opened = True
         try:
-            if self._owns_world:
-                self.world.attach(self.session)
+            if self._owns_feed:
+                self.feed.attach(self.session)
             if self._owns_link:
                 self.link.attach()
             self._publisher = self.session.declare_publisher(self.keys.state(self.robot_id))
@@ -161,17 +164,18 @@ class RobotAgent:
         """One control step: pose -> assignments -> decide -> wheels -> publish state."""
         try:
             pose, stamp = self.drive.read_pose()
+            now = self.clock.now()
             self._pose = pose
             while True:
                 try:
                     message = self._inbox.get_nowait()
                 except queue.Empty:
                     break
-                self._task = apply_assignment(self._task, message)
-            active = self._task is not None and self._task.status is TaskStatus.ACTIVE
+                self._task = apply_assignment(self._task, message, now)
+            active = self._task is not None and self._task.status is AgentTaskStatus.ACTIVE
             decision = decide(
                 pose.as_tuple(),
-                self.clock.now() - stamp,
+                now - stamp,
                 self._task,
                 self.world.peer_positions(exclude=self.robot_id) if active else _NO_PEERS,
                 self.world.obstacles(),
@@ -179,6 +183,7 @@ class RobotAgent:
                 self.settings.avoidance,
                 self.settings.pose_stale_s,
                 link_ok=self.link.ok() if active else True,
+                now=now,
             )
             self._task = decision.task
             if decision.moving:
@@ -190,10 +195,10 @@ class RobotAgent:
             if self.tick_errors <= 10 or self.tick_errors % 1000 == 0:
                 _log.exception("%s: tick failed (%d so far)", self.robot_id, self.tick_errors)
             self._safe_stop()
-            decision = Decision(mode=RobotMode.HOLDING, task=self._task)
+            decision = TickResult(mode=RobotMode.HOLDING, task=self._task)
         return self._publish(decision)
 
-    def _publish(self, decision: Decision) -> AgentSnapshot | None:
+    def _publish(self, decision: TickResult) -> AgentSnapshot | None:
         task = decision.task
         a = task.assignment if task is not None else None
         snapshot = AgentSnapshot(
@@ -273,8 +278,8 @@ class RobotAgent:
                 _log.debug("undeclare failed", exc_info=True)
         if self._owns_link:
             self.link.detach()
-        if self._owns_world:
-            self.world.detach()
+        if self._owns_feed:
+            self.feed.detach()
 
     def __enter__(self) -> RobotAgent:
         return self.open()

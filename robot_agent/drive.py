@@ -23,7 +23,7 @@ the agent counts it, logs it and stops the robot.
 Example, wrapping a motor controller and a localisation source::
 
     import time
-    from fleet.wire import Pose
+    from fleet.core.wire import Pose
 
     class MyDrive:
         def __init__(self, settings):
@@ -48,7 +48,7 @@ from __future__ import annotations
 
 from typing import Protocol, runtime_checkable
 
-from fleet.wire import Pose
+from fleet.core.wire import Pose
 
 PoseReading = tuple[Pose, float]
 """A world-frame pose and the time [s, agent clock] it was measured."""

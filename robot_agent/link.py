@@ -31,7 +31,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from fleet.wire import Keys
+from fleet.core.wire import Keys
 
 _log = logging.getLogger(__name__)
 

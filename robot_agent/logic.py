@@ -4,7 +4,7 @@ One tick: given the robot's own pose (and its age), its task, its peers' last po
 and the static obstacles, decide the wheel command and the mode to report. The agent
 (:mod:`robot_agent.agent`) feeds it from Zenoh and the drive; tests feed it directly.
 
-Task protocol (``fleet.wire`` module docstring), as a pure state machine
+Task protocol (``fleet.core.wire`` module docstring), as a pure state machine
 (:func:`apply_assignment`):
 
 * a ``ParkAssignment`` with a new ``task_id`` replaces the current task; a repeat of the
@@ -13,6 +13,8 @@ Task protocol (``fleet.wire`` module docstring), as a pure state machine
 * a higher ``revision`` of the current ``task_id`` (the fleet re-planned it) replaces the
   assignment -- law, gains, tolerance, limits -- and keeps the task's status: an active task
   drives on from where it is with the new law, an arrived or cancelled one stays so;
+* ``hold``, or the ``start_delay_s`` after the assignment (or revision) was applied ->
+  stand still, ``waiting``, task active (the time comes from the agent's clock, ``now``);
 * a ``CancelAssignment`` for the current task -> ``holding`` with the task id kept;
   a cancel for any other task is ignored;
 * arrival within tolerance -> stop, ``arrived`` (latched until a new task);
@@ -39,49 +41,67 @@ from enum import StrEnum
 
 import numpy as np
 
-from fleet.control import FloatArray, is_cw, obstacle_repulsion, pose_error, posture_law, saturate
-from fleet.control import wheel_speeds as to_wheel_speeds
-from fleet.params import Avoidance, RobotProfile
-from fleet.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
+from fleet.core.control import is_cw, obstacle_repulsion, pose_error, posture_law, saturate
+from fleet.core.control import wheel_speeds as to_wheel_speeds
+from fleet.core.params import Avoidance, RobotProfile
+from fleet.core.types import FloatArray
+from fleet.core.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
+
+#: Tolerance [s] on the end of a start delay (the batch simulator uses the same).
+DELAY_EPS = 1e-6
 
 
-class TaskStatus(StrEnum):
+class AgentTaskStatus(StrEnum):
     ACTIVE = "active"
     ARRIVED = "arrived"
     CANCELLED = "cancelled"
 
 
 @dataclass(frozen=True)
-class Task:
+class AgentTask:
     """The robot's current (or last) assignment and how far it got."""
 
     assignment: ParkAssignment
-    status: TaskStatus = TaskStatus.ACTIVE
+    status: AgentTaskStatus = AgentTaskStatus.ACTIVE
+    applied_at: float = 0.0  # [s, agent clock] when this revision was applied
 
     @property
     def task_id(self) -> str:
         return self.assignment.task_id
 
+    def waiting(self, now: float) -> bool:
+        """Whether the robot must stand still at ``now`` [s]: held, or in its start delay.
 
-def apply_assignment(task: Task | None, message: ParkAssignment | CancelAssignment) -> Task | None:
-    """Next task after an assignment message (see the module docstring for the rules)."""
+        The delay ends at the first tick at or after ``applied_at + start_delay_s``, within
+        ``DELAY_EPS`` (ticks are sums of periods: exact times are off by rounding).
+        """
+        a = self.assignment
+        return a.hold or now < self.applied_at + a.start_delay_s - DELAY_EPS
+
+
+def apply_assignment(
+    task: AgentTask | None, message: ParkAssignment | CancelAssignment, now: float = 0.0
+) -> AgentTask | None:
+    """Next task after an assignment message received at ``now`` [s, agent clock] (see the
+    module docstring for the rules)."""
     if isinstance(message, ParkAssignment):
         if task is not None and task.task_id == message.task_id:
             if message.revision <= task.assignment.revision:
                 return task  # at-least-once delivery: a repeat or a stale revision is ignored
-            return replace(task, assignment=message)  # re-planned: new law, same status
-        return Task(message)
+            # re-planned: new law, delay or hold, same status
+            return replace(task, assignment=message, applied_at=now)
+        return AgentTask(message, applied_at=now)
     if task is not None and task.task_id == message.task_id:
-        return replace(task, status=TaskStatus.CANCELLED)
+        return replace(task, status=AgentTaskStatus.CANCELLED)
     return task
 
 
 @dataclass(frozen=True)
-class Decision:
+class TickResult:
     """Output of one tick: body and wheel command, mode to report, task after the tick."""
 
     mode: RobotMode
-    task: Task | None
+    task: AgentTask | None
     u: float = 0.0  # forward speed [m/s]
     omega: float = 0.0  # turn rate [rad/s]
     right: float = 0.0  # right wheel [rad/s]
@@ -93,8 +113,8 @@ class Decision:
         return self.right != 0.0 or self.left != 0.0
 
 
-def _stopped(mode: RobotMode, task: Task | None) -> Decision:
-    return Decision(mode=mode, task=task)
+def _stopped(mode: RobotMode, task: AgentTask | None) -> TickResult:
+    return TickResult(mode=mode, task=task)
 
 
 def within_tolerance(pose: Sequence[float] | FloatArray, assignment: ParkAssignment) -> bool:
@@ -140,14 +160,15 @@ def _towards_contact(
 def decide(
     pose: Sequence[float],
     pose_age: float,
-    task: Task | None,
+    task: AgentTask | None,
     peers: FloatArray,
     obstacles: tuple[FloatArray, FloatArray],
     profile: RobotProfile,
     avoidance: Avoidance,
     pose_stale_s: float,
     link_ok: bool = True,
-) -> Decision:
+    now: float = 0.0,
+) -> TickResult:
     """Decide one control tick.
 
     Parameters
@@ -157,7 +178,7 @@ def decide(
     pose_age : float
         Age of that measurement [s]; above ``pose_stale_s`` the robot is stopped
         (``holding``) while it has an active task.
-    task : Task or None
+    task : AgentTask or None
         Current task (see :func:`apply_assignment`).
     peers : ndarray, shape (M, 2)
         Last known centres [m] of every other robot (never forgotten, even when silent).
@@ -174,12 +195,14 @@ def decide(
         Whether the robot still hears the fleet's Zenoh network
         (:class:`robot_agent.link.LinkMonitor`); without it the robot cannot see its
         peers, so an active task holds (``holding``) until the link returns.
+    now : float
+        Agent clock [s]: a held task, or one within its start delay, waits (``waiting``).
     """
     if task is None:
         return _stopped(RobotMode.IDLE, None)
-    if task.status is TaskStatus.ARRIVED:
+    if task.status is AgentTaskStatus.ARRIVED:
         return _stopped(RobotMode.ARRIVED, task)
-    if task.status is TaskStatus.CANCELLED:
+    if task.status is AgentTaskStatus.CANCELLED:
         return _stopped(RobotMode.HOLDING, task)
     if not pose_age <= pose_stale_s:  # also catches NaN
         return _stopped(RobotMode.HOLDING, task)
@@ -189,7 +212,9 @@ def decide(
     a = task.assignment
     p = np.asarray(pose, dtype=np.float64)
     if within_tolerance(p, a):
-        return _stopped(RobotMode.ARRIVED, replace(task, status=TaskStatus.ARRIVED))
+        return _stopped(RobotMode.ARRIVED, replace(task, status=AgentTaskStatus.ARRIVED))
+    if task.waiting(now):
+        return _stopped(RobotMode.WAITING, task)
 
     cw = is_cw(a.law)
     x_e, y_e, theta_e = pose_error(p, a.goal.as_tuple(), cw)
@@ -224,7 +249,7 @@ def decide(
         u_s = u_s * 0.0  # contact guard: turn on the spot, never drive into a peer
         active = True
     right, left = to_wheel_speeds(u_s, w_s, profile.wheel_radius, profile.half_axle)
-    return Decision(
+    return TickResult(
         mode=RobotMode.AVOIDING if active else RobotMode.DRIVING,
         task=task,
         u=float(u_s),

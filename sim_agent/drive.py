@@ -2,7 +2,7 @@
 
 The wheel command is held between calls (zero-order hold) and the pose is integrated by
 forward Euler on Eq. (3) -- x' = u cos(theta), y' = u sin(theta), theta' = omega, with
-(u, omega) from the wheel speeds by Eq. (2) -- exactly as ``fleet.simulate``. Integration
+(u, omega) from the wheel speeds by Eq. (2) -- exactly as ``fleet.core.simulate``. Integration
 is lazy: every call advances the true pose to ``clock.now()`` in steps of at most
 ``max_step`` clock seconds. On a :class:`~robot_agent.clock.SteppedClock` advanced by one
 control period per tick (``sim_agent.fleet``), that is one Euler step of the control
@@ -19,9 +19,10 @@ import threading
 
 import numpy as np
 
-from fleet.control import body_velocities
-from fleet.params import RobotProfile
-from fleet.wire import Pose
+from fleet.core.control import body_velocities
+from fleet.core.params import RobotProfile
+from fleet.core.wire import Pose
+from fleet.io.settings import Settings
 from robot_agent.clock import Clock, MonotonicClock
 from robot_agent.drive import PoseReading
 
@@ -69,7 +70,7 @@ class SimDrive:
         steps = min(math.ceil(elapsed / self.max_step - 1e-9), MAX_SUBSTEPS)
         dt = elapsed / steps
         x, y, theta = self.x, self.y, self.theta
-        for _ in range(steps):  # forward Euler on Eq. (3), as fleet.simulate
+        for _ in range(steps):  # forward Euler on Eq. (3), as fleet.core.simulate
             x += u_f * math.cos(theta) * dt
             y += u_f * math.sin(theta) * dt
             theta += w_f * dt
@@ -108,3 +109,9 @@ class SimDrive:
         with self._lock:
             self._advance()
             self.right = self.left = 0.0
+
+
+def make_drive(settings: Settings) -> SimDrive:
+    """Drive factory of ``parkfleet agent --drive sim``: a simulated unicycle starting at
+    ``settings.sim_start`` with the robot's profile, stepped at the control period."""
+    return SimDrive(settings.sim_start, settings.profile, max_step=1.0 / settings.control_rate_hz)

@@ -21,12 +21,13 @@ from typing import Any
 
 import numpy as np
 
-from fleet.settings import Settings
-from fleet.wire import Keys, validate_id
+from fleet.core.wire import Keys, validate_id
+from fleet.io.settings import Settings
 from robot_agent.agent import RobotAgent
 from robot_agent.clock import SteppedClock, run_periodic
 from robot_agent.link import LinkMonitor
 from robot_agent.world import WorldView
+from robot_agent.world_feed import WorldFeed
 from sim_agent.drive import SimDrive
 
 _log = logging.getLogger(__name__)
@@ -127,14 +128,14 @@ class SimFleet:
         self.time_scale = float(time_scale)
         self.period = 1.0 / settings.control_rate_hz  # control period = Euler step [sim s]
         self.clock = SteppedClock()
-        self.world = WorldView(Keys(settings.fleet_name))
-        world = self.world
+        self.world = WorldView()
+        self.feed = feed = WorldFeed(self.world, Keys(settings.fleet_name))
         self.link = LinkMonitor(  # one link per session, shared by its agents
             session,
             Keys(settings.fleet_name),
             settings.link_timeout_s,
             check_router=(settings.zenoh_mode or "client") == "client",
-            heard_elsewhere=lambda: world.last_heard,
+            heard_elsewhere=lambda: feed.last_heard,
         )
         rng = np.random.default_rng(seed)
         self.drives: dict[str, SimDrive] = {}
@@ -156,7 +157,7 @@ class SimFleet:
                     session,
                     settings,
                     clock=self.clock,
-                    world=self.world,
+                    feed=self.feed,
                     link=self.link,
                 )
             )
@@ -173,7 +174,7 @@ class SimFleet:
         if not self._opened:
             self._opened = True
             try:
-                self.world.attach(self.session)
+                self.feed.attach(self.session)
                 self.link.attach()
                 for agent in self.agents:
                     agent.open()
@@ -248,7 +249,7 @@ class SimFleet:
         for agent in self.agents:
             agent.close()
         self.link.detach()
-        self.world.detach()
+        self.feed.detach()
 
     def __enter__(self) -> SimFleet:
         return self.open()

@@ -7,8 +7,8 @@ from collections.abc import Iterator
 import pytest
 from hypothesis import settings as hypothesis_settings
 
-from fleet.settings import Settings, load_settings
-from fleet.transport import listening_locators, open_session
+from fleet.io.settings import Settings, load_settings
+from fleet.io.transport import listening_locators, open_session, tcp_endpoint
 
 # Machines are shared and noisy: a per-example deadline would make timing decide a test.
 hypothesis_settings.register_profile("parkfleet", deadline=None, print_blob=True)
@@ -20,9 +20,7 @@ def router_endpoint() -> Iterator[str]:
     """A Zenoh router listening on ``tcp/127.0.0.1:<free port>``; yields its endpoint."""
     settings = load_settings(listen=["tcp/127.0.0.1:0"])
     with open_session(settings, "router") as session:
-        locators = [loc for loc in listening_locators(session) if loc.startswith("tcp/")]
-        assert locators, "router reported no tcp locator"
-        yield locators[0]
+        yield tcp_endpoint(listening_locators(session))
 
 
 @pytest.fixture

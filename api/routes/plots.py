@@ -2,7 +2,7 @@
 
 The fleet service records the task's robot as its states arrive (``FleetService.path``):
 irregular samples on the service's wall clock. They are resampled onto a uniform time grid
-(at most :data:`MAX_STEPS` steps) for :func:`fleet.plotting.plot_trajectory`, which draws
+(at most :data:`MAX_STEPS` steps) for :func:`fleet.paper.plotting.plot_trajectory`, which draws
 the path with oriented triangles as in the paper's figures, and u, omega over time.
 """
 
@@ -74,7 +74,7 @@ def task_plot(
     """
     # Plain def: matplotlib rendering is CPU work, kept off the event loop. Only the
     # object-oriented Figure API is used (no pyplot state), so threads do not interfere.
-    from fleet.plotting import plot_trajectory
+    from fleet.paper.plotting import plot_trajectory
 
     task = service.task(task_id)  # 404 when unknown
     samples = service.path(task_id)

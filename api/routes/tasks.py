@@ -13,7 +13,7 @@ from fastapi import APIRouter, Path, Query, status
 
 from api.deps import Authorized, IdempotencyKey, ServiceDep, TaskBody
 from api.schemas import ErrorOut, PathPointOut, TaskOut
-from fleet.tasks import TaskStatus
+from fleet.core.tasks import TaskStatus
 
 router = APIRouter(prefix="/tasks", tags=["tasks"])
 

@@ -16,7 +16,7 @@ const TASKS_KEPT = 400; // finished tasks beyond this are forgotten (oldest firs
 const ROBOT_TABLE_MS = 250;
 const OBSTACLES_POLL_MS = 10000; // obstacles have no event: poll them
 const SMOOTHING_S = 0.08; // display pose follows the reported one with this time constant
-const ACTIVE = new Set(["queued", "assigned", "driving"]);
+const ACTIVE = new Set(["queued", "assigned", "driving", "waiting"]);
 const EQUATION = { ccw: "Eq. (17)", cw: "Eq. (20)" };
 
 const $ = (id) => document.getElementById(id);

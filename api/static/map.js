@@ -10,6 +10,7 @@ export const MODE_COLORS = {
   avoiding: "#f59e0b",
   arrived: "#22c55e",
   holding: "#a855f7",
+  waiting: "#14b8a6",
   lost: "#ef4444",
 };
 

@@ -25,6 +25,8 @@ from fleet.core.params import DEFAULT_TOLERANCE, UNLIMITED, Gains, RobotProfile,
 from fleet.core.types import BoolArray, FloatArray, Law
 
 PAPER_DT = 0.01
+#: Tolerance [s] on the end of a start delay (as ``robot_agent.logic.DELAY_EPS``).
+DELAY_EPS = 1e-6
 
 
 def _column(values: npt.ArrayLike, n: int, name: str) -> FloatArray:
@@ -55,6 +57,9 @@ class BatchProblem:
     k_avoid: float = 0.0  # K_avoid of Eq. (27) [m^2/s]
     peer_radius: float = 0.0  # influence radius of each robot on its peers [m]; 0 = off
     min_x_oa: float = DEFAULT_MIN_X_OA
+    #: (N,) [s] each robot stands still (u = omega = 0) while t < start_delay - DELAY_EPS,
+    #: like an agent in its start delay; arrival is checked throughout. None: no delays.
+    start_delay: FloatArray | None = None
 
     @property
     def size(self) -> int:
@@ -74,6 +79,7 @@ class BatchProblem:
         k_avoid: float = 0.0,
         peer_radius: float = 0.0,
         min_x_oa: float = DEFAULT_MIN_X_OA,
+        start_delay: npt.ArrayLike | None = None,
     ) -> BatchProblem:
         """Broadcast per-robot inputs (scalars, models or arrays) to an N-robot problem."""
         start_arr = np.atleast_2d(np.asarray(start, dtype=np.float64))
@@ -112,6 +118,7 @@ class BatchProblem:
             k_avoid=float(k_avoid),
             peer_radius=float(peer_radius),
             min_x_oa=float(min_x_oa),
+            start_delay=None if start_delay is None else _column(start_delay, n, "start_delay"),
         )
 
 
@@ -297,10 +304,12 @@ def simulate(
     record: bool = False,
     track_separation: bool = False,
     group: int = 0,
+    record_every: int = 1,
 ) -> SimResult:
     """Simulate the closed-loop batch until every robot is done or ``max_time`` [s] passes.
 
-    ``record`` keeps poses, controls and errors (memory T x N); ``track_separation``
+    ``record`` keeps poses, controls and errors of every ``record_every``-th step (memory
+    T/record_every x N; the final pose is always kept); ``track_separation``
     keeps the minimum centre distance of every pair over the run (cost N^2 per step).
     ``group`` > 0 splits the batch into independent consecutive blocks of ``group`` rows
     (e.g. copies of one scene): peers repel, and separations are tracked, only within a
@@ -309,6 +318,8 @@ def simulate(
     """
     if dt <= 0 or not np.isfinite(dt):
         raise ValueError("dt must be a positive finite number of seconds")
+    if record_every < 1:
+        raise ValueError("record_every must be at least 1")
     n = problem.size
     if group < 0 or (group > 0 and n % group != 0):
         raise ValueError("group must divide the batch size")
@@ -332,6 +343,10 @@ def simulate(
     limited = bool(np.isfinite(problem.max_wheel_speed).any())
     has_obstacles = problem.k_avoid > 0 and problem.obstacles.shape[0] > 0
     peers = problem.k_avoid > 0 and problem.peer_radius > 0 and n > 1
+    delay_end = None
+    if problem.start_delay is not None and bool((problem.start_delay > 0).any()):
+        delay_end = problem.start_delay - DELAY_EPS
+    waiting = np.empty(n, dtype=bool)
 
     ws = _Workspace(n)
     active = np.ones(n, dtype=bool)
@@ -394,8 +409,15 @@ def simulate(
             np.logical_not(active, out=ws.mask)
             ws.u[ws.mask] = 0.0
             ws.omega[ws.mask] = 0.0
+        if delay_end is not None:  # robots in their start delay stand still
+            np.less(step * dt, delay_end, out=waiting)
+            if waiting.any():
+                ws.u[waiting] = 0.0
+                ws.omega[waiting] = 0.0
+            else:
+                delay_end = None
 
-        if record:
+        if record and step % record_every == 0:
             poses.append(np.stack([x, y, theta], axis=1))
             controls.append(np.stack([ws.u, ws.omega], axis=1))
             errors.append(np.stack([ws.x_e, ws.y_e, ws.theta_e], axis=1))

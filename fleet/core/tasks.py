@@ -19,11 +19,16 @@ Direction = Literal["auto", "cw", "ccw"]
 
 
 class TaskStatus(StrEnum):
-    """Life cycle: queued -> assigned -> driving -> succeeded | failed | cancelled."""
+    """Life cycle: queued -> assigned -> driving -> succeeded | failed | cancelled.
+
+    ``waiting``: the task has its robot, which stands still because the planner found no
+    safe option yet (``reason`` says why); it becomes ``driving`` again once released.
+    """
 
     QUEUED = "queued"
     ASSIGNED = "assigned"
     DRIVING = "driving"
+    WAITING = "waiting"
     SUCCEEDED = "succeeded"
     FAILED = "failed"
     CANCELLED = "cancelled"
@@ -41,6 +46,7 @@ class RobotStatus(StrEnum):
     AVOIDING = "avoiding"
     ARRIVED = "arrived"
     HOLDING = "holding"
+    WAITING = "waiting"
     LOST = "lost"
 
     @classmethod

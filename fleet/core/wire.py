@@ -28,6 +28,10 @@ Protocol between the fleet service and a robot agent:
   least that revision acknowledges it, and the service re-sends the revision until then.
 * On arrival within tolerance the robot stops and reports ``mode=arrived`` with the task id;
   the service marks the task succeeded.
+* ``start_delay_s`` (>= 0): after applying an assignment (or a revision) the robot stands
+  still for that long of its own time, ``mode=waiting``, then drives (a planned wait for a
+  peer to pass). ``hold``: the robot stands still, ``mode=waiting``, until a higher revision
+  releases it (the fleet found no safe option yet).
 * ``CancelAssignment`` for the current task stops the robot: ``mode=holding``, task id kept.
 * With no assignment the robot stands still in ``mode=idle`` with ``task_id=None``.
 """
@@ -136,6 +140,7 @@ class RobotMode(StrEnum):
     AVOIDING = "avoiding"
     ARRIVED = "arrived"
     HOLDING = "holding"
+    WAITING = "waiting"  # standing still on purpose: a planned start delay or a hold
 
 
 class _Message(BaseModel):
@@ -183,6 +188,10 @@ class ParkAssignment(_Message):
     tolerance: Tolerance = Tolerance()
     max_wheel_speed: Annotated[float, Field(gt=0)] | None = None  # [rad/s]; None = robot's own
     avoidance: Avoidance = Avoidance()
+    #: Stand still this long [s, robot time] after applying this revision, then drive.
+    start_delay_s: Annotated[float, Field(ge=0.0, le=3600.0, allow_inf_nan=False)] = 0.0
+    #: Stand still until a higher revision arrives (no safe option was found yet).
+    hold: bool = False
 
 
 class CancelAssignment(_Message):

@@ -12,11 +12,11 @@ import pytest
 from pydantic import SecretStr
 
 from api.app import create_app
-from fleet.bus import MemoryBus
-from fleet.service import FleetService
-from fleet.settings import Settings, load_settings
-from fleet.store import SqliteTaskStore
-from fleet.wire import Pose, RobotMode, RobotState
+from fleet.core.wire import Pose, RobotMode, RobotState
+from fleet.io.settings import Settings, load_settings
+from fleet.service.bus import MemoryBus
+from fleet.service.fleet_service import FleetService
+from fleet.service.store import SqliteTaskStore
 
 TOKEN = "s3cret-token"
 

@@ -7,8 +7,8 @@ import pytest
 from pydantic import SecretStr
 
 from api.server import check_bind, is_loopback
-from fleet.cli import main
-from fleet.settings import load_settings
+from fleet.cli.main import main
+from fleet.io.settings import load_settings
 from tests.api.conftest import TOKEN
 
 pytestmark = pytest.mark.anyio

@@ -12,8 +12,8 @@ import pytest
 
 from api.routes.dashboard import ASSETS
 from api.routes.plots import resample
-from fleet.bus import MemoryBus
-from fleet.wire import Pose, RobotMode, RobotState
+from fleet.core.wire import Pose, RobotMode, RobotState
+from fleet.service.bus import MemoryBus
 from tests.api.conftest import add_robot
 
 pytestmark = pytest.mark.anyio

@@ -11,8 +11,16 @@ from typing import Any
 import pytest
 
 from api.streaming import EventHub
-from fleet.tasks import FleetEvent, RobotEvent, RobotStatus, RobotView, Task, TaskEvent, TaskRequest
-from fleet.wire import Pose
+from fleet.core.tasks import (
+    FleetEvent,
+    RobotEvent,
+    RobotStatus,
+    RobotView,
+    Task,
+    TaskEvent,
+    TaskRequest,
+)
+from fleet.core.wire import Pose
 
 pytestmark = pytest.mark.anyio
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import httpx
 import pytest
 
-from fleet.bus import MemoryBus
+from fleet.service.bus import MemoryBus
 from tests.api.conftest import add_robot
 
 pytestmark = pytest.mark.anyio

@@ -7,9 +7,9 @@ from typing import Any
 import httpx
 import pytest
 
-from fleet.bus import MemoryBus
-from fleet.service import FleetService
-from fleet.wire import Obstacle
+from fleet.core.wire import Obstacle
+from fleet.service.bus import MemoryBus
+from fleet.service.fleet_service import FleetService
 from tests.api.conftest import add_robot
 
 pytestmark = pytest.mark.anyio

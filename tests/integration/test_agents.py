@@ -15,14 +15,11 @@ from typing import Any
 
 import pytest
 import zenoh
-from support import read_line, wait_for
+from support import park, read_line, wait_for
 
-from fleet.control import pose_error
-from fleet.params import Gains, Tolerance
-from fleet.settings import Settings
-from fleet.transport import open_session
-from fleet.wire import (
-    Decoder,
+from fleet.core.control import pose_error
+from fleet.core.params import Gains, Tolerance
+from fleet.core.wire import (
     Keys,
     Obstacle,
     ObstacleSet,
@@ -32,6 +29,9 @@ from fleet.wire import (
     RobotState,
     encode,
 )
+from fleet.io.decoder import Decoder
+from fleet.io.settings import Settings
+from fleet.io.transport import open_session
 from sim_agent.fleet import SimFleet, Spawn
 
 pytestmark = pytest.mark.integration
@@ -110,13 +110,6 @@ def start_cli(procs: list[subprocess.Popen[bytes]], *args: str) -> subprocess.Po
     )
     procs.append(proc)
     return proc
-
-
-def park(rid: str, task_id: str, goal: tuple[float, float, float]) -> ParkAssignment:
-    return ParkAssignment(
-        robot_id=rid, task_id=task_id, goal=Pose(x=goal[0], y=goal[1], theta=goal[2]),
-        law="ccw", gains=GAINS, tolerance=TOL,
-    )  # fmt: skip
 
 
 def assign_until_acked(

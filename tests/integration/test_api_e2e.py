@@ -23,8 +23,7 @@ from typing import Any
 import httpx
 import pytest
 
-from api.process import ServerProcess, running_server
-from fleet.processes import sim_command, terminate
+from fleet.io.processes import ServerProcess, running_server, sim_command, terminate
 
 pytestmark = pytest.mark.integration
 

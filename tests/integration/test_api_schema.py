@@ -13,7 +13,7 @@ from hypothesis.errors import Unsatisfiable
 from schemathesis import GenerationMode
 from schemathesis.checks import not_a_server_error
 
-from api.process import running_server
+from fleet.io.processes import running_server
 
 pytestmark = pytest.mark.integration
 

@@ -16,14 +16,14 @@ from pathlib import Path
 
 import pytest
 
-from fleet.processes import sim_command, terminate
-from fleet.service import FleetService
-from fleet.settings import load_settings
-from fleet.store import SqliteTaskStore
-from fleet.tasks import GoalRejected, TaskRequest, TaskStatus
-from fleet.transport import open_session
-from fleet.wire import Keys, Pose
-from fleet.zenoh_bus import ZenohFleetBus
+from fleet.core.tasks import GoalRejected, TaskRequest, TaskStatus
+from fleet.core.wire import Keys, Pose
+from fleet.io.processes import sim_command, terminate
+from fleet.io.settings import load_settings
+from fleet.io.transport import open_session
+from fleet.service.fleet_service import FleetService
+from fleet.service.store import SqliteTaskStore
+from fleet.service.zenoh_bus import ZenohFleetBus
 
 pytestmark = pytest.mark.integration
 

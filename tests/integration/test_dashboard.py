@@ -20,8 +20,7 @@ from typing import TYPE_CHECKING, Any
 import httpx
 import pytest
 
-from api.process import ServerProcess, running_server
-from fleet.processes import sim_command, terminate
+from fleet.io.processes import ServerProcess, running_server, sim_command, terminate
 
 if TYPE_CHECKING:
     from playwright.sync_api import Browser, ConsoleMessage, Error, Page
@@ -161,7 +160,7 @@ def test_page_loads_without_console_errors(page: tuple[Page, Console]) -> None:
     # The table is drawn on animation frames (throttled), after the state holds the robots:
     # wait for the rows rather than reading them once.
     expect(browser_page.locator("#robots-body tr")).to_have_count(2)
-    expect(browser_page.locator("#legend-modes li")).to_have_count(6)
+    expect(browser_page.locator("#legend-modes li")).to_have_count(7)  # one per robot status
     assert console.errors == []
 
 

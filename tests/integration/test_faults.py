@@ -32,17 +32,13 @@ from pathlib import Path
 
 import httpx
 import pytest
-from support import read_line, wait_for
+from support import park, read_line, wait_for, zenoh_fleet_service
 
-from api.process import running_server
-from fleet.params import Gains, Tolerance
-from fleet.service import FleetService
-from fleet.settings import Settings, load_settings
-from fleet.store import SqliteTaskStore
-from fleet.tasks import FleetEvent, RobotEvent, RobotStatus, TaskRequest, TaskStatus
-from fleet.transport import open_session
-from fleet.wire import Keys, ParkAssignment, Pose, RobotMode, encode
-from fleet.zenoh_bus import ZenohFleetBus
+from fleet.core.tasks import FleetEvent, RobotEvent, RobotStatus, TaskRequest, TaskStatus
+from fleet.core.wire import Keys, Pose, RobotMode, encode
+from fleet.io.processes import running_server
+from fleet.io.settings import Settings, load_settings
+from fleet.io.transport import open_session
 from robot_agent.agent import RobotAgent
 from robot_agent.clock import MonotonicClock
 from sim_agent.drive import SimDrive
@@ -91,32 +87,6 @@ def sim_process(
         yield proc
 
 
-@contextmanager
-def fleet_service(settings: Settings, db: Path) -> Iterator[FleetService]:
-    """The fleet service in this process: client session, Zenoh bus, SQLite store."""
-    store = SqliteTaskStore(db)
-    try:
-        with open_session(settings, "client") as session:
-            service = FleetService(
-                settings, ZenohFleetBus(session, Keys(settings.fleet_name)), store
-            )
-            try:
-                service.start()
-                yield service
-            finally:
-                service.close()
-    finally:
-        store.close()
-
-
-def park(rid: str, task_id: str, goal: tuple[float, float, float]) -> ParkAssignment:
-    return ParkAssignment(
-        robot_id=rid, task_id=task_id, goal=Pose(x=goal[0], y=goal[1], theta=goal[2]),
-        law="ccw", gains=Gains(kx=1.0, ky=2.0, ktheta=1.0),
-        tolerance=Tolerance(position=0.1, heading=0.1),
-    )  # fmt: skip
-
-
 # 1 -----------------------------------------------------------------------------------------
 @pytest.mark.parametrize("on_lost", ["fail", "requeue"])
 def test_sigkilled_agent_is_noticed_its_task_follows_the_setting_and_peers_avoid_it(
@@ -132,7 +102,7 @@ def test_sigkilled_agent_is_noticed_its_task_follows_the_setting_and_peers_avoid
 
     goal = Pose(x=-5.0, y=0.0, theta=math.pi)
     with (
-        fleet_service(settings, tmp_path / "fleet.db") as service,
+        zenoh_fleet_service(settings, tmp_path / "fleet.db") as service,
         open_session(settings, "client") as peer_session,
     ):
         service.add_listener(on_event)

@@ -15,16 +15,15 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
-from support import wait_for
+from support import wait_for, zenoh_fleet_service
 
-from fleet.processes import sim_command, terminate
-from fleet.service import FleetService
-from fleet.settings import Settings, load_settings
-from fleet.store import SqliteTaskStore
-from fleet.tasks import RobotStatus, Task, TaskRequest, TaskStatus
-from fleet.transport import open_session
-from fleet.wire import Keys, Obstacle, ObstacleSet, Pose, RobotState, encode
-from fleet.zenoh_bus import ZenohFleetBus
+from fleet.core.tasks import RobotStatus, Task, TaskRequest, TaskStatus
+from fleet.core.wire import Keys, Obstacle, ObstacleSet, Pose, RobotState, encode
+from fleet.io.processes import sim_command, terminate
+from fleet.io.settings import load_settings
+from fleet.io.transport import open_session
+from fleet.service.fleet_service import FleetService
+from fleet.service.store import SqliteTaskStore
 
 pytestmark = pytest.mark.integration
 
@@ -50,22 +49,6 @@ def sim_robots(
             proc.stderr.close()
 
 
-@contextmanager
-def fleet_service(settings: Settings, tmp_path: Path) -> Iterator[FleetService]:
-    store = SqliteTaskStore(tmp_path / "var" / "parkfleet.db")
-    try:
-        with open_session(settings, "client") as session:
-            bus = ZenohFleetBus(session, Keys(settings.fleet_name))
-            service = FleetService(settings, bus, store)
-            try:
-                service.start()
-                yield service
-            finally:
-                service.close()
-    finally:
-        store.close()
-
-
 def status_of(service: FleetService, task: Task) -> TaskStatus:
     return service.task(task.id).status
 
@@ -73,7 +56,7 @@ def status_of(service: FleetService, task: Task) -> TaskStatus:
 def test_task_succeeds_and_every_transition_is_stored(router_endpoint: str, tmp_path: Path) -> None:
     settings = load_settings(connect=[router_endpoint], task_timeout_s=60.0)
     with (
-        fleet_service(settings, tmp_path) as service,
+        zenoh_fleet_service(settings, tmp_path / "var" / "parkfleet.db") as service,
         sim_robots(router_endpoint, tmp_path, [("r1", 0.0, 0.0, 0.0), ("r2", 0.0, 4.0, 0.0)]),
     ):
         wait_for(lambda: len(service.robots()) == 2, 20, "two robots in the roster")
@@ -106,7 +89,7 @@ def test_task_succeeds_and_every_transition_is_stored(router_endpoint: str, tmp_
 def test_cancel_stops_the_robot(router_endpoint: str, tmp_path: Path) -> None:
     settings = load_settings(connect=[router_endpoint], task_timeout_s=60.0)
     with (
-        fleet_service(settings, tmp_path) as service,
+        zenoh_fleet_service(settings, tmp_path / "var" / "parkfleet.db") as service,
         sim_robots(router_endpoint, tmp_path, [("r1", 0.0, 0.0, 0.0)]),
     ):
         wait_for(lambda: len(service.robots()) == 1, 20, "the robot")
@@ -128,7 +111,7 @@ def test_cancel_stops_the_robot(router_endpoint: str, tmp_path: Path) -> None:
 def test_robot_killed_mid_task_fails_the_task(router_endpoint: str, tmp_path: Path) -> None:
     settings = load_settings(connect=[router_endpoint], task_timeout_s=60.0)
     with (
-        fleet_service(settings, tmp_path) as service,
+        zenoh_fleet_service(settings, tmp_path / "var" / "parkfleet.db") as service,
         sim_robots(router_endpoint, tmp_path, [("r1", 0.0, 0.0, 0.0)]) as proc,
     ):
         wait_for(lambda: len(service.robots()) == 1, 20, "the robot")
@@ -147,7 +130,7 @@ def test_robot_killed_mid_task_requeues_to_another(router_endpoint: str, tmp_pat
     settings = load_settings(
         connect=[router_endpoint], task_timeout_s=60.0, on_robot_lost="requeue"
     )
-    with fleet_service(settings, tmp_path) as service:
+    with zenoh_fleet_service(settings, tmp_path / "var" / "parkfleet.db") as service:
         with sim_robots(router_endpoint, tmp_path, [("r1", 0.0, 0.0, 0.0)]) as first:
             wait_for(lambda: len(service.robots()) == 1, 20, "the first robot")
             task = service.submit(TaskRequest(goal=Pose(x=-6.0, y=6.0, theta=0.0)))
@@ -166,7 +149,7 @@ def test_robot_killed_mid_task_requeues_to_another(router_endpoint: str, tmp_pat
 def test_timeout_fails_the_task_and_holds_the_robot(router_endpoint: str, tmp_path: Path) -> None:
     settings = load_settings(connect=[router_endpoint], task_timeout_s=1.0)
     with (
-        fleet_service(settings, tmp_path) as service,
+        zenoh_fleet_service(settings, tmp_path / "var" / "parkfleet.db") as service,
         sim_robots(router_endpoint, tmp_path, [("r1", 0.0, 0.0, 0.0)]),
     ):
         wait_for(lambda: len(service.robots()) == 1, 20, "the robot")
@@ -183,7 +166,10 @@ def test_bus_drops_bad_payloads_and_answers_obstacle_queries(
 ) -> None:
     settings = load_settings(connect=[router_endpoint])
     keys = Keys(settings.fleet_name)
-    with fleet_service(settings, tmp_path) as service, open_session(settings, "client") as other:
+    with (
+        zenoh_fleet_service(settings, tmp_path / "var" / "parkfleet.db") as service,
+        open_session(settings, "client") as other,
+    ):
         service.set_obstacles([Obstacle(x=1.0, y=2.0, radius=0.5)])
         state = RobotState(robot_id="r9", seq=1, stamp=0.0, pose=Pose(x=0.0, y=0.0))
 

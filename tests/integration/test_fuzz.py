@@ -21,13 +21,9 @@ from hypothesis import strategies as st
 from pydantic import BaseModel, ValidationError
 from support import wait_for
 
-from fleet.params import Gains, Tolerance
-from fleet.service import FleetService
-from fleet.settings import Settings, load_settings
-from fleet.store import SqliteTaskStore
-from fleet.tasks import TaskRequest, TaskStatus
-from fleet.transport import open_session
-from fleet.wire import (
+from fleet.core.params import Gains, Tolerance
+from fleet.core.tasks import TaskRequest, TaskStatus
+from fleet.core.wire import (
     CancelAssignment,
     Keys,
     Obstacle,
@@ -38,7 +34,11 @@ from fleet.wire import (
     RobotState,
     encode,
 )
-from fleet.zenoh_bus import ZenohFleetBus
+from fleet.io.settings import Settings, load_settings
+from fleet.io.transport import open_session
+from fleet.service.fleet_service import FleetService
+from fleet.service.store import SqliteTaskStore
+from fleet.service.zenoh_bus import ZenohFleetBus
 from sim_agent.fleet import SimFleet, Spawn
 
 pytestmark = pytest.mark.integration
@@ -179,7 +179,7 @@ def test_agent_drops_hostile_payloads_keeps_its_rate_and_still_obeys(
         put()
         wait_for(
             lambda: agent.decoder.dropped_total >= sent["assignment"]
-            and sim.world.decoder.dropped_total >= sent["world"],
+            and sim.feed.decoder.dropped_total >= sent["world"],
             30, "every hostile payload dropped",
         )  # fmt: skip
         elapsed, ticks = time.monotonic() - t0, agent.last.seq - seq0  # type: ignore[union-attr]
@@ -201,7 +201,7 @@ def test_agent_drops_hostile_payloads_keeps_its_rate_and_still_obeys(
         assert agent.tick_errors == 0 and agent.callback_errors == 0
     print(
         f"agent: {sent} hostile payloads dropped ({dict(agent.decoder.dropped)}, "
-        f"{dict(sim.world.decoder.dropped)}); ticked {ticks} of ~{expected:.0f} meanwhile"
+        f"{dict(sim.feed.decoder.dropped)}); ticked {ticks} of ~{expected:.0f} meanwhile"
     )
     assert ticks > 0.2 * expected  # kept its loop going (generous: shared machine)
 

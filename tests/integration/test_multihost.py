@@ -39,9 +39,10 @@ _runs = itertools.count()
 # tokens it saw (as JSON), once it has seen all the expected ones or after 30 s.
 OBSERVER = """
 import json, sys, threading, time
-from fleet.settings import load_settings
-from fleet.transport import open_session
-from fleet.wire import Decoder, Keys, RobotState
+from fleet.io.settings import load_settings
+from fleet.io.transport import open_session
+from fleet.core.wire import Keys, RobotState
+from fleet.io.decoder import Decoder
 
 endpoint, expected = sys.argv[1], set(sys.argv[2].split(","))
 keys, decoder, lock, states, alive = Keys(), Decoder("observer"), threading.Lock(), {}, set()

@@ -26,11 +26,12 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 from support import wait_for
 
-from fleet.cli import main as parkfleet_main
-from fleet.params import Gains, Tolerance
-from fleet.settings import Settings, load_settings
-from fleet.transport import listening_locators, open_session
-from fleet.wire import Decoder, Keys, ParkAssignment, Pose, RobotState, encode
+from fleet.cli.main import main as parkfleet_main
+from fleet.core.params import Gains, Tolerance
+from fleet.core.wire import Keys, ParkAssignment, Pose, RobotState, encode
+from fleet.io.decoder import Decoder
+from fleet.io.settings import Settings, load_settings
+from fleet.io.transport import listening_locators, open_session
 
 pytestmark = pytest.mark.integration
 

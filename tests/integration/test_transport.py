@@ -6,8 +6,8 @@ import threading
 
 import pytest
 
-from fleet.settings import Settings, load_settings
-from fleet.transport import open_session
+from fleet.io.settings import Settings, load_settings
+from fleet.io.transport import open_session
 
 
 def test_client_reaches_router_and_pub_sub_works(client_settings: Settings) -> None:

@@ -8,9 +8,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fleet.params import Gains, Tolerance
-from fleet.settings import load_settings
-from fleet.wire import (
+from fleet.core.params import Gains, Tolerance
+from fleet.core.wire import (
     Keys,
     ObstacleSet,
     ParkAssignment,
@@ -19,10 +18,13 @@ from fleet.wire import (
     RobotState,
     encode,
 )
+from fleet.io.decoder import CallbackGuard
+from fleet.io.settings import load_settings
 from robot_agent.agent import RobotAgent
 from robot_agent.clock import SteppedClock
 from robot_agent.drive import Drive
-from robot_agent.world import CallbackGuard, WorldView
+from robot_agent.world import WorldView
+from robot_agent.world_feed import WorldFeed
 
 
 class FakeDrive:
@@ -122,7 +124,7 @@ def test_stale_pose_holds_and_failing_drive_is_counted_not_raised() -> None:
 
 
 def test_world_keeps_silent_peers_and_the_newest_state() -> None:
-    world = WorldView(Keys())
+    world = WorldView()
 
     def state(rid: str, seq: int, x: float) -> RobotState:
         return RobotState(robot_id=rid, seq=seq, stamp=1000.0 + seq, pose=Pose(x=x, y=0.0))
@@ -138,17 +140,19 @@ def test_world_keeps_silent_peers_and_the_newest_state() -> None:
     assert world.peer_positions(exclude="nobody").shape == (40, 2)
 
 
-def test_world_decodes_samples_and_rejects_ids_not_matching_the_key() -> None:
+def test_world_feed_decodes_samples_and_rejects_ids_not_matching_the_key() -> None:
     keys = Keys()
-    world = WorldView(keys)
+    world = WorldView()
+    feed = WorldFeed(world, keys)
     good = RobotState(robot_id="a", seq=0, stamp=1.0, pose=Pose(x=1.0, y=2.0))
-    world._on_state(FakeSample(keys.state("a"), Payload(encode(good))))
-    world._on_state(FakeSample(keys.state("b"), Payload(encode(good))))  # spoofed
-    world._on_state(FakeSample(keys.state("c"), Payload(b"nope")))
+    feed._on_state(FakeSample(keys.state("a"), Payload(encode(good))))
+    feed._on_state(FakeSample(keys.state("b"), Payload(encode(good))))  # spoofed
+    feed._on_state(FakeSample(keys.state("c"), Payload(b"nope")))
     assert list(world.states()) == ["a"]
-    assert world.decoder.dropped_total == 2
+    assert feed.decoder.dropped_total == 2
+    assert feed.last_heard > float("-inf")  # a valid message is link evidence
     obstacles = ObstacleSet.model_validate({"obstacles": [{"x": 1, "y": 2, "radius": 0.5}]})
-    world._on_obstacles(FakeSample(keys.obstacles, Payload(encode(obstacles))))
+    feed._on_obstacles(FakeSample(keys.obstacles, Payload(encode(obstacles))))
     centres, radii = world.obstacles()
     assert np.array_equal(centres, [[1.0, 2.0]]) and np.array_equal(radii, [0.5])
 

@@ -4,20 +4,22 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pytest
+import support
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fleet.control import FloatArray
-from fleet.params import Avoidance, Gains, RobotProfile, Tolerance
-from fleet.wire import CancelAssignment, Obstacle, ParkAssignment, Pose, RobotMode
+from fleet.core.params import Avoidance, RobotProfile
+from fleet.core.types import FloatArray, Posture
+from fleet.core.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
 from robot_agent.link import link_is_up
 from robot_agent.logic import (
-    Decision,
-    Task,
-    TaskStatus,
+    AgentTask,
+    AgentTaskStatus,
+    TickResult,
     apply_assignment,
     decide,
     obstacle_arrays,
@@ -29,18 +31,8 @@ NO_PEERS = np.zeros((0, 2))
 NO_OBSTACLES = obstacle_arrays([])
 
 
-def park(
-    task_id: str = "t1", goal: tuple[float, float, float] = (3.0, 0.0, 0.0), **kw: object
-) -> ParkAssignment:
-    return ParkAssignment(
-        robot_id="r1",
-        task_id=task_id,
-        goal=Pose(x=goal[0], y=goal[1], theta=goal[2]),
-        law=kw.pop("law", "ccw"),  # type: ignore[arg-type]
-        gains=Gains(kx=1.0, ky=2.0, ktheta=1.0),
-        tolerance=Tolerance(position=0.1, heading=0.1),
-        **kw,  # type: ignore[arg-type]
-    )
+def park(task_id: str = "t1", goal: Posture = (3.0, 0.0, 0.0), **fields: Any) -> ParkAssignment:
+    return support.park("r1", task_id, goal, **fields)
 
 
 DEFAULT_AVOIDANCE = Avoidance()  # K_avoid = 4 m^2/s, peer radius 1 m
@@ -48,23 +40,24 @@ DEFAULT_AVOIDANCE = Avoidance()  # K_avoid = 4 m^2/s, peer radius 1 m
 
 def tick(
     pose: Sequence[float],
-    task: Task | None,
+    task: AgentTask | None,
     peers: FloatArray = NO_PEERS,
     obstacles: tuple[FloatArray, FloatArray] = NO_OBSTACLES,
     age: float = 0.0,
     avoidance: Avoidance = DEFAULT_AVOIDANCE,
-) -> Decision:
-    return decide(pose, age, task, peers, obstacles, PROFILE, avoidance, 0.5)
+    now: float = 0.0,
+) -> TickResult:
+    return decide(pose, age, task, peers, obstacles, PROFILE, avoidance, 0.5, now=now)
 
 
 # -- task protocol -----------------------------------------------------------------------
 def test_new_task_replaces_and_repeat_is_ignored() -> None:
     t1 = apply_assignment(None, park("t1"))
-    assert t1 is not None and t1.task_id == "t1" and t1.status is TaskStatus.ACTIVE
-    arrived = Task(t1.assignment, TaskStatus.ARRIVED)
+    assert t1 is not None and t1.task_id == "t1" and t1.status is AgentTaskStatus.ACTIVE
+    arrived = AgentTask(t1.assignment, AgentTaskStatus.ARRIVED)
     assert apply_assignment(arrived, park("t1", goal=(9.0, 9.0, 0.0))) is arrived
     t2 = apply_assignment(arrived, park("t2"))
-    assert t2 is not None and t2.task_id == "t2" and t2.status is TaskStatus.ACTIVE
+    assert t2 is not None and t2.task_id == "t2" and t2.status is AgentTaskStatus.ACTIVE
 
 
 def test_cancel_only_affects_the_current_task() -> None:
@@ -72,7 +65,7 @@ def test_cancel_only_affects_the_current_task() -> None:
     assert apply_assignment(t1, CancelAssignment(robot_id="r1", task_id="other")) is t1
     assert apply_assignment(None, CancelAssignment(robot_id="r1", task_id="t1")) is None
     cancelled = apply_assignment(t1, CancelAssignment(robot_id="r1", task_id="t1"))
-    assert cancelled is not None and cancelled.status is TaskStatus.CANCELLED
+    assert cancelled is not None and cancelled.status is AgentTaskStatus.CANCELLED
     assert cancelled.task_id == "t1"
     # a late repeat of the cancelled task does not restart it
     assert apply_assignment(cancelled, park("t1")) is cancelled
@@ -82,7 +75,7 @@ def test_higher_revision_replaces_the_law_and_stale_revisions_are_ignored() -> N
     t1 = apply_assignment(None, park("t1", law="ccw"))
     assert t1 is not None and t1.assignment.revision == 0
     r1 = apply_assignment(t1, park("t1", law="cw", revision=1))
-    assert r1 is not None and r1.task_id == "t1" and r1.status is TaskStatus.ACTIVE
+    assert r1 is not None and r1.task_id == "t1" and r1.status is AgentTaskStatus.ACTIVE
     assert r1.assignment.law == "cw" and r1.assignment.revision == 1
     # late duplicates of revision 0 or 1 change nothing
     assert apply_assignment(r1, park("t1", law="ccw")) is r1
@@ -97,8 +90,8 @@ def test_higher_revision_replaces_the_law_and_stale_revisions_are_ignored() -> N
 def test_a_revision_keeps_an_arrived_or_cancelled_task_stopped() -> None:
     t1 = apply_assignment(None, park("t1"))
     assert t1 is not None
-    for status in (TaskStatus.ARRIVED, TaskStatus.CANCELLED):
-        stopped = Task(t1.assignment, status)
+    for status in (AgentTaskStatus.ARRIVED, AgentTaskStatus.CANCELLED):
+        stopped = AgentTask(t1.assignment, status)
         revised = apply_assignment(stopped, park("t1", law="cw", revision=1))
         assert revised is not None and revised.status is status
         assert not tick((0.0, 1.0, 0.0), revised).moving
@@ -116,18 +109,18 @@ def test_no_task_is_idle_and_still() -> None:
 
 
 def test_active_task_drives_towards_goal() -> None:
-    d = tick((0.0, 0.0, 0.0), Task(park()))
+    d = tick((0.0, 0.0, 0.0), AgentTask(park()))
     assert d.mode is RobotMode.DRIVING and d.u > 0 and d.right > 0 and d.left > 0
 
 
 def test_cancelled_task_holds_still() -> None:
-    d = tick((0.0, 0.0, 0.0), Task(park(), TaskStatus.CANCELLED))
+    d = tick((0.0, 0.0, 0.0), AgentTask(park(), AgentTaskStatus.CANCELLED))
     assert d.mode is RobotMode.HOLDING and not d.moving and d.task is not None
 
 
 @pytest.mark.parametrize("age", [0.51, 10.0, math.inf, math.nan])
 def test_stale_pose_stops_the_robot(age: float) -> None:
-    task = Task(park())
+    task = AgentTask(park())
     d = tick((0.0, 0.0, 0.0), task, age=age)
     assert d.mode is RobotMode.HOLDING and not d.moving
     assert d.task is task  # resumes when the pose is fresh again
@@ -135,24 +128,24 @@ def test_stale_pose_stops_the_robot(age: float) -> None:
 
 
 def test_arrival_uses_the_pre_step_tolerance_and_latches() -> None:
-    task = Task(park(goal=(1.0, 1.0, 0.5)))
+    task = AgentTask(park(goal=(1.0, 1.0, 0.5)))
     inside = (1.0 + 0.07, 1.0 - 0.05, 0.5 - 0.09)  # 0.086 m < 0.1, 0.09 rad < 0.1
     assert within_tolerance(inside, task.assignment)
     d = tick(inside, task)
     assert d.mode is RobotMode.ARRIVED and not d.moving
-    assert d.task is not None and d.task.status is TaskStatus.ARRIVED
+    assert d.task is not None and d.task.status is AgentTaskStatus.ARRIVED
     # latched: even pushed outside the tolerance it stays arrived until a new task
     assert tick((0.0, 0.0, 0.0), d.task).mode is RobotMode.ARRIVED
 
 
 def test_heading_outside_tolerance_is_not_arrived() -> None:
-    task = Task(park(goal=(1.0, 1.0, 0.5)))
+    task = AgentTask(park(goal=(1.0, 1.0, 0.5)))
     assert tick((1.0, 1.0, 0.5 - 0.11), task).mode is RobotMode.DRIVING
 
 
 # -- avoidance (Eq. 27) ------------------------------------------------------------------
 def test_peer_ahead_inside_radius_slows_the_robot_and_sets_avoiding() -> None:
-    task = Task(park())
+    task = AgentTask(park())
     free = tick((0.0, 0.0, 0.0), task)
     peer_ahead = np.array([[0.5, 0.0]])
     blocked = tick((0.0, 0.0, 0.0), task, peers=peer_ahead)
@@ -162,14 +155,14 @@ def test_peer_ahead_inside_radius_slows_the_robot_and_sets_avoiding() -> None:
 
 
 def test_peer_outside_radius_changes_nothing() -> None:
-    task = Task(park())
+    task = AgentTask(park())
     free = tick((0.0, 0.0, 0.0), task)
     far = tick((0.0, 0.0, 0.0), task, peers=np.array([[1.01, 0.0], [-5.0, 3.0]]))
     assert far.mode is RobotMode.DRIVING and far == free
 
 
 def test_static_obstacle_uses_its_own_radius() -> None:
-    task = Task(park())
+    task = AgentTask(park())
     obstacles = obstacle_arrays([Obstacle(x=1.5, y=0.0, radius=2.0)])
     d = tick((0.0, 0.0, 0.0), task, obstacles=obstacles)
     assert d.mode is RobotMode.AVOIDING and d.repulsion == pytest.approx(-4.0 / 1.5)
@@ -180,11 +173,11 @@ def test_static_obstacle_uses_its_own_radius() -> None:
 def test_robot_avoidance_settings_apply_unless_the_assignment_sets_them() -> None:
     peer = np.array([[1.5, 0.0]])
     wide = Avoidance(peer_radius=2.0)
-    assert tick((0, 0, 0), Task(park()), peers=peer, avoidance=wide).mode is RobotMode.AVOIDING
-    explicit = Task(park(avoidance=Avoidance(peer_radius=1.0)))
+    assert tick((0, 0, 0), AgentTask(park()), peers=peer, avoidance=wide).mode is RobotMode.AVOIDING
+    explicit = AgentTask(park(avoidance=Avoidance(peer_radius=1.0)))
     assert tick((0, 0, 0), explicit, peers=peer, avoidance=wide).mode is RobotMode.DRIVING
     off = Avoidance(k_avoid=0.0, peer_radius=2.0)
-    assert tick((0, 0, 0), Task(park()), peers=peer, avoidance=off).mode is RobotMode.DRIVING
+    assert tick((0, 0, 0), AgentTask(park()), peers=peer, avoidance=off).mode is RobotMode.DRIVING
 
 
 # -- wheel-speed limit -------------------------------------------------------------------
@@ -207,7 +200,7 @@ def test_wheel_speeds_never_exceed_the_limit_and_keep_the_curvature(
     peers: list[tuple[float, float]],
     limit: float | None,
 ) -> None:
-    task = Task(park(goal=goal, law=law, max_wheel_speed=limit))
+    task = AgentTask(park(goal=goal, law=law, max_wheel_speed=limit))
     d = tick(pose, task, peers=np.array(peers, dtype=float).reshape(-1, 2))
     cap = PROFILE.max_wheel_speed if limit is None else min(limit, PROFILE.max_wheel_speed)
     assert max(abs(d.right), abs(d.left)) <= cap * (1 + 1e-9)
@@ -221,7 +214,7 @@ def test_wheel_speeds_never_exceed_the_limit_and_keep_the_curvature(
 
 # -- link loss and contact guard ---------------------------------------------------------
 def test_lost_link_holds_the_task_and_resumes_when_it_returns() -> None:
-    task = Task(park())
+    task = AgentTask(park())
     blind = decide(
         (0.0, 0.0, 0.0),
         0.0,
@@ -275,15 +268,44 @@ def test_contact_guard_never_drives_towards_a_peer_within_contact_range(
     """
     peer = np.array([[distance * math.cos(bearing), distance * math.sin(bearing)]])
     weak = Avoidance(k_avoid=0.05)
-    decision = tick((0.0, 0.0, heading), Task(park(goal=goal)), peers=peer, avoidance=weak)
+    decision = tick((0.0, 0.0, heading), AgentTask(park(goal=goal)), peers=peer, avoidance=weak)
     towards = math.cos(heading) * peer[0, 0] + math.sin(heading) * peer[0, 1]  # x_OA
     assert decision.u * towards <= 1e-12  # never closing the distance along the heading
 
 
 def test_contact_guard_leaves_a_robot_free_beyond_contact_range() -> None:
     peer = np.array([[0.6, 0.0]])  # ahead, inside the 1 m influence zone, beyond 0.45 m
-    decision = tick((0.0, 0.0, 0.0), Task(park(goal=(9.0, 0.0, 0.0))), peers=peer)
+    decision = tick((0.0, 0.0, 0.0), AgentTask(park(goal=(9.0, 0.0, 0.0))), peers=peer)
     assert decision.mode is RobotMode.AVOIDING
     # Eq. (17) u = 9 m/s plus Eq. (27) -4/0.6 m/s is still forward: the guard lets it be,
     # and the wheel limit caps it at r * max_wheel_speed.
     assert decision.u == pytest.approx(PROFILE.max_speed)
+
+
+def test_start_delay_waits_then_drives_and_a_revision_restarts_it() -> None:
+    task = apply_assignment(None, park(start_delay_s=1.0), now=10.0)
+    assert task is not None and task.applied_at == 10.0
+    for now, mode in ((10.0, RobotMode.WAITING), (10.98, RobotMode.WAITING)):
+        d = tick((0.0, 0.0, 0.0), task, now=now)
+        assert d.mode is mode and not d.moving and d.task == task
+    d = tick((0.0, 0.0, 0.0), task, now=11.0)
+    assert d.mode is RobotMode.DRIVING and d.moving
+    revised = apply_assignment(task, park(start_delay_s=0.5, revision=1), now=20.0)
+    assert revised is not None and revised.applied_at == 20.0
+    assert tick((0.0, 0.0, 0.0), revised, now=20.2).mode is RobotMode.WAITING
+    assert tick((0.0, 0.0, 0.0), revised, now=20.5).moving
+
+
+def test_hold_stands_still_until_a_revision_releases_it() -> None:
+    held = apply_assignment(None, park(hold=True), now=0.0)
+    assert held is not None
+    d = tick((0.0, 0.0, 0.0), held, now=1e6)
+    assert d.mode is RobotMode.WAITING and not d.moving
+    assert apply_assignment(held, park(hold=False), now=5.0) is held  # same revision: ignored
+    released = apply_assignment(held, park(hold=False, revision=1), now=5.0)
+    assert tick((0.0, 0.0, 0.0), released, now=5.0).moving
+
+
+def test_a_waiting_robot_already_at_its_goal_reports_arrived() -> None:
+    task = apply_assignment(None, park(goal=(0.0, 0.0, 0.0), start_delay_s=5.0), now=0.0)
+    assert tick((0.0, 0.0, 0.0), task, now=0.0).mode is RobotMode.ARRIVED

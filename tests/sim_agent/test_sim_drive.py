@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from fleet.params import Avoidance, Gains, RobotProfile, Tolerance
-from fleet.simulate import BatchProblem, simulate
-from fleet.wire import ParkAssignment, Pose, RobotMode
+from fleet.core.params import Avoidance, Gains, RobotProfile, Tolerance
+from fleet.core.simulate import BatchProblem, simulate
+from fleet.core.wire import ParkAssignment, Pose, RobotMode
 from robot_agent.clock import SteppedClock
-from robot_agent.logic import Task, decide, obstacle_arrays
+from robot_agent.logic import AgentTask, decide, obstacle_arrays
 from sim_agent.drive import SimDrive
 
 DT = 0.02
@@ -37,7 +37,7 @@ def test_agent_ticks_on_sim_drive_reproduce_the_batch_simulator(
     )  # fmt: skip
     clock = SteppedClock()
     drive = SimDrive(start, profile, clock, max_step=DT)
-    task: Task | None = Task(a)
+    task: AgentTask | None = AgentTask(a)
     poses = []
     step = 0
     for step in range(5000):  # noqa: B007

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from fleet.params import Gains, Tolerance
-from fleet.settings import load_settings
-from fleet.wire import ParkAssignment, Pose, RobotMode
+from fleet.core.params import Gains, Tolerance
+from fleet.core.wire import ParkAssignment, Pose, RobotMode
+from fleet.io.settings import load_settings
 from sim_agent.fleet import SimFleet, Spawn, spawn_layout
 
 TOL = Tolerance(position=0.1, heading=0.1)

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from fleet.core.control import lyapunov_p, lyapunov_v, wheel_speeds
@@ -230,3 +230,49 @@ def test_group_must_divide_the_batch() -> None:
     )
     with pytest.raises(ValueError, match="group"):
         simulate(problem, group=2)
+
+
+@settings(max_examples=25)
+@given(
+    delay_steps=st.integers(min_value=1, max_value=150),
+    x=st.floats(min_value=-4, max_value=4),
+    y=st.floats(min_value=-4, max_value=4),
+    theta=st.floats(min_value=-math.pi, max_value=math.pi),
+)
+def test_a_start_delay_shifts_the_run_by_exactly_the_delay(
+    delay_steps: int, x: float, y: float, theta: float
+) -> None:
+    """A robot in its start delay stands still; afterwards it drives exactly as an
+    undelayed robot did, so its arrival time is later by the delay and its path the same."""
+    dt = 0.02
+    start, goal = (x, y, theta), (0.0, 0.0, 0.0)
+    gains, tol = Gains(kx=1.0, ky=2.0, ktheta=1.0), Tolerance(position=0.05, heading=0.05)
+    plain = simulate(BatchProblem.build(start, goal, gains, "ccw", tol), dt=dt, max_time=120.0)
+    assume(plain.done[0] and plain.time[0] > dt)  # starting inside tolerance: nothing to delay
+    delayed = simulate(
+        BatchProblem.build(start, goal, gains, "ccw", tol, start_delay=delay_steps * dt),
+        dt=dt,
+        max_time=120.0 + delay_steps * dt,
+        record=True,
+    )
+    assert delayed.done[0]
+    assert delayed.time[0] == pytest.approx(plain.time[0] + delay_steps * dt, abs=1e-9)
+    assert np.array_equal(delayed.final_pose, plain.final_pose)
+    assert delayed.distance[0] == plain.distance[0]
+    assert delayed.trajectory is not None
+    waiting = delayed.trajectory.poses[: delay_steps + 1, 0]
+    assert np.all(waiting == np.asarray(start))  # stood still while waiting
+
+
+def test_record_every_keeps_every_kth_step_and_the_final_pose() -> None:
+    problem = BatchProblem.build(
+        (2.0, 1.0, 0.5), (0.0, 0.0, 0.0), Gains(kx=1, ky=2, ktheta=1), "cw"
+    )
+    full = simulate(problem, dt=0.02, max_time=5.0, record=True)
+    sparse = simulate(problem, dt=0.02, max_time=5.0, record=True, record_every=10)
+    assert full.trajectory is not None and sparse.trajectory is not None
+    steps = full.steps
+    assert np.array_equal(sparse.trajectory.poses[:-1], full.trajectory.poses[:steps:10])
+    assert np.array_equal(sparse.trajectory.poses[-1], full.trajectory.poses[-1])
+    with pytest.raises(ValueError, match="record_every"):
+        simulate(problem, record=True, record_every=0)

@@ -1,0 +1,27 @@
+"""``parkfleet bench api``: POST /tasks throughput and latency against a live server."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from fleet.cli.options import add_json
+
+
+def register(commands: Any, bench: Any) -> None:
+    b = bench.add_parser(
+        "api",
+        help="POST /tasks throughput and p50/p99 latency against a live server",
+        description="Starts `parkfleet serve` in a subprocess (temporary store, no robots), "
+        "then posts tasks from concurrent HTTP clients.",
+    )
+    add_json(b)
+    b.add_argument("--requests", type=int, default=3000, help="timed POSTs (default 3000)")
+    b.add_argument("--concurrency", type=int, default=16, help="concurrent clients (default 16)")
+    b.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from fleet.bench.api import run as run_api_bench
+
+    return run_api_bench(requests=args.requests, concurrency=args.concurrency, as_json=args.json)

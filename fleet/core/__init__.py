@@ -1,0 +1,18 @@
+"""The pure core: no sockets, threads, clocks, files or logging (import-linter enforces it).
+
+- :mod:`~fleet.core.types`: shared type names (``Law``, ``Posture``, arrays).
+- :mod:`~fleet.core.params`: validated gains, tolerances, robot profile, avoidance.
+- :mod:`~fleet.core.control`: the paper's laws (17)/(20), Eq. (5) error, Eq. (27)
+  repulsion, wheel speeds and saturation (Eq. 2), Lyapunov functions.
+- :mod:`~fleet.core.simulate`: the batch closed-loop simulator (N robots at once).
+- :mod:`~fleet.core.reference`: the plain-Python reference loop (test oracle).
+- :mod:`~fleet.core.wire`: Zenoh key expressions and the versioned JSON messages.
+- :mod:`~fleet.core.tasks`: task and robot models of the fleet service, its errors.
+- :mod:`~fleet.core.goals`: goal validation (yard, obstacle zones, other goals).
+- :mod:`~fleet.core.assignment`: optimal assignment of tasks to robots.
+- :mod:`~fleet.core.direction`: cw/ccw choice by closed-loop fleet rollouts.
+
+Submodules are imported explicitly (``from fleet.core.control import ccw_law``).
+"""
+
+__all__: list[str] = []

@@ -1,0 +1,11 @@
+"""I/O edges shared by every process (the service, agents, simulators, benches, tests).
+
+- :mod:`~fleet.io.settings`: the one ``Settings`` model (``PARKFLEET_*`` env, TOML file).
+- :mod:`~fleet.io.transport`: the ``zenoh.Config`` builder, sessions, locators, endpoints.
+- :mod:`~fleet.io.acl`: Zenoh access-control rules for a fleet.
+- :mod:`~fleet.io.decoder`: payload decoding that drops and counts, callback guard.
+- :mod:`~fleet.io.processes`: child ``parkfleet`` processes: command lines, ready lines,
+  clean termination.
+"""
+
+__all__: list[str] = []

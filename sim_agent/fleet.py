@@ -7,6 +7,12 @@ that ticks them all at the control rate on a common stepped clock (lockstep simu
 
 Spawn layouts (:func:`spawn_layout`): ``random`` (uniform in the yard, kept apart, seeded),
 ``grid`` (rows centred on the origin), or a JSON file ``[{"id", "x", "y", "theta"}, ...]``.
+
+Options for benchmarks: ``disturbances`` wraps every drive in a seeded
+:class:`~sim_agent.disturbances.DisturbedDrive` (pose and actuation noise, command
+latency); ``trace`` (a file path, :mod:`fleet.io.trace` format) receives every robot's true
+pose and mode once per lockstep tick, after all agents ticked at the same simulated time
+(streamed: constant memory; flushed and closed by :meth:`SimFleet.close`).
 """
 
 from __future__ import annotations
@@ -21,13 +27,15 @@ from typing import Any
 
 import numpy as np
 
-from fleet.core.wire import Keys, validate_id
+from fleet.core.wire import Keys, RobotMode, validate_id
 from fleet.io.settings import Settings
+from fleet.io.trace import TraceHeader, TraceWriter
 from robot_agent.agent import RobotAgent
 from robot_agent.clock import SteppedClock, run_periodic
 from robot_agent.link import LinkMonitor
 from robot_agent.world import WorldView
 from robot_agent.world_feed import WorldFeed
+from sim_agent.disturbances import Disturbances, DisturbedDrive
 from sim_agent.drive import SimDrive
 
 _log = logging.getLogger(__name__)
@@ -120,6 +128,8 @@ class SimFleet:
         time_scale: float = 1.0,
         noise_std: tuple[float, float, float] = (0.0, 0.0, 0.0),
         seed: int | None = None,
+        disturbances: Disturbances | None = None,
+        trace: str | Path | None = None,
     ) -> None:
         self.session = session
         self.settings = settings
@@ -138,17 +148,27 @@ class SimFleet:
             heard_elsewhere=lambda: feed.last_heard,
         )
         rng = np.random.default_rng(seed)
-        self.drives: dict[str, SimDrive] = {}
+        self.drives: dict[str, SimDrive | DisturbedDrive] = {}
         self.agents: list[RobotAgent] = []
+        self.trace: TraceWriter | None = None
         for spawn in spawns:
-            drive = SimDrive(
-                (spawn.x, spawn.y, spawn.theta),
-                settings.profile,
-                self.clock,
-                max_step=self.period,
-                noise_std=noise_std,
-                rng=np.random.default_rng(rng.integers(2**63)),
-            )
+            drive_rng = np.random.default_rng(rng.integers(2**63))
+            drive: SimDrive | DisturbedDrive
+            if disturbances is not None and disturbances.active:
+                start = (spawn.x, spawn.y, spawn.theta)
+                drive = DisturbedDrive(
+                    start, settings.profile, self.clock, disturbances, drive_rng,
+                    max_step=self.period,
+                )  # fmt: skip
+            else:
+                drive = SimDrive(
+                    (spawn.x, spawn.y, spawn.theta),
+                    settings.profile,
+                    self.clock,
+                    max_step=self.period,
+                    noise_std=noise_std,
+                    rng=drive_rng,
+                )
             self.drives[spawn.robot_id] = drive
             self.agents.append(
                 RobotAgent(
@@ -161,6 +181,8 @@ class SimFleet:
                     link=self.link,
                 )
             )
+        if trace is not None:
+            self.trace = TraceWriter(trace, self.trace_header())
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._opened = False
@@ -187,7 +209,27 @@ class SimFleet:
         """One control period: every agent ticks at sim time t, then t += period."""
         for agent in self.agents:
             agent.tick()
+        self._record()
         self.clock.advance(self.period)
+
+    def trace_header(self) -> TraceHeader:
+        """The header of this fleet's trace file (ids, radii, period, mode names)."""
+        radius = self.settings.profile.radius
+        return TraceHeader(
+            robots=tuple(a.robot_id for a in self.agents),
+            radii=tuple(radius for _ in self.agents),
+            period_s=self.period,
+            modes=tuple(m.value for m in RobotMode),
+        )
+
+    def _record(self) -> None:
+        """Every robot's true pose and mode at the current simulated time (to ``trace``)."""
+        if self.trace is None:
+            return
+        trace = self.trace
+        poses = [self.drives[a.robot_id].true_pose for a in self.agents]
+        modes = [trace.mode_code(a.last.mode.value if a.last else None) for a in self.agents]
+        trace.write(self.clock.now(), poses, modes)
 
     def _slices(self) -> list[list[RobotAgent]]:
         """Agents in groups of at most ``SLICE`` robots, ticked spread over the period."""
@@ -212,6 +254,7 @@ class SimFleet:
             position += 1
             if position == len(slices):
                 position = 0
+                self._record()
                 self.clock.advance(self.period)
 
         try:
@@ -250,6 +293,8 @@ class SimFleet:
             agent.close()
         self.link.detach()
         self.feed.detach()
+        if self.trace is not None:
+            self.trace.close()
 
     def __enter__(self) -> SimFleet:
         return self.open()

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+import math
+from pathlib import Path
+from typing import Any, TypeVar
 
 from fleet.cli.options import add_config, add_connect, add_rate, add_spawn, add_time_scale
 from fleet.cli.signals import stop_on_signals
 from fleet.io.settings import load_settings
 from fleet.io.transport import open_session
+from sim_agent.disturbances import REALISTIC, Disturbances
 from sim_agent.fleet import SimFleet, spawn_layout
 
 
@@ -25,9 +28,81 @@ def register(commands: Any, bench: Any) -> None:
     add_time_scale(p)
     add_spawn(p, default="grid")
     p.add_argument("--id-prefix", default="robot-", help="robot ids are PREFIX1..PREFIXN")
-    p.add_argument("--noise", type=float, default=0.0, help="pose noise std [m] (theta: /5 rad)")
     add_rate(p)
+    d = p.add_argument_group(
+        "disturbances (seeded by --seed)",
+        "A real robot's imperfections on every simulated robot; all off by default.",
+    )
+    d.add_argument(
+        "--disturbed",
+        action="store_true",
+        help="the fleet benchmark's set: --pose-noise 0.01 --heading-noise 0.5 "
+        "--actuation-noise 0.05 --wheel-bias 0.02 --latency 50,150 (flags given win)",
+    )
+    d.add_argument("--pose-noise", type=float, metavar="M", help="std of reported x, y [m]")
+    d.add_argument("--heading-noise", type=float, metavar="DEG", help="std of reported theta [deg]")
+    d.add_argument(
+        "--noise", type=float, metavar="M", help="shorthand: --pose-noise M, theta std M/5 rad"
+    )
+    d.add_argument(
+        "--actuation-noise", type=float, metavar="FRAC", help="relative std per wheel command"
+    )
+    d.add_argument(
+        "--wheel-bias", type=float, metavar="FRAC", help="relative std of a per-robot wheel gain"
+    )
+    d.add_argument(
+        "--latency",
+        type=_latency_ms,
+        metavar="MIN[,MAX]",
+        help="command latency [ms], uniform in [MIN, MAX]",
+    )
+    p.add_argument(
+        "--trace",
+        type=Path,
+        metavar="FILE",
+        help="write every robot's true pose and mode at every tick to FILE (fleet.io.trace)",
+    )
     p.set_defaults(func=run)
+
+
+def _latency_ms(text: str) -> tuple[float, float]:
+    """``MIN[,MAX]`` milliseconds -> (min, max) seconds."""
+    try:
+        parts = [float(v) for v in text.split(",")]
+    except ValueError:
+        parts = []
+    if len(parts) not in (1, 2) or not all(math.isfinite(v) and v >= 0 for v in parts):
+        raise argparse.ArgumentTypeError(f"expected MIN[,MAX] in ms (>= 0), got {text!r}")
+    low, high = parts[0], parts[-1]
+    if high < low:
+        raise argparse.ArgumentTypeError(f"MAX must be >= MIN, got {text!r}")
+    return (low / 1e3, high / 1e3)
+
+
+def disturbances_from(args: argparse.Namespace) -> Disturbances:
+    """The :class:`Disturbances` the flags ask for (``--disturbed`` as the base)."""
+    base = REALISTIC if args.disturbed else Disturbances()
+    pose, heading = base.pose_noise_m, base.heading_noise_rad
+    if args.noise is not None:
+        pose, heading = args.noise, args.noise / 5.0
+    if args.pose_noise is not None:
+        pose = args.pose_noise
+    if args.heading_noise is not None:
+        heading = math.radians(args.heading_noise)
+    return Disturbances(
+        pose_noise_m=pose,
+        heading_noise_rad=heading,
+        actuation_noise=_given(args.actuation_noise, base.actuation_noise),
+        actuation_bias=_given(args.wheel_bias, base.actuation_bias),
+        latency_s=_given(args.latency, base.latency_s),
+    )
+
+
+T = TypeVar("T")
+
+
+def _given(value: T | None, default: T) -> T:
+    return default if value is None else value
 
 
 def run(args: argparse.Namespace) -> int:
@@ -35,10 +110,16 @@ def run(args: argparse.Namespace) -> int:
     spawns = spawn_layout(
         args.spawn, args.robots, seed=args.seed, id_prefix=args.id_prefix, yard=settings.yard
     )
-    noise = (args.noise, args.noise, args.noise / 5.0)
+    disturbances = disturbances_from(args)
     with stop_on_signals() as stop, open_session(settings, "client") as session:
         fleet = SimFleet(
-            session, settings, spawns, time_scale=args.time_scale, noise_std=noise, seed=args.seed
+            session,
+            settings,
+            spawns,
+            time_scale=args.time_scale,
+            seed=args.seed,
+            disturbances=disturbances,
+            trace=args.trace,
         )
         try:
             fleet.open()

@@ -1,0 +1,176 @@
+"""``DisturbedDrive``: a :class:`~sim_agent.drive.SimDrive` with a real robot's imperfections.
+
+Wraps a simulated drive (seeded, reproducible) and adds, between the agent and the robot:
+
+* **pose noise** -- Gaussian noise on the *reported* pose (std ``pose_noise_m`` on x and y
+  [m], ``heading_noise_rad`` on theta [rad]); the true pose is untouched;
+* **actuation noise** -- each wheel command [rad/s] is multiplied by ``1 + bias + e``, with a
+  per-robot, per-wheel constant ``bias ~ N(0, actuation_bias)`` (calibration error) and a
+  fresh ``e ~ N(0, actuation_noise)`` per command, then clipped to the wheel limit (a motor
+  cannot exceed it);
+* **command latency** -- a command (``stop`` included) takes effect ``d ~ U(latency_s)``
+  seconds after it is sent, in the order sent (a later command never overtakes an earlier
+  one); the robot keeps its previous wheel speeds meanwhile.
+
+The wrapper owns the inner drive's clock: it moves it to each command's effective time,
+applies the command there, then to the outer clock's ``now``, so the inner forward-Euler
+integration switches commands at the right instants. :data:`REALISTIC` is the set the fleet
+benchmark uses (``parkfleet sim --disturbed``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from fleet.core.params import RobotProfile
+from fleet.core.wire import Pose
+from robot_agent.clock import Clock, SteppedClock
+from robot_agent.drive import PoseReading
+from sim_agent.drive import SimDrive
+
+
+@dataclass(frozen=True)
+class Disturbances:
+    """Imperfections of a simulated robot (all zero: a perfect robot).
+
+    ``pose_noise_m`` [m] and ``heading_noise_rad`` [rad]: std of the reported pose's error;
+    ``actuation_noise`` and ``actuation_bias``: relative std of each wheel command's error
+    (fresh per command) and of a constant per-wheel gain error (per robot);
+    ``latency_s``: command latency drawn uniformly in [min, max] [s].
+    """
+
+    pose_noise_m: float = 0.0
+    heading_noise_rad: float = 0.0
+    actuation_noise: float = 0.0
+    actuation_bias: float = 0.0
+    latency_s: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        stds = (self.pose_noise_m, self.heading_noise_rad, self.actuation_noise)
+        if not all(math.isfinite(s) and s >= 0 for s in (*stds, self.actuation_bias)):
+            raise ValueError("noise standard deviations must be finite and >= 0")
+        low, high = self.latency_s
+        if not (0 <= low <= high and math.isfinite(high)):
+            raise ValueError(f"latency must satisfy 0 <= min <= max, got {self.latency_s}")
+
+    @property
+    def active(self) -> bool:
+        return any(
+            (
+                self.pose_noise_m,
+                self.heading_noise_rad,
+                self.actuation_noise,
+                self.actuation_bias,
+                self.latency_s[1],
+            )
+        )
+
+
+#: What the fleet benchmark runs with: ~1 cm and 0.5 deg of pose noise, 5 % wheel noise
+#: per command on top of a 2 % per-robot calibration error, 50-150 ms command latency.
+REALISTIC = Disturbances(
+    pose_noise_m=0.01,
+    heading_noise_rad=math.radians(0.5),
+    actuation_noise=0.05,
+    actuation_bias=0.02,
+    latency_s=(0.05, 0.15),
+)
+
+
+class DisturbedDrive:
+    """A :class:`robot_agent.drive.Drive` adding :class:`Disturbances` to a ``SimDrive``.
+
+    ``clock`` is the agent's clock (the outer time); the inner drive is built here on a
+    clock of the wrapper's own. ``rng`` makes every draw reproducible.
+    """
+
+    def __init__(
+        self,
+        start: Pose | tuple[float, float, float],
+        profile: RobotProfile,
+        clock: Clock,
+        disturbances: Disturbances,
+        rng: np.random.Generator,
+        *,
+        max_step: float = 0.02,
+    ) -> None:
+        self.clock = clock
+        self.disturbances = disturbances
+        self.profile = profile
+        self.rng = rng
+        self._inner_clock = SteppedClock(clock.now())
+        self.inner = SimDrive(start, profile, self._inner_clock, max_step=max_step)
+        bias = disturbances.actuation_bias
+        self._gain = (
+            (1.0 + float(rng.normal(0.0, bias)), 1.0 + float(rng.normal(0.0, bias)))
+            if bias
+            else (1.0, 1.0)
+        )
+        self._pending: deque[tuple[float, float, float]] = deque()  # (due [s], right, left)
+        self._last_due = -math.inf
+
+    # -- time ---------------------------------------------------------------------------
+    def _move_inner_clock(self, t: float) -> None:
+        self._inner_clock.advance(max(0.0, t - self._inner_clock.now()))
+
+    def _catch_up(self) -> None:
+        """Apply every command due by now at its due time, then bring the robot to now."""
+        now = self.clock.now()
+        while self._pending and self._pending[0][0] <= now:
+            due, right, left = self._pending.popleft()
+            self._move_inner_clock(due)
+            self.inner.command_wheels(right, left)
+        self._move_inner_clock(now)
+
+    # -- Drive ----------------------------------------------------------------------------
+    @property
+    def true_pose(self) -> tuple[float, float, float]:
+        """Noise-free pose (x [m], y [m], theta [rad]) as of the last call."""
+        return self.inner.true_pose
+
+    @property
+    def pending_commands(self) -> int:
+        """Commands sent but not yet in effect (bounded by max latency / command period)."""
+        return len(self._pending)
+
+    def read_pose(self) -> PoseReading:
+        self._catch_up()
+        pose, stamp = self.inner.read_pose()
+        d = self.disturbances
+        x, y, theta = pose.as_tuple()
+        if d.pose_noise_m:
+            x += float(self.rng.normal(0.0, d.pose_noise_m))
+            y += float(self.rng.normal(0.0, d.pose_noise_m))
+        if d.heading_noise_rad:
+            theta += float(self.rng.normal(0.0, d.heading_noise_rad))
+        return Pose(x=x, y=y, theta=theta), stamp
+
+    def command_wheels(self, right_rad_s: float, left_rad_s: float) -> None:
+        """Noisy command, clipped to the wheel limit; a command already beyond the limit (an
+        agent's bug) is passed on as sent, for the inner drive to refuse when it applies."""
+        limit = self.profile.max_wheel_speed
+        noise = self.disturbances.actuation_noise
+        wheels = []
+        for command, gain in zip((right_rad_s, left_rad_s), self._gain, strict=True):
+            error = float(self.rng.normal(0.0, noise)) if noise and command else 0.0
+            within = abs(command) <= limit
+            wheels.append(min(max(command * (gain + error), -limit), limit) if within else command)
+        self._send(wheels[0], wheels[1])
+
+    def stop(self) -> None:
+        self._send(0.0, 0.0)
+
+    def _send(self, right: float, left: float) -> None:
+        self._catch_up()
+        low, high = self.disturbances.latency_s
+        if high <= 0.0:
+            self.inner.command_wheels(right, left)
+            return
+        delay = float(self.rng.uniform(low, high)) if high > low else low
+        due = max(self.clock.now() + delay, self._last_due)  # in order: never overtakes
+        self._last_due = due
+        self._pending.append((due, right, left))

@@ -1,42 +1,38 @@
-"""``parkfleet bench fleet``: multi-robot scenarios through the real service over Zenoh.
+"""``parkfleet bench fleet``: scenarios through the real fleet, and navground beside it.
 
-Each run starts, in this process, a Zenoh router session, a :class:`FleetService` with a
-SQLite store and a :class:`ZenohFleetBus`, plus a recorder subscribed to every robot
-state; the robots are one ``parkfleet sim`` subprocess (time-scaled, spawned from a JSON
-file). Tasks are submitted through :meth:`FleetService.submit` as an API client would.
+Fleet policies (``auto``, ``cw``, ``ccw``, ``none``): each run starts, in this process, a
+:class:`FleetService` with a fresh SQLite store on a :class:`ZenohFleetBus` (one in-process
+router for the whole bench), and the robots as one ``parkfleet sim`` subprocess: lockstep,
+time-scaled, with a real robot's disturbances on by default (``--disturbed``: pose and
+actuation noise, 50-150 ms command latency) and ``--trace`` streaming every robot's true
+pose and mode at every tick. Tasks are submitted through :meth:`FleetService.submit` as an
+API client would, each at its ``arrival_s`` of simulated time (read from the robots' state
+sequence numbers). The run ends when every task succeeded or at the scenario's
+:attr:`~fleet.bench.scenarios.Scenario.end_s`; the bench, not the service, is the judge of
+time (the service's own task timeout is pushed out of the way). ``auto`` lets the service
+choose each law; ``cw`` / ``ccw`` fix it; ``none`` is ``ccw`` with K_avoid = 0 -- no
+repulsion, no contact guard, no planning: the baseline without any avoidance.
 
-Scenarios:
+Peer policies (``orca``, ``hrvo``, ``hl``, ``socialforce``): navground in this process
+(:mod:`fleet.bench.peers`), same robots, step, tolerances and time limit, no noise.
 
-* ``swap-N`` -- N robots on a circle of radius 6 m, each parking at the antipodal point
-  (start heading: towards the centre turned by -pi/4; goal heading turned by +pi/4);
-  tasks name their robot.
-* ``yard-sS`` -- 10 robots at random postures in a 10 m x 10 m yard and 10 random goals
-  (seed S; starts and goals >= 1.5 m apart); tasks are unnamed, so the optimal assignment
-  decides who parks where.
-* ``case-III`` -- the paper's comparative case III, (0, 2, 0) -> (0, -2, 0), with its
-  Table 8 gains per law and two static obstacles at (+-0.8, 0) (influence radius 1 m,
-  K_avoid = 4; the paper gives no coordinates, only the figure).
-
-Policies: ``auto`` (the service's rollout-based choice), ``cw`` and ``ccw`` for every task,
-and ``none`` (auto direction with K_avoid = 0: no repulsion from peers or obstacles).
-
-Metrics per run: success rate; collisions (robot pairs whose centres came closer than the
-sum of their radii, 2 x 0.2 m); the minimum centre distance between robots (alone: to a
-static obstacle's centre) [m]; makespan -- simulated seconds from submission until the
-last task is final (robot state sequence numbers / control rate, so a slow CPU does not
-inflate it); path ratio -- mean over tasks of distance driven / straight-line distance.
+Every run is measured by the same code (:mod:`fleet.bench.metrics`) on time-aligned true
+poses. Planning latency (fleet policies): the wall time of each of the service's plans,
+from its cumulative counters ``plans`` and ``plan_wall_ms`` sampled while the run goes
+(a sample covering k plans counts as k plans of the mean time).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
-import math
 import os
 import subprocess
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Sequence
+import zlib
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,178 +40,270 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel
 
-from fleet.core.params import Avoidance, Gains, Tolerance
-from fleet.core.tasks import Direction, FleetEvent, TaskEvent, TaskRequest, TaskStatus
-from fleet.core.types import Law, Posture
-from fleet.core.wire import Keys, Obstacle, Pose, RobotState
+from fleet.bench.metrics import RunMetrics, RunResult
+from fleet.bench.peers import (
+    BEHAVIOURS,
+    MODES,
+    PeerRun,
+    assign_goals,
+    goals_by_robot,
+    run_peer,
+)
+from fleet.bench.plots import plot_run
+from fleet.bench.scenarios import Scenario
+from fleet.core.params import Avoidance
+from fleet.core.tasks import (
+    Direction,
+    GoalRejected,
+    RobotNotFound,
+    Task,
+    TaskRequest,
+    TaskStatus,
+)
+from fleet.core.types import FloatArray
+from fleet.core.wire import Keys, Pose, RobotState
 from fleet.io.decoder import Decoder
 from fleet.io.processes import sim_command, terminate
 from fleet.io.settings import Settings, load_settings
+from fleet.io.trace import read_header, read_trace
 from fleet.io.transport import listening_locators, open_session, tcp_endpoint
-from fleet.paper.scenarios import SCENARIOS
 from fleet.service.fleet_service import FleetService
 from fleet.service.store import SqliteTaskStore
 from fleet.service.zenoh_bus import ZenohFleetBus
 
-POLICIES: tuple[str, ...] = ("auto", "cw", "ccw", "none")
-_LOOSE = Tolerance(position=0.1, heading=0.1)
+FLEET_POLICIES: tuple[str, ...] = ("auto", "cw", "ccw", "none")
+PEER_POLICIES: tuple[str, ...] = tuple(BEHAVIOURS)
+POLICIES: tuple[str, ...] = (*FLEET_POLICIES, *PEER_POLICIES)
+#: ``parkfleet sim`` flags of the disturbed robots (sim_agent.disturbances.REALISTIC).
+DISTURBED_FLAGS: tuple[str, ...] = ("--disturbed",)
+#: The service's task timeout in the bench [s, wall]: out of the way, the bench judges time.
+_SERVICE_TIMEOUT_S = 86_400.0
+#: Wall seconds without simulated time moving before a run is declared broken.
+STALL_S = 60.0
+#: Wall seconds the robots get to come up.
+STARTUP_S = 60.0
+#: Where the bench's in-process router listens (any free loopback port).
+LOOPBACK = "tcp/127.0.0.1:0"
 
 
 class FleetBenchRow(BaseModel):
-    """One scenario under one policy."""
+    """One scenario under one policy (units: metres, simulated seconds, milliseconds)."""
 
     scenario: str
+    family: str
+    seed: int | None
     robots: int
     policy: str
     success_rate: float
     collisions: int
-    min_separation_m: float
+    min_separation_m: float | None
     makespan_s: float
-    path_ratio: float
+    path_ratio: float | None
+    deadlocks: int
+    plan_p50_ms: float | None
+    plan_p99_ms: float | None
+    obstacle_hits: int
+    min_obstacle_clearance_m: float | None
+    tasks: int
+    arrived: int
+    rejected: int
+    time_limit_s: float
+    wall_s: float
 
 
 @dataclass(frozen=True)
-class FleetScenario:
-    name: str
-    starts: list[Posture]
-    goals: list[Posture]
-    named: bool = True
-    obstacles: list[Obstacle] = field(default_factory=list)
-    law_gains: dict[Law, Gains] | None = None
-    tolerance: Tolerance = _LOOSE
+class BenchOptions:
+    """How the bench runs: time scale of the sim robots, their disturbances (``parkfleet
+    sim`` flags; empty: perfect robots), time-limit override [s, simulated], plot folder,
+    folder keeping the sim traces (else deleted), the robots' settings (profile,
+    avoidance, control rate)."""
 
-    @property
-    def robot_ids(self) -> list[str]:
-        return [f"b{i + 1}" for i in range(len(self.starts))]
+    time_scale: float = 5.0
+    disturbances: tuple[str, ...] = DISTURBED_FLAGS
+    time_limit_s: float | None = None
+    plots: Path | None = None
+    traces: Path | None = None
+    settings: Settings = field(default_factory=load_settings)
 
-
-def swap_scenario(n: int, radius: float = 6.0) -> FleetScenario:
-    """Antipodal swap of ``n`` robots on a circle of ``radius`` [m]."""
-    starts: list[Posture] = []
-    goals: list[Posture] = []
-    for i in range(n):
-        a = 2 * math.pi * i / n
-        c, s = radius * math.cos(a), radius * math.sin(a)
-        starts.append((c, s, a + math.pi - math.pi / 4))
-        goals.append((-c, -s, a + math.pi + math.pi / 4))
-    return FleetScenario(name=f"swap-{n}", starts=starts, goals=goals)
+    def limit(self, scenario: Scenario) -> Scenario:
+        """``scenario`` with the overriding time limit, if any."""
+        if self.time_limit_s is None:
+            return scenario
+        return scenario.model_copy(update={"time_limit_s": self.time_limit_s})
 
 
-def random_yard_scenario(
-    n: int, seed: int, half: float = 5.0, spacing: float = 1.5
-) -> FleetScenario:
-    """``n`` random starts and goals in a ``2 half`` x ``2 half`` m yard (seeded)."""
-    rng = np.random.default_rng(seed)
-    points: list[tuple[float, float]] = []
-    while len(points) < 2 * n:
-        x, y = (float(v) for v in rng.uniform(-half, half, size=2))
-        if all(math.hypot(x - px, y - py) >= spacing for px, py in points):
-            points.append((x, y))
-    heads = rng.uniform(-math.pi, math.pi, size=2 * n)
-    poses = [(x, y, float(t)) for (x, y), t in zip(points, heads, strict=True)]
-    return FleetScenario(name=f"yard-s{seed}", starts=poses[:n], goals=poses[n:], named=False)
+@dataclass
+class Outcome:
+    """A finished run: its metrics, task count, plan latencies [ms], rejections, wall [s]."""
+
+    result: RunResult
+    tasks: int
+    plan_ms: list[float]
+    rejected: int = 0
+    wall_s: float = 0.0
 
 
-def case_iii_scenario() -> FleetScenario:
-    """The paper's comparative case III with two static obstacles (Section 6)."""
-    case = SCENARIOS["III"]
-    return FleetScenario(
-        name="case-III",
-        starts=[case.start],
-        goals=[case.goal],
-        obstacles=[Obstacle(x=0.8, y=0.0, radius=1.0), Obstacle(x=-0.8, y=0.0, radius=1.0)],
-        law_gains=dict(case.gains),
-        tolerance=case.tolerance,
+def scenario_seed(scenario: Scenario) -> int:
+    """A stable seed for the noise of a scenario's runs (its own seed, else from its name)."""
+    return scenario.seed if scenario.seed is not None else zlib.crc32(scenario.name.encode())
+
+
+def _percentile(values: Sequence[float], q: float) -> float | None:
+    return round(float(np.percentile(values, q)), 1) if values else None
+
+
+def _round(value: float | None, digits: int = 3) -> float | None:
+    return None if value is None else round(value, digits)
+
+
+def make_row(scenario: Scenario, policy: str, outcome: Outcome) -> FleetBenchRow:
+    """The table row of a run (the same arithmetic for every policy)."""
+    r = outcome.result
+    arrived = r.success_count()
+    return FleetBenchRow(
+        scenario=scenario.name,
+        family=scenario.group,
+        seed=scenario.seed,
+        robots=len(scenario.robots),
+        policy=policy,
+        success_rate=round(arrived / outcome.tasks, 4) if outcome.tasks else 1.0,
+        collisions=r.collision_pairs,
+        min_separation_m=_round(r.min_separation_m),
+        makespan_s=round(r.makespan(outcome.tasks, scenario.end_s), 2),
+        path_ratio=_round(r.path_ratio()),
+        deadlocks=len(r.deadlocks),
+        plan_p50_ms=_percentile(outcome.plan_ms, 50),
+        plan_p99_ms=_percentile(outcome.plan_ms, 99),
+        obstacle_hits=r.obstacle_hits,
+        min_obstacle_clearance_m=_round(r.min_obstacle_clearance_m),
+        tasks=outcome.tasks,
+        arrived=arrived,
+        rejected=outcome.rejected,
+        time_limit_s=scenario.time_limit_s,
+        wall_s=round(outcome.wall_s, 1),
     )
 
 
-def default_scenarios(quick: bool = False) -> list[FleetScenario]:
-    if quick:
-        return [
-            swap_scenario(2),
-            swap_scenario(4),
-            random_yard_scenario(10, 1),
-            case_iii_scenario(),
-        ]
-    return [
-        *(swap_scenario(n) for n in (2, 4, 8, 16)),
-        *(random_yard_scenario(10, seed) for seed in (1, 2)),
-        case_iii_scenario(),
-    ]
+def metrics_title(row: FleetBenchRow) -> str:
+    """The one-line summary of a run used as a plot title."""
+    sep = "-" if row.min_separation_m is None else f"{row.min_separation_m:.2f} m"
+    ratio = "-" if row.path_ratio is None else f"{row.path_ratio:.2f}"
+    plan = (
+        ""
+        if row.plan_p50_ms is None
+        else f" | plan p50/p99 {row.plan_p50_ms:g}/{row.plan_p99_ms:g} ms"
+    )
+    return (
+        f"{row.scenario} | {row.policy}\n"
+        f"success {row.success_rate:.0%} | collisions {row.collisions} | min sep {sep} | "
+        f"makespan {row.makespan_s:.1f} s | path {ratio} | deadlocks {row.deadlocks}"
+        f" | obstacle hits {row.obstacle_hits}{plan}"
+    )
 
 
-class _Recorder:
-    """Every robot's state stream: distance driven, closest approach, sequence numbers."""
+def _obstacle_rows(scenario: Scenario) -> list[tuple[float, float, float]]:
+    return [(o.x, o.y, o.body) for o in scenario.obstacles]
 
-    def __init__(self) -> None:
+
+# -- navground peers -----------------------------------------------------------------------
+
+
+def run_peer_policy(scenario: Scenario, policy: str, options: BenchOptions) -> Outcome:
+    """One navground run of ``scenario``, measured on its ticks."""
+    began = time.monotonic()
+    s = options.settings
+    owner = assign_goals(scenario)
+    metrics = RunMetrics(
+        [s.profile.radius] * len(scenario.robots),
+        goals_by_robot(scenario, owner),
+        _obstacle_rows(scenario),
+        MODES,
+        t_end=scenario.end_s,
+    )
+    run = PeerRun(
+        behaviour=policy,
+        profile=s.profile,
+        safety_separation_m=s.safety_separation_m,
+        dt=1.0 / s.control_rate_hz,
+        seed=scenario_seed(scenario),
+    )
+    for chunk in run_peer(scenario, run):
+        metrics.add(chunk)
+    return Outcome(metrics.result(), len(scenario.robots), [], wall_s=time.monotonic() - began)
+
+
+# -- the fleet over Zenoh ------------------------------------------------------------------
+
+
+class _SimClock:
+    """Simulated time of the sim robots [s]: one robot's state sequence number x period."""
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+        self._decoder = Decoder("bench clock")
         self._lock = threading.Lock()
-        self._decoder = Decoder("bench")
-        self.pos: dict[str, tuple[float, float]] = {}
-        self.radius: dict[str, float] = {}
-        self.seq: dict[str, int] = {}
-        self.driven: dict[str, float] = {}
-        self.closest: dict[tuple[str, str], float] = {}
-        self.recording = False
+        self._seq: int | None = None
+        self._heard = time.monotonic()
 
     def on_sample(self, sample: Any) -> None:
         state = self._decoder.decode(RobotState, sample.payload.to_bytes())
-        if state is None:
-            return
-        rid, p = state.robot_id, (state.pose.x, state.pose.y)
+        if state is not None:
+            with self._lock:
+                if self._seq is None or state.seq > self._seq:
+                    self._seq = state.seq
+                    self._heard = time.monotonic()
+
+    def now(self) -> float | None:
         with self._lock:
-            self.seq[rid] = state.seq
-            self.radius[rid] = state.radius
-            last = self.pos.get(rid)
-            self.pos[rid] = p
-            if not self.recording:
-                return
-            if last is not None:
-                self.driven[rid] = self.driven.get(rid, 0.0) + math.dist(last, p)
-            for other, q in self.pos.items():
-                if other != rid:
-                    key = (min(rid, other), max(rid, other))
-                    d = math.dist(p, q)
-                    if d < self.closest.get(key, math.inf):
-                        self.closest[key] = d
+            return None if self._seq is None else self._seq * self.period
 
-    def start_recording(self) -> dict[str, int]:
+    def stalled_for(self) -> float:
+        """Wall seconds since simulated time last moved."""
         with self._lock:
-            self.recording = True
-            return dict(self.seq)
-
-    def snapshot_seq(self) -> dict[str, int]:
-        with self._lock:
-            return dict(self.seq)
+            return time.monotonic() - self._heard
 
 
-def _wait(predicate: Callable[[], bool], timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return predicate()
+class _PlanLatency:
+    """Per-plan wall times [ms] from the service's cumulative ``plans``/``plan_wall_ms``."""
+
+    def __init__(self) -> None:
+        self.samples: list[float] = []
+        self._plans = 0
+        self._wall_ms = 0
+
+    def sample(self, counters: dict[str, int]) -> None:
+        plans, wall = counters.get("plans", 0), counters.get("plan_wall_ms", 0)
+        if plans > self._plans:
+            k = plans - self._plans
+            self.samples.extend([(wall - self._wall_ms) / k] * k)
+        self._plans, self._wall_ms = plans, wall
 
 
-def run_scenario(
+def _direction(policy: str) -> Direction:
+    return "cw" if policy == "cw" else "auto" if policy == "auto" else "ccw"
+
+
+def run_fleet_policy(
     session: Any,
     endpoint: str,
-    scenario: FleetScenario,
+    scenario: Scenario,
     policy: str,
+    options: BenchOptions,
     *,
     fleet_name: str,
     workdir: Path,
-    time_scale: float,
-    horizon_s: float,
-) -> FleetBenchRow:
-    """Run one scenario under one policy with a fresh service and fresh sim robots."""
-    avoidance = Avoidance(k_avoid=0.0) if policy == "none" else Avoidance()
-    settings = load_settings(
-        fleet_name=fleet_name,
-        task_timeout_s=horizon_s / time_scale + 5.0,
-        avoidance=avoidance,
+) -> Outcome:
+    """One run of ``scenario`` through a fresh service and fresh ``parkfleet sim`` robots."""
+    began = time.monotonic()
+    base = options.settings
+    avoidance = Avoidance(k_avoid=0.0) if policy == "none" else base.avoidance
+    settings = base.model_copy(
+        update={
+            "fleet_name": fleet_name,
+            "task_timeout_s": _SERVICE_TIMEOUT_S,
+            "avoidance": avoidance,
+        }
     )
-    direction: Direction = "cw" if policy == "cw" else "ccw" if policy == "ccw" else "auto"
     ids = scenario.robot_ids
     spawn = workdir / f"{fleet_name}.json"
     spawn.write_text(
@@ -226,136 +314,225 @@ def run_scenario(
             ]
         )
     )
+    trace = (options.traces or workdir) / f"{scenario.name}--{policy}.trace"
     keys = Keys(fleet_name)
-    recorder = _Recorder()
+    clock = _SimClock(1.0 / settings.control_rate_hz)
+    latency = _PlanLatency()
     store = SqliteTaskStore(workdir / f"{fleet_name}.db")
     service = FleetService(settings, ZenohFleetBus(session, keys), store)
-    final_seq: dict[str, dict[str, int]] = {}
-
-    def on_event(event: FleetEvent) -> None:
-        if isinstance(event, TaskEvent) and event.task.status.final:
-            final_seq[event.task.id] = recorder.snapshot_seq()
-
-    service.add_listener(on_event)
-    subscriber = session.declare_subscriber(keys.all_states, recorder.on_sample)
+    subscriber = session.declare_subscriber(keys.state(ids[0]), clock.on_sample)
     env = dict(os.environ)
     env["PARKFLEET_FLEET_NAME"] = fleet_name
     env["PARKFLEET_AVOIDANCE__K_AVOID"] = str(avoidance.k_avoid)
+    env["PARKFLEET_CONTROL_RATE_HZ"] = str(settings.control_rate_hz)
+    extra = [*options.disturbances, "--trace", str(trace)]
     proc = subprocess.Popen(
-        sim_command(endpoint, len(ids), time_scale=time_scale, spawn=str(spawn)),
+        sim_command(
+            endpoint,
+            len(ids),
+            time_scale=options.time_scale,
+            spawn=str(spawn),
+            seed=scenario_seed(scenario),
+            extra=extra,
+        ),
         env=env,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
+    tasks: dict[int, Task] = {}
+    rejected = 0
     try:
         service.start()
-        service.set_obstacles(scenario.obstacles)
-        if not _wait(lambda: len(service.robots()) == len(ids), 30.0):
-            raise RuntimeError(f"{scenario.name}: the simulated robots did not come up")
-        start_seq = recorder.start_recording()
-        tasks = [
-            service.submit(
-                TaskRequest(
-                    goal=Pose(x=g[0], y=g[1], theta=g[2]),
-                    robot_id=rid if scenario.named else None,
-                    direction=direction,
-                    law_gains=scenario.law_gains,
-                    tolerance=scenario.tolerance,
+        service.set_obstacles([o.as_obstacle() for o in scenario.obstacles])
+        deadline = time.monotonic() + STARTUP_S
+        while len(service.robots()) < len(ids) or clock.now() is None:
+            if time.monotonic() > deadline or proc.poll() is not None:
+                raise RuntimeError(f"{scenario.name}: the simulated robots did not come up")
+            time.sleep(0.05)
+        t0 = clock.now()
+        assert t0 is not None
+        pending = sorted(range(len(ids)), key=lambda k: scenario.robots[k].arrival_s)
+        while True:
+            now = clock.now()
+            assert now is not None
+            while pending and scenario.robots[pending[0]].arrival_s <= now - t0:
+                k = pending.pop(0)
+                task = _submit(service, scenario, k, ids[k], _direction(policy))
+                if task is None:
+                    rejected += 1
+                else:
+                    tasks[k] = task
+            latency.sample(service.counters)
+            if not pending and all(_succeeded(service, t) for t in tasks.values()):
+                break
+            if now - t0 >= scenario.end_s:
+                break
+            if proc.poll() is not None or clock.stalled_for() > STALL_S:
+                raise RuntimeError(
+                    f"{scenario.name}: the simulated robots stopped (exit {proc.poll()})"
                 )
-            )
-            for rid, g in zip(ids, scenario.goals, strict=True)
-        ]
-        _wait(
-            lambda: all(service.task(t.id).status.final for t in tasks),
-            settings.task_timeout_s + 30.0,
-        )
-        done = [service.task(t.id) for t in tasks]
-        rate = settings.control_rate_hz
-        ends: list[float] = []
-        ratios: list[float] = []
-        for t in done:
-            rid = t.robot_id
-            seqs = final_seq.get(t.id)
-            if rid is not None and seqs is not None and rid in start_seq:
-                ends.append((seqs.get(rid, start_seq[rid]) - start_seq[rid]) / rate)
-            if rid is not None and rid in ids:
-                s = scenario.starts[ids.index(rid)]
-                straight = math.hypot(t.request.goal.x - s[0], t.request.goal.y - s[1])
-                if straight > 0:
-                    ratios.append(recorder.driven.get(rid, 0.0) / straight)
-        succeeded = sum(t.status == TaskStatus.SUCCEEDED for t in done)
-        makespan = max(ends) if len(ends) == len(done) else horizon_s
-        closest = recorder.closest
-        collisions = sum(
-            d < recorder.radius.get(a, 0.2) + recorder.radius.get(b, 0.2)
-            for (a, b), d in closest.items()
-        )
-        if closest:
-            min_sep = min(closest.values())
-        elif scenario.obstacles:
-            min_sep = _min_obstacle_distance(service, ids[0], scenario)
-        else:
-            min_sep = math.nan
-        return FleetBenchRow(
-            scenario=scenario.name,
-            robots=len(ids),
-            policy=policy,
-            success_rate=succeeded / len(done),
-            collisions=int(collisions),
-            min_separation_m=round(min_sep, 3),
-            makespan_s=round(makespan, 2),
-            path_ratio=round(float(np.mean(ratios)) if ratios else math.nan, 3),
-        )
+            time.sleep(0.02)
+        latency.sample(service.counters)
+        owners = {k: service.task(t.id).robot_id for k, t in tasks.items()}
     finally:
         terminate(proc, timeout=15)
         subscriber.undeclare()
         service.close()
         store.close()
+    goals = np.full((len(ids), 3), np.nan)
+    for k, robot in owners.items():
+        if robot in ids:
+            goals[ids.index(robot)] = scenario.robots[k].goal
+    result = _measure_trace(trace, goals, scenario, t0)
+    if options.traces is None:
+        trace.unlink(missing_ok=True)
+    return Outcome(result, len(ids), latency.samples, rejected, time.monotonic() - began)
 
 
-def _min_obstacle_distance(service: FleetService, robot_id: str, scenario: FleetScenario) -> float:
-    """Closest approach of a lone robot to a static obstacle's centre [m], from its path."""
-    tasks = service.tasks(robot_id=robot_id)
-    best = math.inf
-    for task in tasks:
-        for _, x, y, *_ in service.path(task.id):
-            for o in scenario.obstacles:
-                best = min(best, math.hypot(x - o.x, y - o.y))
-    return best
+def _submit(
+    service: FleetService, scenario: Scenario, k: int, robot_id: str, direction: Direction
+) -> Task | None:
+    goal = scenario.robots[k].goal
+    try:
+        return service.submit(
+            TaskRequest(
+                goal=Pose(x=goal[0], y=goal[1], theta=goal[2]),
+                robot_id=robot_id if scenario.named else None,
+                direction=direction,
+                law_gains=scenario.law_gains,
+                tolerance=scenario.tolerance,
+            )
+        )
+    except (GoalRejected, RobotNotFound):
+        return None
+
+
+def _succeeded(service: FleetService, task: Task) -> bool:
+    return service.task(task.id).status == TaskStatus.SUCCEEDED
+
+
+def _measure_trace(path: Path, goals: FloatArray, scenario: Scenario, t0: float) -> RunResult:
+    header = read_header(path)
+    metrics = RunMetrics(
+        header.radii,
+        goals,
+        _obstacle_rows(scenario),
+        header.modes,
+        t_start=t0,
+        t_end=t0 + scenario.end_s,
+    )
+    for chunk in read_trace(path):
+        metrics.add(chunk)
+    return metrics.result()
+
+
+# -- the whole bench -----------------------------------------------------------------------
 
 
 def run_fleet_bench(
-    scenarios: Sequence[FleetScenario],
+    scenarios: Sequence[Scenario],
     policies: Sequence[str] = POLICIES,
-    time_scale: float = 5.0,
-    horizon_s: float = 120.0,
-    progress: Callable[[FleetBenchRow], None] | None = None,
+    options: BenchOptions | None = None,
+    progress: Callable[[int, int, FleetBenchRow], None] | None = None,
+    starting: Callable[[Scenario, str], None] | None = None,
 ) -> list[FleetBenchRow]:
-    """Every scenario under every policy; one in-process router for the whole run."""
-    for policy in policies:
-        if policy not in POLICIES:
-            raise ValueError(f"unknown policy {policy!r}; expected one of {POLICIES}")
-    router_settings: Settings = load_settings(listen=["tcp/127.0.0.1:0"])
+    """Every scenario under every policy; ``starting(scenario, policy)`` before each run,
+    ``progress(done, total, row)`` after it."""
+    options = options or BenchOptions()
+    unknown = [p for p in policies if p not in POLICIES]
+    if unknown:
+        raise ValueError(f"unknown policy {unknown}; expected some of {list(POLICIES)}")
     rows: list[FleetBenchRow] = []
-    with (
-        tempfile.TemporaryDirectory(prefix="parkfleet-bench-") as tmp,
-        open_session(router_settings, "router") as session,
-    ):
-        endpoint = tcp_endpoint(listening_locators(session))
-        run_id = os.getpid()
-        for k, scenario in enumerate(scenarios):
+    total = len(scenarios) * len(policies)
+    if options.traces is not None:
+        options.traces.mkdir(parents=True, exist_ok=True)
+    with contextlib.ExitStack() as stack:
+        tmp = stack.enter_context(tempfile.TemporaryDirectory(prefix="parkfleet-bench-"))
+        session: Any = None
+        endpoint = ""
+        if any(p in FLEET_POLICIES for p in policies):
+            session = stack.enter_context(open_session(load_settings(listen=[LOOPBACK]), "router"))
+            endpoint = tcp_endpoint(listening_locators(session))
+        for k, raw in enumerate(scenarios):
+            scenario = options.limit(raw)
             for policy in policies:
-                row = run_scenario(
-                    session,
-                    endpoint,
-                    scenario,
-                    policy,
-                    fleet_name=f"bench{run_id}-{k}-{policy}",
-                    workdir=Path(tmp),
-                    time_scale=time_scale,
-                    horizon_s=horizon_s,
-                )
+                if starting is not None:
+                    starting(scenario, policy)
+                if policy in FLEET_POLICIES:
+                    outcome = run_fleet_policy(
+                        session,
+                        endpoint,
+                        scenario,
+                        policy,
+                        options,
+                        fleet_name=f"bench{os.getpid()}-{k}-{policy}",
+                        workdir=Path(tmp),
+                    )
+                else:
+                    outcome = run_peer_policy(scenario, policy, options)
+                row = make_row(scenario, policy, outcome)
+                if options.plots is not None:
+                    plot_run(
+                        scenario,
+                        outcome.result,
+                        metrics_title(row),
+                        options.plots / f"{scenario.name}--{policy}.png",
+                    )
                 rows.append(row)
                 if progress is not None:
-                    progress(row)
+                    progress(len(rows), total, row)
     return rows
+
+
+class SummaryRow(BaseModel):
+    """A family under one policy over its seeds: mean and worst of each figure."""
+
+    family: str
+    robots: int
+    policy: str
+    runs: int
+    success_mean: float
+    success_worst: float
+    collisions_mean: float
+    collisions_worst: int
+    min_separation_worst_m: float | None
+    makespan_mean_s: float
+    makespan_worst_s: float
+    path_ratio_mean: float | None
+    path_ratio_worst: float | None
+    deadlocks_mean: float
+    deadlocks_worst: int
+    plan_p99_worst_ms: float | None
+
+
+def summarise(rows: Iterable[FleetBenchRow]) -> list[SummaryRow]:
+    """Rows grouped by (family, policy), in first-seen order."""
+    groups: dict[tuple[str, str], list[FleetBenchRow]] = {}
+    for row in rows:
+        groups.setdefault((row.family, row.policy), []).append(row)
+    out = []
+    for (family, policy), group in groups.items():
+        seps = [r.min_separation_m for r in group if r.min_separation_m is not None]
+        ratios = [r.path_ratio for r in group if r.path_ratio is not None]
+        plans = [r.plan_p99_ms for r in group if r.plan_p99_ms is not None]
+        out.append(
+            SummaryRow(
+                family=family,
+                robots=group[0].robots,
+                policy=policy,
+                runs=len(group),
+                success_mean=round(float(np.mean([r.success_rate for r in group])), 4),
+                success_worst=min(r.success_rate for r in group),
+                collisions_mean=round(float(np.mean([r.collisions for r in group])), 2),
+                collisions_worst=max(r.collisions for r in group),
+                min_separation_worst_m=min(seps) if seps else None,
+                makespan_mean_s=round(float(np.mean([r.makespan_s for r in group])), 2),
+                makespan_worst_s=max(r.makespan_s for r in group),
+                path_ratio_mean=round(float(np.mean(ratios)), 3) if ratios else None,
+                path_ratio_worst=max(ratios) if ratios else None,
+                deadlocks_mean=round(float(np.mean([r.deadlocks for r in group])), 2),
+                deadlocks_worst=max(r.deadlocks for r in group),
+                plan_p99_worst_ms=max(plans) if plans else None,
+            )
+        )
+    return out

@@ -1,0 +1,259 @@
+"""Metrics of one benchmark run, from time-aligned true poses (identical for every policy).
+
+:class:`RunMetrics` is fed tick after tick -- every robot's true pose and mode at the same
+simulated instant, from a ``parkfleet sim`` trace file or a navground run -- and keeps only
+running figures, so memory stays bounded however long the run (paths are kept subsampled,
+for plots). Definitions:
+
+* **collision** -- a pair of robots whose centres are closer than the sum of their radii
+  at the same instant (less :data:`COLLISION_SLACK_M`: navground's float32 positions read a
+  graze at 0.4 m as 0.39999 m); ``collisions`` counts the pairs that ever touched, and
+  every contact episode's first instant is kept (bounded) for plots;
+* **minimum separation** -- the smallest centre distance of any pair at any instant [m];
+* **obstacle hits** -- robots whose body ever overlapped a static obstacle's body
+  (clearance = centre distance - robot radius - obstacle body < -slack);
+* **arrival** -- the first instant a robot reports ``arrived`` (makespan: the last one,
+  from the run's start);
+* **path ratio** -- distance driven (true poses, every tick) / straight line from the
+  robot's pose at the run's start to its goal;
+* **deadlock** -- a robot with a task, not arrived, not waiting on purpose (a planned start
+  delay or hold, mode ``waiting``), farther than :data:`NEAR_GOAL_M` from its goal, whose
+  distance to the goal has not dropped :data:`PROGRESS_M` below its best for
+  :data:`DEADLOCK_WINDOW_S` simulated seconds (the clock restarts whenever it waits or
+  enters the parking zone); counted once per robot, where and when it was found.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from fleet.core.types import BoolArray, FloatArray
+from fleet.io.trace import NO_MODE, ModeArray, TraceChunk
+
+#: Tolerance [m] of the contact test (float32 rounding of the peers' positions).
+COLLISION_SLACK_M = 1e-4
+#: A robot making no progress for this long [s, simulated] is deadlocked.
+DEADLOCK_WINDOW_S = 10.0
+#: Progress: the distance to the goal improves this much [m] on its best so far.
+PROGRESS_M = 0.05
+#: Within this distance of its goal [m] a robot is parking, not stuck (the laws' final
+#: manoeuvres -- a full turn to fix a few centimetres -- take longer than the window).
+NEAR_GOAL_M = 0.5
+#: Contact episodes kept for plots.
+MAX_EVENTS = 500
+#: Pair-distance entries computed at once (bounds the scratch memory).
+_BLOCK = 1_000_000
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something worth marking on a plot: time [s], robots involved, where (x, y) [m]."""
+
+    t: float
+    robots: tuple[int, ...]
+    x: float
+    y: float
+
+
+@dataclass
+class RunResult:
+    """Figures of one run; robot indices follow the trace / scenario order."""
+
+    ticks: int
+    t_start: float
+    t_last: float
+    collision_pairs: int
+    collisions: list[Event]
+    min_separation_m: float | None
+    obstacle_hits: int
+    min_obstacle_clearance_m: float | None
+    arrivals: FloatArray  # (N,) time of arrival [s], NaN if never
+    driven: FloatArray  # (N,) distance driven [m]
+    starts: FloatArray  # (N, 3) pose at the run's start
+    goals: FloatArray  # (N, 3) goal, NaN rows for robots without a task
+    deadlocks: list[Event]
+    path_t: FloatArray  # (S,) subsampled times [s]
+    paths: FloatArray  # (S, N, 3) subsampled true poses
+    final: FloatArray  # (N, 3) last true pose
+
+    @property
+    def tasked(self) -> BoolArray:
+        return np.asarray(~np.isnan(self.goals[:, 0]))
+
+    def success_count(self) -> int:
+        """Robots with a task that arrived."""
+        return int(np.count_nonzero(self.tasked & ~np.isnan(self.arrivals)))
+
+    def makespan(self, tasks: int, limit: float) -> float:
+        """Last arrival after the start [s]; ``limit`` when any of ``tasks`` did not arrive."""
+        if tasks == 0:
+            return 0.0
+        if self.success_count() < tasks:
+            return limit
+        return float(np.nanmax(self.arrivals[self.tasked]) - self.t_start)
+
+    def path_ratio(self) -> float | None:
+        """Mean over tasked robots of distance driven / straight line (None if none)."""
+        straight = np.hypot(*(self.goals[:, :2] - self.starts[:, :2]).T)
+        use = self.tasked & (straight > 1e-9)
+        if not use.any():
+            return None
+        return float(np.mean(self.driven[use] / straight[use]))
+
+
+class RunMetrics:
+    """Accumulates :class:`RunResult` figures from chunks of ticks (see the module docstring).
+
+    ``radii`` [m] per robot; ``goals`` (N, 3) with NaN rows for robots without a task;
+    ``obstacles`` (K, 3) rows of (x, y, body radius) [m]; ``modes`` the trace's mode names;
+    ticks outside [``t_start``, ``t_end``] are ignored; one tick in ``path_stride`` is kept.
+    """
+
+    def __init__(
+        self,
+        radii: Sequence[float],
+        goals: FloatArray | Sequence[Sequence[float]],
+        obstacles: FloatArray | Sequence[Sequence[float]],
+        modes: Sequence[str],
+        *,
+        t_start: float = 0.0,
+        t_end: float = math.inf,
+        path_stride: int = 5,
+    ) -> None:
+        n = len(radii)
+        self.t_start, self.t_end, self.path_stride = t_start, t_end, max(1, path_stride)
+        self.goals = np.asarray(goals, dtype=np.float64).reshape(n, 3)
+        self.obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
+        self._n = n
+        self._pairs = np.triu_indices(n, k=1)
+        self._radii = np.asarray(radii, dtype=np.float64)
+        self._contact = (
+            self._radii[self._pairs[0]] + self._radii[self._pairs[1]] - COLLISION_SLACK_M
+        )
+        codes = {name: k for k, name in enumerate(modes)}
+        self._arrived = codes.get("arrived", -1)
+        self._passive = [codes[m] for m in ("idle", "waiting", "arrived") if m in codes]
+        self._passive.append(NO_MODE)
+        self._touching = np.zeros(len(self._contact), dtype=bool)
+        self._touched = np.zeros(len(self._contact), dtype=bool)
+        self._hit = np.zeros(n, dtype=bool)
+        self._events: list[Event] = []
+        self._min_sep = math.inf
+        self._min_clear = math.inf
+        self._arrivals = np.full(n, np.nan)
+        self._driven = np.zeros(n)
+        self._starts: FloatArray | None = None
+        self._last: FloatArray | None = None
+        self._best_d = np.full(n, np.nan)
+        self._since = np.full(n, np.nan)  # time of the last progress (NaN: not active)
+        self._deadlocked = np.zeros(n, dtype=bool)
+        self._deadlocks: list[Event] = []
+        self._path_t: list[float] = []
+        self._paths: list[FloatArray] = []
+        self._ticks = 0
+        self._t_last = math.nan
+
+    def add(self, chunk: TraceChunk) -> None:
+        """Fold in consecutive ticks (times ascending)."""
+        keep = (chunk.t >= self.t_start) & (chunk.t <= self.t_end)
+        if not keep.any():
+            return
+        t, poses, modes = chunk.t[keep], chunk.poses[keep], chunk.modes[keep]
+        if self._starts is None:
+            self._starts = poses[0].copy()
+        self._distances(t, poses)
+        self._motion(t, poses, modes)
+        first = self._ticks
+        self._ticks += len(t)
+        self._t_last = float(t[-1])
+        for k in range(len(t)):
+            if (first + k) % self.path_stride == 0:
+                self._path_t.append(float(t[k]))
+                self._paths.append(poses[k].copy())
+
+    def _distances(self, t: FloatArray, poses: FloatArray) -> None:
+        i, j = self._pairs
+        pairs, n_obs = len(i), self.obstacles.shape[0]
+        step = max(1, _BLOCK // max(1, pairs + self._n * n_obs))
+        for a in range(0, len(t), step):
+            xy = poses[a : a + step, :, :2]
+            if pairs:
+                d = np.hypot(*(xy[:, i] - xy[:, j]).transpose(2, 0, 1))  # (T, M)
+                self._min_sep = min(self._min_sep, float(d.min()))
+                touching = d < self._contact
+                previous = np.vstack([self._touching[None], touching[:-1]])
+                for tick, pair in zip(*np.nonzero(touching & ~previous), strict=True):
+                    if len(self._events) < MAX_EVENTS:
+                        p, q = xy[tick, i[pair]], xy[tick, j[pair]]
+                        self._events.append(
+                            Event(float(t[a + tick]), (int(i[pair]), int(j[pair])),
+                                  float(p[0] + q[0]) / 2, float(p[1] + q[1]) / 2)
+                        )  # fmt: skip
+                self._touched |= touching.any(axis=0)
+                self._touching = touching[-1]
+            if n_obs:
+                centre = np.hypot(
+                    *(xy[:, :, None] - self.obstacles[None, None, :, :2]).transpose(3, 0, 1, 2)
+                )
+                clearance = centre - self._radii[None, :, None] - self.obstacles[None, None, :, 2]
+                self._min_clear = min(self._min_clear, float(clearance.min()))
+                self._hit |= (clearance < -COLLISION_SLACK_M).any(axis=(0, 2))
+
+    def _motion(self, t: FloatArray, poses: FloatArray, modes: ModeArray) -> None:
+        before = poses[:1] if self._last is None else self._last[None]
+        previous = np.concatenate([before, poses[:-1]])
+        self._driven += np.hypot(*(poses[:, :, :2] - previous[:, :, :2]).transpose(2, 0, 1)).sum(
+            axis=0
+        )
+        self._last = poses[-1].copy()
+        arrived = modes == self._arrived
+        newly = np.isnan(self._arrivals) & arrived.any(axis=0)
+        if newly.any():
+            arrival_tick = arrived.argmax(axis=0)
+            self._arrivals[newly] = t[arrival_tick[newly]]
+        goals = self.goals
+        tasked = ~np.isnan(goals[:, 0])
+        moving = ~np.isin(modes, self._passive) & tasked[None, :]
+        for k in range(len(t)):
+            p = poses[k]
+            dist = np.hypot(goals[:, 0] - p[:, 0], goals[:, 1] - p[:, 1])
+            watched = moving[k] & (dist > NEAR_GOAL_M)
+            self._since[~watched] = np.nan
+            if not watched.any():
+                continue
+            fresh = watched & np.isnan(self._since)
+            better = watched & (dist < self._best_d - PROGRESS_M)
+            self._best_d[fresh | better] = dist[fresh | better]
+            self._since[fresh | better] = t[k]
+            stuck = watched & ~self._deadlocked & (t[k] - self._since >= DEADLOCK_WINDOW_S)
+            for r in np.nonzero(stuck)[0]:
+                self._deadlocked[r] = True
+                self._deadlocks.append(
+                    Event(float(t[k]), (int(r),), float(p[r, 0]), float(p[r, 1]))
+                )
+
+    def result(self) -> RunResult:
+        n = self._n
+        empty = np.full((n, 3), np.nan)
+        return RunResult(
+            ticks=self._ticks,
+            t_start=self.t_start,
+            t_last=self._t_last,
+            collision_pairs=int(np.count_nonzero(self._touched)),
+            collisions=list(self._events),
+            min_separation_m=None if math.isinf(self._min_sep) else self._min_sep,
+            obstacle_hits=int(np.count_nonzero(self._hit)),
+            min_obstacle_clearance_m=None if math.isinf(self._min_clear) else self._min_clear,
+            arrivals=self._arrivals.copy(),
+            driven=self._driven.copy(),
+            starts=empty if self._starts is None else self._starts,
+            goals=self.goals,
+            deadlocks=list(self._deadlocks),
+            path_t=np.asarray(self._path_t),
+            paths=np.asarray(self._paths).reshape(-1, n, 3),
+            final=empty if self._last is None else self._last,
+        )

@@ -1,0 +1,370 @@
+"""Scenarios of ``parkfleet bench fleet``: data, builders, the JSON file format, the suites.
+
+A :class:`Scenario` is plain data -- robots (start, goal, arrival time), static obstacles,
+gains, tolerance, time limit -- and the same object is what a scenario file holds::
+
+    {"name": "my-yard", "named": true,
+     "robots": [{"start": [x, y, theta], "goal": [x, y, theta], "arrival_s": 0.0}],
+     "obstacles": [{"x": 0.0, "y": 0.0, "radius": 1.0}]}
+
+Units: metres, radians, simulated seconds, world frame. ``named``: each task names its
+robot (robot k parks at goal k); otherwise the fleet assigns goals to robots. ``arrival_s``:
+when the task is submitted, after the run's start. Optional fields: ``robots[].id``;
+``obstacles[].body`` (physical radius [m], default 0.1: what counts as hitting it; ``radius``
+is the influence radius of Eq. 27, as in the API); ``law_gains`` (``{"ccw": {"kx", "ky",
+"ktheta"}, "cw": {...}}``); ``tolerance`` (``{"position", "heading"}``, default 0.1 m /
+0.1 rad); ``time_limit_s`` (default 120: the run stops this long after the last arrival);
+``family`` and ``seed`` (group seeds of one family in the summary). A file holds one
+scenario or a list. Goals are checked as the fleet service checks them (inside the yard,
+outside every influence zone, more than the peer radius apart), so a bad file fails early
+with the reason.
+
+Built-in families (:func:`full_suite`, :func:`quick_suite`):
+
+* ``swap-N-right`` / ``swap-N-left`` -- N robots on a circle (radius 6 m, larger for N = 32
+  so neighbours stay 1.5 m apart) park at the antipodal point; start heading towards the
+  centre turned right by pi/4 and goal heading turned left (``right``), or the mirror image
+  (``left``). Named.
+* ``yard-N-sS`` -- N random starts and goals (seed S) at one robot per 10 m^2, points at
+  least 1.5 m apart; fleet-assigned.
+* ``stream-N-sS`` -- a yard whose tasks arrive as a Poisson stream (mean gap 3 s) while
+  others drive; fleet-assigned.
+* ``carpark-12`` (and ``carpark-12-stream-sS``) -- two rows of bays along the walls of a
+  car park built of posts, robots queued outside entering through a 2.4 m gate;
+  fleet-assigned.
+* ``case-III`` -- the paper's comparative case III with two obstacles at (+-0.8, 0) (the
+  paper gives only the figure), Table 8 gains; ``case-III-4`` -- four robots crossing the
+  same pair of obstacles.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from fleet.core.goals import Occupied, validate_goal
+from fleet.core.params import Avoidance, Gains, Tolerance
+from fleet.core.tasks import GoalRejected
+from fleet.core.types import Law, Posture
+from fleet.core.wire import Obstacle, Pose, RobotId
+from fleet.paper.scenarios import SCENARIOS
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+#: The yard the fleet service accepts goals in by default (x_min, x_max, y_min, y_max) [m].
+YARD = (-10.0, 10.0, -10.0, 10.0)
+#: Tolerance of the benchmark's tasks unless a scenario says otherwise: 0.1 m, 0.1 rad.
+BENCH_TOLERANCE = Tolerance(position=0.1, heading=0.1)
+#: Robots per square metre of the random yards (one per 10 m^2).
+YARD_DENSITY = 0.1
+#: Mean gap [s] between task arrivals of the stream scenarios.
+STREAM_GAP_S = 3.0
+
+
+class RobotSpec(BaseModel):
+    """One robot: start and goal postures (x [m], y [m], theta [rad]), task arrival [s]."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    start: tuple[Finite, Finite, Finite]
+    goal: tuple[Finite, Finite, Finite]
+    arrival_s: Annotated[float, Field(ge=0.0, allow_inf_nan=False)] = 0.0
+    id: RobotId | None = None
+
+
+class ObstacleSpec(BaseModel):
+    """A static obstacle: centre [m], influence radius of Eq. (27) [m], body radius [m]."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    x: Finite
+    y: Finite
+    radius: Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
+    body: Annotated[float, Field(ge=0.0, allow_inf_nan=False)] = 0.1
+
+    @model_validator(mode="after")
+    def _body_inside_zone(self) -> ObstacleSpec:
+        if self.body >= self.radius:
+            raise ValueError(f"body {self.body} m must be smaller than the radius {self.radius} m")
+        return self
+
+    def as_obstacle(self) -> Obstacle:
+        return Obstacle(x=self.x, y=self.y, radius=self.radius)
+
+
+class Scenario(BaseModel):
+    """A benchmark scenario (see the module docstring for every field)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    name: Annotated[str, Field(min_length=1, max_length=80, pattern=r"^[A-Za-z0-9_.+-]+$")]
+    named: bool = True
+    robots: Annotated[list[RobotSpec], Field(min_length=1, max_length=200)]
+    obstacles: list[ObstacleSpec] = []
+    law_gains: dict[Law, Gains] | None = None
+    tolerance: Tolerance = BENCH_TOLERANCE
+    time_limit_s: Annotated[float, Field(gt=0.0, le=3600.0)] = 120.0
+    family: str | None = None
+    seed: int | None = None
+
+    @model_validator(mode="after")
+    def _goals_are_valid(self) -> Scenario:
+        ids = self.robot_ids
+        if len(set(ids)) != len(ids):
+            raise ValueError("robot ids must be unique")
+        obstacles = [o.as_obstacle() for o in self.obstacles]
+        peer_radius = Avoidance().peer_radius
+        taken: list[Occupied] = []
+        for k, r in enumerate(self.robots):
+            goal = Pose(x=r.goal[0], y=r.goal[1], theta=r.goal[2])
+            try:
+                validate_goal(goal, YARD, obstacles, taken, peer_radius)
+            except GoalRejected as exc:
+                raise ValueError(f"robot {k} ({ids[k]}): {exc}") from None
+            taken.append(Occupied(goal.x, goal.y, f"the goal of robot {k} ({ids[k]})"))
+        return self
+
+    @property
+    def robot_ids(self) -> list[str]:
+        """Robot ids: as given, else ``b1`` ... ``bN``."""
+        return [r.id or f"b{k + 1}" for k, r in enumerate(self.robots)]
+
+    @property
+    def starts(self) -> list[Posture]:
+        return [r.start for r in self.robots]
+
+    @property
+    def goals(self) -> list[Posture]:
+        return [r.goal for r in self.robots]
+
+    @property
+    def group(self) -> str:
+        """The family seeds are summarised under (the name when it has none)."""
+        return self.family or self.name
+
+    @property
+    def end_s(self) -> float:
+        """When the run stops at the latest [s after its start]: last arrival + time limit."""
+        return max(r.arrival_s for r in self.robots) + self.time_limit_s
+
+
+def load_scenarios(path: str | Path) -> list[Scenario]:
+    """The scenarios of a JSON file (one object or a list); ValueError naming the problem."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"scenario file not found: {path}")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not JSON: {exc}") from None
+    items = data if isinstance(data, list) else [data]
+    scenarios = []
+    for k, item in enumerate(items):
+        try:
+            scenarios.append(Scenario.model_validate(item))
+        except ValidationError as exc:
+            where = f"{path}" if len(items) == 1 else f"{path} [{k}]"
+            problems = "; ".join(
+                f"{'.'.join(str(p) for p in e['loc']) or 'scenario'}: {e['msg']}"
+                for e in exc.errors()
+            )
+            raise ValueError(f"{where}: {problems}") from None
+    if not scenarios:
+        raise ValueError(f"{path}: no scenario")
+    return scenarios
+
+
+def dump_scenarios(scenarios: Sequence[Scenario]) -> str:
+    """JSON text of ``scenarios`` that :func:`load_scenarios` reads back."""
+    return json.dumps([s.model_dump(exclude_defaults=True) for s in scenarios], indent=1)
+
+
+# -- builders ------------------------------------------------------------------------------
+
+
+def swap(n: int, chirality: str = "right", radius: float = 6.0) -> Scenario:
+    """Antipodal swap of ``n`` robots on a circle of ``radius`` [m] (grown so neighbours
+    are >= 1.5 m apart); ``chirality`` ``right`` or ``left`` (the mirror image)."""
+    if chirality not in ("right", "left"):
+        raise ValueError(f"chirality must be right or left, got {chirality!r}")
+    if n >= 2:
+        radius = max(radius, 1.5 / (2 * math.sin(math.pi / n)))
+    turn = -math.pi / 4 if chirality == "right" else math.pi / 4
+    robots = []
+    for i in range(n):
+        a = 2 * math.pi * i / n
+        c, s = radius * math.cos(a), radius * math.sin(a)
+        robots.append(
+            RobotSpec(start=(c, s, a + math.pi + turn), goal=(-c, -s, a + math.pi - turn))
+        )
+    return Scenario(name=f"swap-{n}-{chirality}", robots=robots, family=f"swap-{n}")
+
+
+def _spaced_points(
+    rng: np.random.Generator, count: int, half_x: float, half_y: float, spacing: float
+) -> list[tuple[float, float]]:
+    points: list[tuple[float, float]] = []
+    for _ in range(10_000 * count):
+        if len(points) == count:
+            return points
+        x, y = float(rng.uniform(-half_x, half_x)), float(rng.uniform(-half_y, half_y))
+        if all(math.hypot(x - px, y - py) >= spacing for px, py in points):
+            points.append((x, y))
+    raise ValueError(f"cannot place {count} points {spacing} m apart in the yard")
+
+
+def random_yard(n: int, seed: int, spacing: float = 1.5) -> Scenario:
+    """``n`` random starts and goals (seeded) at :data:`YARD_DENSITY`; fleet-assigned."""
+    half = min(math.sqrt(n / YARD_DENSITY) / 2, 9.5)
+    rng = np.random.default_rng(seed)
+    points = _spaced_points(rng, 2 * n, half, half, spacing)
+    heads = rng.uniform(-math.pi, math.pi, size=2 * n)
+    poses = [(x, y, float(t)) for (x, y), t in zip(points, heads, strict=True)]
+    robots = [RobotSpec(start=s, goal=g) for s, g in zip(poses[:n], poses[n:], strict=True)]
+    return Scenario(
+        name=f"yard-{n}-s{seed}", named=False, robots=robots, family=f"yard-{n}", seed=seed
+    )
+
+
+def _arrivals(rng: np.random.Generator, n: int, mean_gap_s: float) -> list[float]:
+    """``n`` task arrival times [s]: the first at 0, then exponential gaps (a Poisson stream)."""
+    gaps = rng.exponential(mean_gap_s, size=n - 1)
+    return [0.0, *(round(float(t), 2) for t in np.cumsum(gaps))]
+
+
+def stream(n: int, seed: int, mean_gap_s: float = STREAM_GAP_S) -> Scenario:
+    """A random yard whose tasks arrive as a Poisson stream (mean gap ``mean_gap_s`` [s])."""
+    yard = random_yard(n, seed)
+    arrivals = _arrivals(np.random.default_rng(seed + 10_000), n, mean_gap_s)
+    robots = [
+        r.model_copy(update={"arrival_s": t}) for r, t in zip(yard.robots, arrivals, strict=True)
+    ]
+    return Scenario(
+        name=f"stream-{n}-s{seed}", named=False, robots=robots, family=f"stream-{n}", seed=seed
+    )
+
+
+def _wall(x0: float, y0: float, x1: float, y1: float, pitch: float) -> list[tuple[float, float]]:
+    count = max(1, round(math.hypot(x1 - x0, y1 - y0) / pitch))
+    return [(x0 + (x1 - x0) * k / count, y0 + (y1 - y0) * k / count) for k in range(count + 1)]
+
+
+def car_park(seed: int | None = None, mean_gap_s: float = 4.0) -> Scenario:
+    """Twelve robots queued outside a walled car park park in its two rows of bays.
+
+    The park spans x in [-6, 8], y in [-4.5, 4.5] m; its walls are posts (body 0.15 m,
+    influence 0.5 m, 0.4 m apart) with a gate |y| < 1.2 m in the west wall. Bays: six
+    per row, 1.4 m apart, 1.2 m from the north and south walls, nose to the wall. The
+    robots wait in two columns west of the gate, facing it. With ``seed`` the tasks arrive
+    as a Poisson stream (mean gap ``mean_gap_s`` [s]), else all at once.
+    """
+    pitch, body, zone = 0.4, 0.15, 0.5
+    posts = [
+        *_wall(-6.0, 4.5, 8.0, 4.5, pitch),
+        *_wall(-6.0, -4.5, 8.0, -4.5, pitch),
+        *_wall(8.0, -4.5 + pitch, 8.0, 4.5 - pitch, pitch),
+        *_wall(-6.0, 1.2, -6.0, 4.5 - pitch, pitch),
+        *_wall(-6.0, -4.5 + pitch, -6.0, -1.2, pitch),
+    ]
+    obstacles = [ObstacleSpec(x=x, y=y, radius=zone, body=body) for x, y in posts]
+    bays = [(-2.2 + 1.4 * k, side * 3.3, side * math.pi / 2) for side in (1, -1) for k in range(6)]
+    queue = [(x, 0.75 + 1.5 * row, 0.0) for row in range(-3, 3) for x in (-7.8, -9.3)]
+    n = len(bays)
+    arrivals = (
+        [0.0] * n
+        if seed is None
+        else _arrivals(np.random.default_rng(seed + 20_000), n, mean_gap_s)
+    )
+    robots = [
+        RobotSpec(start=s, goal=g, arrival_s=t)
+        for s, g, t in zip(queue, bays, arrivals, strict=True)
+    ]
+    name = "carpark-12" if seed is None else f"carpark-12-stream-s{seed}"
+    return Scenario(
+        name=name,
+        named=False,
+        robots=robots,
+        obstacles=obstacles,
+        time_limit_s=180.0,
+        family=None if seed is None else "carpark-12-stream",
+        seed=seed,
+    )
+
+
+def _case_iii_obstacles() -> list[ObstacleSpec]:
+    return [
+        ObstacleSpec(x=0.8, y=0.0, radius=1.0, body=0.2),
+        ObstacleSpec(x=-0.8, y=0.0, radius=1.0, body=0.2),
+    ]
+
+
+def case_iii() -> Scenario:
+    """The paper's comparative case III, (0, 2, 0) -> (0, -2, 0), two obstacles (Section 6)."""
+    case = SCENARIOS["III"]
+    return Scenario(
+        name="case-III",
+        robots=[RobotSpec(start=case.start, goal=case.goal)],
+        obstacles=_case_iii_obstacles(),
+        law_gains=dict(case.gains),
+        tolerance=case.tolerance,
+    )
+
+
+def case_iii_crossing() -> Scenario:
+    """Case III with four robots crossing the obstacle pair: the paper's robot, one going
+    the other way through the gap, two diagonals (Table 8 gains)."""
+    case = SCENARIOS["III"]
+    pi = math.pi
+    moves = [
+        (case.start, case.goal),
+        ((0.0, -3.2, 0.0), (0.0, 3.2, 0.0)),
+        ((-2.5, 1.2, 0.0), (2.5, -1.2, 0.0)),
+        ((2.5, 1.2, pi), (-2.5, -1.2, pi)),
+    ]
+    return Scenario(
+        name="case-III-4",
+        robots=[RobotSpec(start=s, goal=g) for s, g in moves],
+        obstacles=_case_iii_obstacles(),
+        law_gains=dict(case.gains),
+        tolerance=case.tolerance,
+    )
+
+
+# -- suites --------------------------------------------------------------------------------
+
+SWAP_SIZES = (2, 4, 8, 16, 32)
+YARD_SIZES = (10, 20, 40)
+YARD_SEEDS = tuple(range(1, 11))
+STREAM_SEEDS = tuple(range(1, 6))
+
+
+def full_suite() -> list[Scenario]:
+    """Every built-in scenario: swaps in both chiralities, yards x 10 seeds, streams, the car
+    park (at once and as a stream), case III alone and with four robots."""
+    return [
+        *(swap(n, c) for n in SWAP_SIZES for c in ("right", "left")),
+        *(random_yard(n, s) for n in YARD_SIZES for s in YARD_SEEDS),
+        *(stream(20, s) for s in STREAM_SEEDS),
+        car_park(),
+        car_park(seed=1),
+        case_iii(),
+        case_iii_crossing(),
+    ]
+
+
+def quick_suite() -> list[Scenario]:
+    """A daily subset: small swaps in both chiralities, a yard, a stream, the car park,
+    case III with four robots."""
+    return [
+        swap(4, "right"),
+        swap(4, "left"),
+        random_yard(10, 1),
+        stream(10, 1),
+        car_park(),
+        case_iii_crossing(),
+    ]

@@ -1,0 +1,53 @@
+"""``parkfleet bench fleet`` as a user runs it, on the navground peers (no Zenoh needed)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from fleet.bench.scenarios import dump_scenarios, swap
+from fleet.cli.main import main
+
+REQUIRED = {
+    "scenario", "robots", "policy", "success_rate", "collisions", "min_separation_m",
+    "makespan_s", "path_ratio", "deadlocks", "plan_p50_ms", "plan_p99_ms", "seed",
+}  # fmt: skip
+
+pytest.importorskip("navground")
+
+
+def test_json_rows_plots_and_progress_from_a_scenario_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "mine.json"
+    path.write_text(dump_scenarios([swap(2, "right"), swap(2, "left")]))
+    code = main(
+        ["bench", "fleet", "--scenario-file", str(path), "--scenario", "*-left",
+         "--policy", "orca", "--policy", "hl", "--json", "--plots", str(tmp_path / "png")]
+    )  # fmt: skip
+    out, err = capsys.readouterr()
+    assert code == 0
+    data = json.loads(out)
+    assert [(r["scenario"], r["policy"]) for r in data["rows"]] == [
+        ("swap-2-left", "orca"),
+        ("swap-2-left", "hl"),
+    ]
+    for row in data["rows"]:
+        assert row.keys() >= REQUIRED
+        assert row["success_rate"] == 1.0 and row["collisions"] == 0 and row["plan_p50_ms"] is None
+    assert "2/2 swap-2-left" in err  # progress lines go to stderr with --json
+    assert sorted(p.name for p in (tmp_path / "png").iterdir()) == [
+        "swap-2-left--hl.png",
+        "swap-2-left--orca.png",
+    ]
+
+
+def test_bad_requests_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "fleet", "--scenario", "nothing-*", "--policy", "orca"]) == 2
+    assert "no scenario matches" in capsys.readouterr().err
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"name": "x", "robots": []}')
+    assert main(["bench", "fleet", "--scenario-file", str(bad)]) == 2
+    assert "robots: List should have at least 1 item" in capsys.readouterr().err

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import multiprocessing
 import os
 import subprocess
 import tempfile
@@ -34,6 +35,7 @@ import time
 import zlib
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from multiprocessing.pool import AsyncResult
 from pathlib import Path
 from typing import Any
 
@@ -115,14 +117,16 @@ class FleetBenchRow(BaseModel):
 class BenchOptions:
     """How the bench runs: time scale of the sim robots, their disturbances (``parkfleet
     sim`` flags; empty: perfect robots), time-limit override [s, simulated], plot folder,
-    folder keeping the sim traces (else deleted), the robots' settings (profile,
-    avoidance, control rate)."""
+    folder keeping the sim traces (else deleted), whether navground runs in a worker
+    process beside the fleet runs, the robots' settings (profile, avoidance, control
+    rate)."""
 
     time_scale: float = 5.0
     disturbances: tuple[str, ...] = DISTURBED_FLAGS
     time_limit_s: float | None = None
     plots: Path | None = None
     traces: Path | None = None
+    peer_worker: bool = True
     settings: Settings = field(default_factory=load_settings)
 
     def limit(self, scenario: Scenario) -> Scenario:
@@ -185,7 +189,7 @@ def make_row(scenario: Scenario, policy: str, outcome: Outcome) -> FleetBenchRow
 
 
 def metrics_title(row: FleetBenchRow) -> str:
-    """The one-line summary of a run used as a plot title."""
+    """The summary of a run used as a plot title (three short lines)."""
     sep = "-" if row.min_separation_m is None else f"{row.min_separation_m:.2f} m"
     ratio = "-" if row.path_ratio is None else f"{row.path_ratio:.2f}"
     plan = (
@@ -196,8 +200,8 @@ def metrics_title(row: FleetBenchRow) -> str:
     return (
         f"{row.scenario} | {row.policy}\n"
         f"success {row.success_rate:.0%} | collisions {row.collisions} | min sep {sep} | "
-        f"makespan {row.makespan_s:.1f} s | path {ratio} | deadlocks {row.deadlocks}"
-        f" | obstacle hits {row.obstacle_hits}{plan}"
+        f"makespan {row.makespan_s:.1f} s\n"
+        f"path ratio {ratio} | deadlocks {row.deadlocks} | obstacle hits {row.obstacle_hits}{plan}"
     )
 
 
@@ -436,52 +440,71 @@ def run_fleet_bench(
     progress: Callable[[int, int, FleetBenchRow], None] | None = None,
     starting: Callable[[Scenario, str], None] | None = None,
 ) -> list[FleetBenchRow]:
-    """Every scenario under every policy; ``starting(scenario, policy)`` before each run,
-    ``progress(done, total, row)`` after it."""
+    """Every scenario under every policy, rows in (scenario, policy) order.
+
+    ``starting(scenario, policy)`` before each fleet run, ``progress(done, total, row)``
+    after each run. With both kinds of policies and ``options.peer_worker``, the navground
+    runs go to one spawned worker process meanwhile (a fleet run mostly waits on its
+    time-scaled robots), and are reported as they finish.
+    """
     options = options or BenchOptions()
     unknown = [p for p in policies if p not in POLICIES]
     if unknown:
         raise ValueError(f"unknown policy {unknown}; expected some of {list(POLICIES)}")
-    rows: list[FleetBenchRow] = []
-    total = len(scenarios) * len(policies)
+    runs = [(k, options.limit(s), p) for k, s in enumerate(scenarios) for p in policies]
+    fleet_runs = [r for r in runs if r[2] in FLEET_POLICIES]
+    peer_runs = [r for r in runs if r[2] not in FLEET_POLICIES]
+    done: dict[tuple[int, str], FleetBenchRow] = {}
+
+    def finish(k: int, scenario: Scenario, policy: str, outcome: Outcome) -> None:
+        row = make_row(scenario, policy, outcome)
+        if options.plots is not None:
+            name = f"{scenario.name}--{policy}.png"
+            plot_run(scenario, outcome.result, metrics_title(row), options.plots / name)
+        done[k, policy] = row
+        if progress is not None:
+            progress(len(done), len(runs), row)
+
     if options.traces is not None:
         options.traces.mkdir(parents=True, exist_ok=True)
     with contextlib.ExitStack() as stack:
+        pending: list[tuple[int, Scenario, str, AsyncResult[Outcome]]] = []
+        if options.peer_worker and fleet_runs and peer_runs:
+            pool = multiprocessing.get_context("spawn").Pool(1)  # never fork: sessions open
+            stack.callback(pool.join)
+            stack.callback(pool.terminate)
+            pending = [
+                (k, s, p, pool.apply_async(run_peer_policy, (s, p, options)))
+                for k, s, p in peer_runs
+            ]
+        else:
+            fleet_runs = runs
+
+        def collect(wait: bool) -> None:
+            while pending and (wait or pending[0][3].ready()):
+                k, scenario, policy, result = pending.pop(0)
+                finish(k, scenario, policy, result.get())
+
         tmp = stack.enter_context(tempfile.TemporaryDirectory(prefix="parkfleet-bench-"))
         session: Any = None
         endpoint = ""
-        if any(p in FLEET_POLICIES for p in policies):
+        if any(p in FLEET_POLICIES for _, _, p in fleet_runs):
             session = stack.enter_context(open_session(load_settings(listen=[LOOPBACK]), "router"))
             endpoint = tcp_endpoint(listening_locators(session))
-        for k, raw in enumerate(scenarios):
-            scenario = options.limit(raw)
-            for policy in policies:
-                if starting is not None:
-                    starting(scenario, policy)
-                if policy in FLEET_POLICIES:
-                    outcome = run_fleet_policy(
-                        session,
-                        endpoint,
-                        scenario,
-                        policy,
-                        options,
-                        fleet_name=f"bench{os.getpid()}-{k}-{policy}",
-                        workdir=Path(tmp),
-                    )
-                else:
-                    outcome = run_peer_policy(scenario, policy, options)
-                row = make_row(scenario, policy, outcome)
-                if options.plots is not None:
-                    plot_run(
-                        scenario,
-                        outcome.result,
-                        metrics_title(row),
-                        options.plots / f"{scenario.name}--{policy}.png",
-                    )
-                rows.append(row)
-                if progress is not None:
-                    progress(len(rows), total, row)
-    return rows
+        for k, scenario, policy in fleet_runs:
+            if starting is not None:
+                starting(scenario, policy)
+            if policy in FLEET_POLICIES:
+                name = f"bench{os.getpid()}-{k}-{policy}"
+                outcome = run_fleet_policy(
+                    session, endpoint, scenario, policy, options, fleet_name=name, workdir=Path(tmp)
+                )
+            else:
+                outcome = run_peer_policy(scenario, policy, options)
+            finish(k, scenario, policy, outcome)
+            collect(wait=False)
+        collect(wait=True)
+    return [done[k, p] for k, _, p in runs]
 
 
 class SummaryRow(BaseModel):

@@ -6,7 +6,8 @@ every task succeeds and no two robots ever touch -- judged on the sim's time-ali
 poses (``parkfleet sim --trace``), not on states that happened to be delivered. Without
 the benchmark's 50-150 ms command latency: with it, today's agents touch on such
 crossings (see the README's table), which is for the planner and the controller to fix.
-(b) SIGTERM stops a running ``parkfleet bench fleet`` with its sim child and sessions.
+(b) SIGTERM stops a running ``parkfleet bench fleet`` with its sim child, its navground
+worker and its sessions.
 """
 
 from __future__ import annotations
@@ -72,21 +73,33 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
-def test_sigterm_stops_the_bench_and_its_sim_child() -> None:
+def _command(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+    except FileNotFoundError:
+        return ""
+
+
+def test_sigterm_stops_the_bench_its_sim_child_and_its_navground_worker() -> None:
     bench = subprocess.Popen(
-        [sys.executable, "-m", "fleet.cli", "bench", "fleet", "--scenario", "swap-2-right",
-         "--policy", "cw", "--time-limit", "600"],
+        [sys.executable, "-m", "fleet.cli", "bench", "fleet", "--scenario", "swap-4-right",
+         "--policy", "cw", "--policy", "socialforce", "--time-limit", "600"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         env=os.environ | {"PYTHONUNBUFFERED": "1"},
     )  # fmt: skip
     try:
-        wait_for(lambda: bool(_children(bench.pid)), 60.0, "the sim child")
-        (sim,) = _children(bench.pid)
+        wait_for(
+            lambda: any("fleet.cli sim" in _command(p) for p in _children(bench.pid)),
+            60.0,
+            "the sim child",
+        )
+        children = _children(bench.pid)  # the sim, the navground worker (spawned)
+        assert any("multiprocessing" in _command(p) for p in children)
         bench.send_signal(signal.SIGTERM)
         _, err = bench.communicate(timeout=60)
         assert bench.returncode == 130, err.decode()
-        assert not _alive(sim)
+        assert not [p for p in children if _alive(p)]
     finally:
         if bench.poll() is None:
             bench.kill()

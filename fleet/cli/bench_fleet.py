@@ -19,6 +19,7 @@ from fleet.bench.fleet import (
     run_fleet_bench,
     summarise,
 )
+from fleet.bench.report import auto_table, policy_table
 from fleet.bench.scenarios import Scenario, full_suite, load_scenarios, quick_suite
 from fleet.cli.options import add_json, add_time_scale, positive_float
 from fleet.cli.signals import interrupt_on_sigterm
@@ -65,6 +66,17 @@ def register(commands: Any, bench: Any) -> None:
     )
     p.add_argument("--perfect", action="store_true", help="no disturbances on the fleet's robots")
     p.add_argument("--plots", type=Path, metavar="DIR", help="one PNG per (scenario, policy)")
+    p.add_argument(
+        "--markdown",
+        action="store_true",
+        help="end with the README's tables (policies side by side, auto's verdict)",
+    )
+    p.add_argument(
+        "--from-json",
+        type=Path,
+        metavar="FILE",
+        help="run nothing: print the tables of a previous --json output",
+    )
     p.add_argument(
         "--traces",
         type=Path,
@@ -141,7 +153,19 @@ def run(args: argparse.Namespace) -> int:
         return _run(args)
 
 
+def print_markdown(rows: list[FleetBenchRow], out: TextIO) -> None:
+    print("\n" + policy_table(rows) + "\n\n" + auto_table(rows), file=out)
+
+
 def _run(args: argparse.Namespace) -> int:
+    if args.from_json is not None:
+        try:
+            data = json.loads(args.from_json.read_text())
+            rows = [FleetBenchRow.model_validate(r) for r in data["rows"]]
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise ValueError(f"{args.from_json}: not a bench fleet --json output ({exc})") from None
+        print_markdown(rows, sys.stdout)
+        return 0
     scenarios = select(args)
     policies = tuple(args.policy) if args.policy else POLICIES
     options = BenchOptions(
@@ -185,5 +209,7 @@ def _run(args: argparse.Namespace) -> int:
         print()
     else:
         print_summary(summary, sys.stdout)
+        if args.markdown:
+            print_markdown(rows, sys.stdout)
         print(f"\nwall time {wall:.0f} s", flush=True)
     return 0

@@ -42,6 +42,12 @@ def test_json_rows_plots_and_progress_from_a_scenario_file(
         "swap-2-left--hl.png",
         "swap-2-left--orca.png",
     ]
+    saved = tmp_path / "run.json"
+    saved.write_text(out)
+    assert main(["bench", "fleet", "--from-json", str(saved)]) == 0  # the README's tables
+    tables = capsys.readouterr().out
+    orca, hl = (f"{r['makespan_s']:.0f} s" for r in data["rows"])
+    assert f"| swap-2 | 2 | 1 | 100% · 0 · {orca} | 100% · 0 · {hl} |" in tables
 
 
 def test_bad_requests_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -51,3 +57,5 @@ def test_bad_requests_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[st
     bad.write_text('{"name": "x", "robots": []}')
     assert main(["bench", "fleet", "--scenario-file", str(bad)]) == 2
     assert "robots: List should have at least 1 item" in capsys.readouterr().err
+    assert main(["bench", "fleet", "--from-json", str(bad)]) == 2
+    assert "not a bench fleet --json output" in capsys.readouterr().err

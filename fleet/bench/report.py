@@ -1,0 +1,127 @@
+"""Tables of a ``parkfleet bench fleet`` run: every policy side by side, and ``auto``'s verdict.
+
+Pure formatting of :class:`~fleet.bench.fleet.FleetBenchRow` lists (one run's rows, or the
+``rows`` of its ``--json`` output) as Markdown, for the README:
+
+* :func:`policy_table` -- one line per scenario family, one column per policy; a cell is
+  ``success · collisions · makespan`` (means over the family's seeds; with several seeds
+  the worst success and the most collisions follow in brackets);
+* :func:`auto_table` -- ``auto`` against the issue's targets, family by family: 100 %
+  success and 0 collisions, success at least every navground behaviour's, makespan within
+  1.25x of the fastest policy that had no collision (and, for reference, its path ratio,
+  deadlocks, worst separation and planning latency). Misses are spelled out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from fleet.bench.fleet import PEER_POLICIES, FleetBenchRow, SummaryRow, summarise
+
+#: auto's makespan may be this many times the fastest collision-free policy's (issue 12).
+MAKESPAN_FACTOR = 1.25
+
+
+def _families(rows: Sequence[FleetBenchRow]) -> list[str]:
+    return list(dict.fromkeys(r.family for r in rows))
+
+
+def _policies(rows: Sequence[FleetBenchRow]) -> list[str]:
+    return list(dict.fromkeys(r.policy for r in rows))
+
+
+def _cell(s: SummaryRow | None) -> str:
+    if s is None:
+        return ""
+    text = f"{s.success_mean:.0%} · {s.collisions_mean:g} · {s.makespan_mean_s:.0f} s"
+    if s.runs > 1:
+        text = (
+            f"{s.success_mean:.0%} ({s.success_worst:.0%}) · {s.collisions_mean:g} "
+            f"({s.collisions_worst}) · {s.makespan_mean_s:.0f} s"
+        )
+    return text
+
+
+def policy_table(rows: Sequence[FleetBenchRow]) -> str:
+    """Markdown: families x policies, ``success · collisions · makespan`` per cell."""
+    summary = {(s.family, s.policy): s for s in summarise(rows)}
+    policies = _policies(rows)
+    lines = [
+        "| scenario | N | runs | " + " | ".join(policies) + " |",
+        "|---|---|---|" + "---|" * len(policies),
+    ]
+    for family in _families(rows):
+        first = next(s for (f, _), s in summary.items() if f == family)
+        cells = [_cell(summary.get((family, p))) for p in policies]
+        lines.append(f"| {family} | {first.robots} | {first.runs} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _fastest_clean(family: str, summary: dict[tuple[str, str], SummaryRow]) -> SummaryRow | None:
+    """The other policy with no collision in any run and the shortest mean makespan (the
+    most successful first among equals)."""
+    clean = [
+        s
+        for (f, p), s in summary.items()
+        if f == family and p != "auto" and s.collisions_worst == 0
+    ]
+    return min(clean, key=lambda s: (s.makespan_mean_s, -s.success_mean), default=None)
+
+
+def _misses(auto: SummaryRow, family: str, summary: dict[tuple[str, str], SummaryRow]) -> list[str]:
+    misses = []
+    if auto.success_worst < 1.0:
+        misses.append(f"success {auto.success_worst:.0%}")
+    if auto.collisions_worst:
+        pairs = auto.collisions_worst
+        misses.append(f"{pairs} colliding pair{'s' if pairs > 1 else ''}")
+    better = [
+        p
+        for p in PEER_POLICIES
+        if (peer := summary.get((family, p))) is not None and peer.success_mean > auto.success_mean
+    ]
+    if better:
+        misses.append("less success than " + ", ".join(better))
+    best = _fastest_clean(family, summary)
+    if best is not None and auto.makespan_mean_s > MAKESPAN_FACTOR * best.makespan_mean_s:
+        misses.append(
+            f"makespan {auto.makespan_mean_s / best.makespan_mean_s:.1f}x {best.policy}'s"
+        )
+    return misses
+
+
+def _ratio(mean: float, worst: float, runs: int) -> str:
+    return f"{mean:.0%} ({worst:.0%})" if runs > 1 else f"{mean:.0%}"
+
+
+def auto_table(rows: Sequence[FleetBenchRow]) -> str:
+    """Markdown: ``auto`` per family against the targets, misses spelled out."""
+    summary = {(s.family, s.policy): s for s in summarise(rows)}
+    lines = [
+        "| scenario | success mean (worst) | collisions (worst run) | min sep worst [m] | "
+        "makespan [s] | fastest collision-free | path ratio | deadlocks | "
+        "plan p50 / p99 [ms] | targets missed |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for family in _families(rows):
+        auto = summary.get((family, "auto"))
+        if auto is None:
+            continue
+        best = _fastest_clean(family, summary)
+        plans = [r for r in rows if r.family == family and r.policy == "auto"]
+        p50 = [r.plan_p50_ms for r in plans if r.plan_p50_ms is not None]
+        p99 = [r.plan_p99_ms for r in plans if r.plan_p99_ms is not None]
+        plan = f"{np.median(p50):.0f} / {max(p99):.0f}" if p50 and p99 else "-"
+        sep = "-" if auto.min_separation_worst_m is None else f"{auto.min_separation_worst_m:.2f}"
+        fastest = "-" if best is None else f"{best.policy} {best.makespan_mean_s:.0f} s"
+        ratio = "-" if auto.path_ratio_mean is None else f"{auto.path_ratio_mean:.2f}"
+        misses = _misses(auto, family, summary)
+        lines.append(
+            f"| {family} | {_ratio(auto.success_mean, auto.success_worst, auto.runs)} | "
+            f"{auto.collisions_mean:g} ({auto.collisions_worst}) | {sep} | "
+            f"{auto.makespan_mean_s:.0f} | {fastest} | {ratio} | {auto.deadlocks_mean:g} | "
+            f"{plan} | {'; '.join(misses) or 'none'} |"
+        )
+    return "\n".join(lines)

@@ -1,0 +1,65 @@
+"""The README tables of a run: policies side by side, auto's misses spelled out."""
+
+from __future__ import annotations
+
+from fleet.bench.fleet import FleetBenchRow
+from fleet.bench.report import auto_table, policy_table
+
+
+def _row(family: str, policy: str, seed: int | None = None, **figures: float) -> FleetBenchRow:
+    values: dict[str, float] = {"success_rate": 1.0, "collisions": 0, "makespan_s": 50.0}
+    values |= figures
+    return FleetBenchRow(
+        scenario=family if seed is None else f"{family}-s{seed}",
+        family=family,
+        seed=seed,
+        robots=4,
+        policy=policy,
+        success_rate=values["success_rate"],
+        collisions=int(values["collisions"]),
+        min_separation_m=0.6,
+        makespan_s=values["makespan_s"],
+        path_ratio=1.2,
+        deadlocks=0,
+        plan_p50_ms=10.0 if policy == "auto" else None,
+        plan_p99_ms=30.0 if policy == "auto" else None,
+        obstacle_hits=0,
+        min_obstacle_clearance_m=None,
+        tasks=4,
+        arrived=round(4 * values["success_rate"]),
+        rejected=0,
+        time_limit_s=120.0,
+        wall_s=1.0,
+    )
+
+
+ROWS = [
+    # "good": auto meets every target (the collision-free ORCA is only a bit faster)
+    _row("good", "auto", makespan_s=60.0),
+    _row("good", "orca", makespan_s=50.0),
+    _row("good", "cw", makespan_s=20.0, collisions=2),  # fastest, but it collides
+    # "bad" over two seeds: auto collides once, fails a task, is slow, HL does better
+    _row("bad", "auto", 1, makespan_s=100.0, collisions=1, success_rate=0.75),
+    _row("bad", "auto", 2, makespan_s=100.0),
+    _row("bad", "hl", 1, makespan_s=40.0),
+    _row("bad", "hl", 2, makespan_s=40.0),
+]
+
+
+def test_the_policy_table_has_a_line_per_family_and_a_column_per_policy() -> None:
+    lines = policy_table(ROWS).splitlines()
+    assert lines[0] == "| scenario | N | runs | auto | orca | cw | hl |"
+    good, bad = lines[2], lines[3]
+    assert good.startswith("| good | 4 | 1 | 100% · 0 · 60 s | 100% · 0 · 50 s | 100% · 2 · 20 s")
+    # two seeds: means, then the worst success and most collisions in brackets
+    assert "| bad | 4 | 2 | 88% (75%) · 0.5 (1) · 100 s |" in bad
+
+
+def test_auto_verdicts_name_every_missed_target_and_only_those() -> None:
+    lines = auto_table(ROWS).splitlines()
+    good = next(line for line in lines if line.startswith("| good "))
+    bad = next(line for line in lines if line.startswith("| bad "))
+    assert good.endswith("| orca 50 s | 1.20 | 0 | 10 / 30 | none |")
+    assert bad.endswith(
+        "| success 75%; 1 colliding pair; less success than hl; makespan 2.5x hl's |"
+    )

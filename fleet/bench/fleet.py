@@ -56,9 +56,11 @@ from fleet.bench.scenarios import Scenario
 from fleet.core.params import Avoidance
 from fleet.core.tasks import (
     Direction,
+    FleetEvent,
     GoalRejected,
     RobotNotFound,
     Task,
+    TaskEvent,
     TaskRequest,
     TaskStatus,
 )
@@ -322,30 +324,37 @@ def run_fleet_policy(
     keys = Keys(fleet_name)
     clock = _SimClock(1.0 / settings.control_rate_hz)
     latency = _PlanLatency()
-    store = SqliteTaskStore(workdir / f"{fleet_name}.db")
-    service = FleetService(settings, ZenohFleetBus(session, keys), store)
-    subscriber = session.declare_subscriber(keys.state(ids[0]), clock.on_sample)
+    succeeded: set[str] = set()
+
+    def on_event(event: FleetEvent) -> None:
+        if isinstance(event, TaskEvent) and event.task.status == TaskStatus.SUCCEEDED:
+            succeeded.add(event.task.id)
+
     env = dict(os.environ)
     env["PARKFLEET_FLEET_NAME"] = fleet_name
     env["PARKFLEET_AVOIDANCE__K_AVOID"] = str(avoidance.k_avoid)
     env["PARKFLEET_CONTROL_RATE_HZ"] = str(settings.control_rate_hz)
-    extra = [*options.disturbances, "--trace", str(trace)]
-    proc = subprocess.Popen(
-        sim_command(
-            endpoint,
-            len(ids),
-            time_scale=options.time_scale,
-            spawn=str(spawn),
-            seed=scenario_seed(scenario),
-            extra=extra,
-        ),
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
+    command = sim_command(
+        endpoint,
+        len(ids),
+        time_scale=options.time_scale,
+        spawn=str(spawn),
+        seed=scenario_seed(scenario),
+        extra=[*options.disturbances, "--trace", str(trace)],
     )
     tasks: dict[int, Task] = {}
     rejected = 0
-    try:
+    with contextlib.ExitStack() as stack:  # closed in reverse: sim, subscriber, service, store
+        store = SqliteTaskStore(workdir / f"{fleet_name}.db")
+        stack.callback(store.close)
+        service = FleetService(settings, ZenohFleetBus(session, keys), store)
+        stack.callback(service.close)
+        service.add_listener(on_event)
+        stack.callback(session.declare_subscriber(keys.state(ids[0]), clock.on_sample).undeclare)
+        proc = subprocess.Popen(
+            command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
+        stack.callback(terminate, proc, 15)
         service.start()
         service.set_obstacles([o.as_obstacle() for o in scenario.obstacles])
         deadline = time.monotonic() + STARTUP_S
@@ -367,7 +376,7 @@ def run_fleet_policy(
                 else:
                     tasks[k] = task
             latency.sample(service.counters)
-            if not pending and all(_succeeded(service, t) for t in tasks.values()):
+            if not pending and all(t.id in succeeded for t in tasks.values()):
                 break
             if now - t0 >= scenario.end_s:
                 break
@@ -378,11 +387,6 @@ def run_fleet_policy(
             time.sleep(0.02)
         latency.sample(service.counters)
         owners = {k: service.task(t.id).robot_id for k, t in tasks.items()}
-    finally:
-        terminate(proc, timeout=15)
-        subscriber.undeclare()
-        service.close()
-        store.close()
     goals = np.full((len(ids), 3), np.nan)
     for k, robot in owners.items():
         if robot in ids:
@@ -409,10 +413,6 @@ def _submit(
         )
     except (GoalRejected, RobotNotFound):
         return None
-
-
-def _succeeded(service: FleetService, task: Task) -> bool:
-    return service.task(task.id).status == TaskStatus.SUCCEEDED
 
 
 def _measure_trace(path: Path, goals: FloatArray, scenario: Scenario, t0: float) -> RunResult:

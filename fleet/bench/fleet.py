@@ -52,7 +52,7 @@ from fleet.bench.peers import (
     run_peer,
 )
 from fleet.bench.plots import plot_run
-from fleet.bench.scenarios import Scenario
+from fleet.bench.scenarios import Scenario, random_yard
 from fleet.core.params import Avoidance
 from fleet.core.tasks import (
     Direction,
@@ -147,6 +147,11 @@ class Outcome:
     plan_ms: list[float]
     rejected: int = 0
     wall_s: float = 0.0
+
+
+def random_yard_scenario(n: int, seed: int, half: float | None = None) -> Scenario:
+    """The old name of :func:`fleet.bench.scenarios.random_yard` (same points per seed)."""
+    return random_yard(n, seed, half=half)
 
 
 def scenario_seed(scenario: Scenario) -> int:

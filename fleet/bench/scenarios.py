@@ -226,9 +226,10 @@ def _spaced_points(
     raise ValueError(f"cannot place {count} points {spacing} m apart in the yard")
 
 
-def random_yard(n: int, seed: int, spacing: float = 1.5) -> Scenario:
-    """``n`` random starts and goals (seeded) at :data:`YARD_DENSITY`; fleet-assigned."""
-    half = min(math.sqrt(n / YARD_DENSITY) / 2, 9.5)
+def random_yard(n: int, seed: int, spacing: float = 1.5, half: float | None = None) -> Scenario:
+    """``n`` random starts and goals (seeded) in a square yard of half-side ``half`` [m]
+    (default: :data:`YARD_DENSITY`, at most 9.5 m), points ``spacing`` apart; fleet-assigned."""
+    half = min(math.sqrt(n / YARD_DENSITY) / 2, 9.5) if half is None else half
     rng = np.random.default_rng(seed)
     points = _spaced_points(rng, 2 * n, half, half, spacing)
     heads = rng.uniform(-math.pi, math.pi, size=2 * n)

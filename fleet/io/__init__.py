@@ -6,6 +6,8 @@
 - :mod:`~fleet.io.decoder`: payload decoding that drops and counts, callback guard.
 - :mod:`~fleet.io.processes`: child ``parkfleet`` processes: command lines, ready lines,
   clean termination.
+- :mod:`~fleet.io.trace`: lockstep trace files (every robot's true pose and mode per tick),
+  written by ``parkfleet sim --trace``, read by ``parkfleet bench fleet``.
 """
 
 __all__: list[str] = []

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, HTTPException, Request, status
+from fastapi import APIRouter, Request, status
 
 from api.deps import ServiceDep
+from api.errors import retry_later
 from api.schemas import ErrorOut
 from api.streaming import EventHub, EventStreamResponse, TooManyClients
 
@@ -34,9 +35,5 @@ async def events(request: Request, service: ServiceDep) -> EventStreamResponse:
     try:
         stream = hub.subscribe(service, client)
     except TooManyClients as exc:
-        raise HTTPException(
-            status.HTTP_503_SERVICE_UNAVAILABLE,
-            str(exc),
-            headers={"Retry-After": str(RETRY_AFTER_S)},
-        ) from None
+        raise retry_later(status.HTTP_503_SERVICE_UNAVAILABLE, str(exc), RETRY_AFTER_S) from None
     return EventStreamResponse(stream)

@@ -10,7 +10,6 @@ Images are cached and renders rate-limited (:mod:`api.plot_cache`): 429 when ove
 from __future__ import annotations
 
 import io
-import math
 from typing import Annotated
 
 import numpy as np
@@ -18,6 +17,7 @@ import numpy.typing as npt
 from fastapi import APIRouter, HTTPException, Path, Request, Response, status
 
 from api.deps import ServiceDep
+from api.errors import retry_later
 from api.plot_cache import PlotCache, RenderLimited
 from api.schemas import ErrorOut
 
@@ -110,9 +110,7 @@ def task_plot(
         try:
             image = plots.render(key, draw)
         except RenderLimited as exc:
-            raise HTTPException(
-                status.HTTP_429_TOO_MANY_REQUESTS,
-                str(exc),
-                headers={"Retry-After": str(math.ceil(exc.retry_after))},
+            raise retry_later(
+                status.HTTP_429_TOO_MANY_REQUESTS, str(exc), exc.retry_after
             ) from None
     return Response(image, media_type="image/png", headers={"Cache-Control": "no-store"})

@@ -60,6 +60,7 @@ class Robot:
     session: Any
     commands: list[tuple[str, bytes, bytes | None]] = field(default_factory=list)
     lock: threading.Lock = field(default_factory=threading.Lock)
+    publishers: dict[str, Any] = field(default_factory=dict)
 
     def on_command(self, sample: Any) -> None:
         attachment = sample.attachment.to_bytes() if sample.attachment is not None else None
@@ -71,7 +72,20 @@ class Robot:
             return list(self.commands)
 
     def put(self, key: str, payload: bytes) -> None:
-        self.session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
+        """Publish once a subscriber (the drive's) matches ``key``: Zenoh drops a sample
+        put before the subscription has reached the router."""
+        publisher = self.publishers.get(key)
+        if publisher is None:
+            publisher = self.session.declare_publisher(
+                key, congestion_control=zenoh.CongestionControl.BLOCK
+            )
+            self.publishers[key] = publisher
+            wait_for(lambda: publisher.matching_status.matching, 10, f"a subscriber of {key}")
+        publisher.put(payload)
+
+    def close(self) -> None:
+        for publisher in self.publishers.values():
+            publisher.undeclare()
 
 
 @pytest.fixture
@@ -82,6 +96,7 @@ def robot(client_settings: Settings) -> Iterator[Robot]:
         try:
             yield robot
         finally:
+            robot.close()
             subscriber.undeclare()
 
 

@@ -9,21 +9,14 @@ from pydantic import ValidationError
 
 from fleet.io.settings import Ros2Settings, load_settings
 
-TURTLEBOT4 = """
-drive = "ros2"
+README = Path(__file__).resolve().parents[3] / "README.md"
 
-[profile]
-wheel_radius = 0.036
-half_axle = 0.1175
-max_wheel_speed = 8.5
-radius = 0.18
 
-[ros2]
-namespace = "/tb4_1"
-cmd_vel_type = "geometry_msgs/msg/TwistStamped"
-connect = ["tcp/127.0.0.1:7447"]
-origin = [2.0, -1.5, 1.5708]
-"""
+def readme_sample() -> str:
+    """The TurtleBot 4 settings file of README "Driving a ROS 2 robot"."""
+    text = README.read_text()
+    section = text[text.index("### A TurtleBot 4 on Jazzy with rmw_zenoh") :]
+    return section[section.index("```toml\n") + 8 : section.index("```\n", 8)]
 
 
 def test_defaults_are_a_jazzy_robot_with_odometry_on_the_agent_link() -> None:
@@ -40,9 +33,11 @@ def test_defaults_are_a_jazzy_robot_with_odometry_on_the_agent_link() -> None:
     assert ros2.connect == [] and ros2.origin == (0.0, 0.0, 0.0)
 
 
-def test_the_readme_turtlebot4_table_loads(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_readme_turtlebot4_sample_loads(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     path = tmp_path / "robot.toml"
-    path.write_text(TURTLEBOT4)
+    path.write_text(readme_sample())
     monkeypatch.setenv("PARKFLEET_ROS2__DOMAIN_ID", "7")
     settings = load_settings(path)
     assert settings.drive == "ros2" and settings.profile.max_speed == pytest.approx(0.306)
@@ -50,6 +45,7 @@ def test_the_readme_turtlebot4_table_loads(tmp_path: Path, monkeypatch: pytest.M
     assert ros2.namespace == "/tb4_1" and ros2.cmd_vel_type.endswith("TwistStamped")
     assert ros2.domain_id == 7  # the environment beats the file
     assert ros2.connect == ["tcp/127.0.0.1:7447"] and ros2.origin == (2.0, -1.5, 1.5708)
+    assert settings.connect == ["tls/fleet.yard.lan:7447"] and settings.fleet_name == "yard1"
 
 
 @pytest.mark.parametrize(

@@ -200,9 +200,11 @@ def agent(config: Path, log: Path) -> Iterator[subprocess.Popen[bytes]]:
             assert read_line(proc, 60).startswith(f"agent {ROBOT_ID} running"), log.read_text()
             yield proc
         finally:
-            terminate(proc)
+            code = terminate(proc)
             assert proc.stdout is not None
             proc.stdout.close()
+    # SIGTERM: a clean exit (an unclosed drive session would hang it until SIGKILL)
+    assert code == 0, log.read_text()
 
 
 class WireTap:

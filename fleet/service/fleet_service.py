@@ -261,7 +261,8 @@ class FleetService:
             known = self._roster.record(state.robot_id)
             joined = known is None or known.state is None
             rec, changed = self._roster.update(state, now, wall)
-            self._measure_rate(rec, state, now)
+            if now - rec.rate_at >= RATE_WINDOW_S or state.seq < rec.rate_seq:
+                self._measure_rate(rec, state, now)
             seen = self._ledger.observe(state, wall)
             if seen.effects:
                 batch = self._queue(seen.effects, now)
@@ -290,13 +291,12 @@ class FleetService:
     def _measure_rate(self, rec: RobotRecord, state: RobotState, now: float) -> None:
         """Robot seconds per service second, from state sequence numbers (a time-scaled
         simulation runs faster than the service clock; a real robot at 1)."""
-        if rec.rate_seq < 0 or state.seq < rec.rate_seq:
+        if rec.rate_seq < 0 or state.seq < rec.rate_seq:  # first state, or a restart
             rec.rate_seq, rec.rate_at = state.seq, now
             return
-        if now - rec.rate_at >= RATE_WINDOW_S:
-            scale = (state.seq - rec.rate_seq) / self.settings.control_rate_hz / (now - rec.rate_at)
-            self._time_scale = scale if self._time_scale is None else max(self._time_scale, scale)
-            rec.rate_seq, rec.rate_at = state.seq, now
+        scale = (state.seq - rec.rate_seq) / self.settings.control_rate_hz / (now - rec.rate_at)
+        self._time_scale = scale if self._time_scale is None else max(self._time_scale, scale)
+        rec.rate_seq, rec.rate_at = state.seq, now
 
     def _stop_stray(self, rec: RobotRecord, state: RobotState) -> Batch | None:
         """The robot drives a task that is not active: cancel it if it is known finished

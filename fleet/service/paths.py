@@ -32,27 +32,28 @@ PATHS_FINISHED_KEPT = 1_000
 class _Path:
     """One task's samples (committed every ``stride``-th offer) and the latest offer."""
 
-    __slots__ = ("data", "offers", "stride", "tail")
+    __slots__ = ("count", "data", "offers", "stride", "tail")
 
     def __init__(self) -> None:
         self.data = array("d")
+        self.count = 0  # committed samples (len(data) / 6)
         self.stride = 1
         self.offers = 0  # samples offered since the last committed one
         self.tail: PathSample | None = None  # latest offered sample if not committed
 
     def __len__(self) -> int:
-        return len(self.data) // _WIDTH
+        return self.count
 
     def halve(self) -> int:
         """Keep every other committed sample and double the stride; returns samples freed."""
-        before = len(self)
-        n = before
+        before = self.count
         kept = array("d")
-        for i in range(0, n, 2):
+        for i in range(0, before, 2):
             kept.extend(self.data[i * _WIDTH : (i + 1) * _WIDTH])
         self.data = kept
+        self.count = (before + 1) // 2
         self.stride *= 2
-        return before - len(self)
+        return before - self.count
 
 
 class PathRecorder:
@@ -101,8 +102,9 @@ class PathRecorder:
         path.offers = 0
         path.tail = None
         path.data.extend(sample)
+        path.count += 1
         self._samples += 1
-        if len(path) >= self.per_task:
+        if path.count >= self.per_task:
             self._samples -= path.halve()
         if self._samples > self.total:
             self._shrink()
@@ -115,6 +117,7 @@ class PathRecorder:
         if path.tail is not None:  # the path ends where the robot stopped
             path.data.extend(path.tail)
             path.tail = None
+            path.count += 1
             self._samples += 1
         self._finished[task_id] = path
         while len(self._finished) > self.max_finished:

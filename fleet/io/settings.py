@@ -145,6 +145,17 @@ class Settings(BaseSettings):
     task_timeout_s: Annotated[float, Field(gt=0)] = 120.0
     on_robot_lost: Literal["fail", "requeue"] = "fail"
     safety_separation_m: Annotated[float, Field(gt=0)] = 0.5
+    # Receding horizon: the planner runs again every replan_period_s [s], when a robot is
+    # farther than replan_corridor_m [m] from its predicted path at the same robot time, and
+    # when two robots (one moving) come closer than safety_separation_m + this margin [m].
+    replan_period_s: Annotated[float, Field(gt=0)] = 2.0
+    replan_corridor_m: Annotated[float, Field(gt=0)] = 0.3
+    replan_separation_margin_m: Annotated[float, Field(ge=0)] = 0.2
+    # Retention: a robot lost this long [s] is forgotten (an operator may remove it sooner,
+    # DELETE /robots/{id}); finished tasks are deleted from the store this long [s] after
+    # they ended (default 30 days).
+    lost_robot_retention_s: Annotated[float, Field(gt=0)] = 3600.0
+    finished_task_retention_s: Annotated[float, Field(gt=0)] = 30 * 86400.0
 
     @field_validator("fleet_name")
     @classmethod

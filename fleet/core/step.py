@@ -65,7 +65,7 @@ TWO_PI = 2.0 * math.pi
 # Columns of a robot's parameter row (``params[i]``).
 GOAL_X = 0  # goal posture, world frame [m]
 GOAL_Y = 1
-GOAL_HEADING = 2  # [rad], any value (wrapped by (11.a) in the step)
+GOAL_HEADING = 2  # [rad], wrapped to [0, 2pi) by (11.a) (robot_params does it)
 CW = 3  # 1.0: clockwise law (20); 0.0: counter-clockwise law (17)
 KX = 4  # gains of laws (17)/(20)
 KY = 5
@@ -82,7 +82,7 @@ ROBOT_COLUMNS = 14
 #: Robots x peers per step from which :func:`advance_batch` spreads robots over threads.
 PARALLEL_MIN_WORK = 4096
 #: Robots per independent chunk of :func:`advance_batch` (its working set stays in cache).
-CHUNK_ROBOTS = 512
+CHUNK_ROBOTS = 128
 
 # ``workqueue``, numba's fallback threading layer, aborts the process when two threads run
 # parallel code at once (the service plans on a worker while other threads may simulate).
@@ -135,15 +135,10 @@ def wrap_to_2pi(theta: float) -> float:
     return 0.0 if wrapped >= TWO_PI else wrapped
 
 
-@njit("float64(float64, float64, boolean)", cache=True, error_model="numpy")
-def heading_error(theta_goal: float, theta: float, cw: bool) -> float:
-    """Heading error theta_e = theta_r - theta_c of Eq. (5) with the law's wrap [rad].
-
-    Both headings are wrapped by (11.a); the difference, in (-2pi, 2pi), is mapped to
-    [0, 2pi) for ``ccw`` (11.b) or to (-2pi, 0] for ``cw`` (21). A difference of -1e-300
-    plus 2pi rounds to 2pi: that error is really zero (and likewise onto -2pi).
-    """
-    diff = wrap_to_2pi(theta_goal) - wrap_to_2pi(theta)
+@njit(inline="always", error_model="numpy")
+def _heading_difference(goal_wrapped: float, theta_wrapped: float, cw: bool) -> float:
+    """theta_e from headings already wrapped by (11.a): (11.b) for ccw, (21) for cw."""
+    diff = goal_wrapped - theta_wrapped
     error = diff + TWO_PI if diff < 0.0 else diff  # (11.b)
     if error >= TWO_PI:
         error = 0.0
@@ -154,15 +149,36 @@ def heading_error(theta_goal: float, theta: float, cw: bool) -> float:
     return error
 
 
+@njit("float64(float64, float64, boolean)", cache=True, error_model="numpy")
+def heading_error(theta_goal: float, theta: float, cw: bool) -> float:
+    """Heading error theta_e = theta_r - theta_c of Eq. (5) with the law's wrap [rad].
+
+    Both headings are wrapped by (11.a); the difference, in (-2pi, 2pi), is mapped to
+    [0, 2pi) for ``ccw`` (11.b) or to (-2pi, 0] for ``cw`` (21). A difference of -1e-300
+    plus 2pi rounds to 2pi: that error is really zero (and likewise onto -2pi).
+    """
+    return _heading_difference(wrap_to_2pi(theta_goal), wrap_to_2pi(theta), cw)
+
+
+@njit("float64[::1](float64[::1])", cache=True, error_model="numpy")
+def wrap_headings(theta: FloatArray) -> FloatArray:
+    """:func:`wrap_to_2pi` of every element (a new array)."""
+    wrapped = np.empty_like(theta)
+    for i in range(theta.shape[0]):
+        wrapped[i] = wrap_to_2pi(theta[i])
+    return wrapped
+
+
 @njit(inline="always", error_model="numpy")
 def _error_in_frame(
     c: float, s: float, x: float, y: float, theta: float, goal_x: float, goal_y: float,
-    goal_theta: float, cw: bool,
+    goal_wrapped: float, cw: bool,
 ) -> tuple[float, float, float]:  # fmt: skip
     """:func:`pose_error` with c, s = cos, sin of the heading ``theta`` already at hand (the
-    Euler step needs them too)."""
+    Euler step needs them too) and the goal heading already wrapped by (11.a)."""
     dx, dy = goal_x - x, goal_y - y
-    return c * dx + s * dy, c * dy - s * dx, heading_error(goal_theta, theta, cw)
+    theta_e = _heading_difference(goal_wrapped, wrap_to_2pi(theta), cw)
+    return c * dx + s * dy, c * dy - s * dx, theta_e
 
 
 @njit(
@@ -175,7 +191,7 @@ def pose_error(
 ) -> tuple[float, float, float]:
     """Posture error (x_e [m], y_e [m], theta_e [rad]): the goal in the robot frame, Eq. (5)."""
     c, s = math.cos(theta), math.sin(theta)
-    return _error_in_frame(c, s, x, y, theta, goal_x, goal_y, goal_theta, cw)
+    return _error_in_frame(c, s, x, y, theta, goal_x, goal_y, wrap_to_2pi(goal_theta), cw)
 
 
 @njit("boolean(float64, float64, float64, float64, float64)", cache=True, error_model="numpy")
@@ -240,6 +256,8 @@ def saturate(
 ) -> tuple[float, float]:
     """(u, omega) divided by one factor so that neither wheel exceeds ``max_wheel_speed``
     [rad/s]: the curvature omega/u, hence the path, is kept; ``inf`` disables the limit."""
+    if not max_wheel_speed < math.inf:
+        return u, omega  # no limit: nothing to compute
     right, left = wheel_speeds(u, omega, wheel_radius, half_axle)
     peak = max(abs(right), abs(left))
     if peak > max_wheel_speed:
@@ -439,7 +457,9 @@ def robot_params(
     """
     n = goal.shape[0]
     params = np.empty((n, ROBOT_COLUMNS))
-    params[:, GOAL_X : GOAL_HEADING + 1] = goal
+    params[:, GOAL_X] = goal[:, 0]
+    params[:, GOAL_Y] = goal[:, 1]
+    params[:, GOAL_HEADING] = wrap_headings(np.ascontiguousarray(goal[:, 2], dtype=np.float64))
     params[:, CW] = cw
     params[:, KX : KTHETA + 1] = gains
     params[:, TOL_POSITION_SQ] = tol_position * tol_position
@@ -494,14 +514,15 @@ RECORD_COLUMNS = 8
 def _advance_robot(
     i: int,
     step: int,
+    t: float,
     current: FloatArray,
     following: FloatArray,
     params: FloatArray,
     done_step: np.ndarray,
     metrics: FloatArray,
     obstacles: FloatArray,
-    group: int,
-    peers: bool,
+    peer_lo: int,
+    peer_hi: int,
     k_avoid: float,
     peer_radius: float,
     min_x_oa: float,
@@ -509,18 +530,17 @@ def _advance_robot(
     record: FloatArray,
     row: int,
 ) -> int:
-    """Robot i's step ``step`` from ``current`` into ``following`` (both (3, N)); returns 1
-    if the stop rule fired. ``row`` >= 0 records the step in that row of ``record``."""
+    """Robot i's step ``step`` (time ``t`` = step dt [s]) from ``current`` into
+    ``following`` (both (3, N)), with peers ``peer_lo .. peer_hi - 1``; returns 1 if the
+    stop rule fired. ``row`` >= 0 records the step in that row of ``record``."""
     x, y, theta = current[0, i], current[1, i], current[2, i]
     moving = done_step[i] < 0
     if not moving and row < 0:  # done: stands still (still a peer of the others)
         following[0, i], following[1, i], following[2, i] = x, y, theta
         return 0
-    lo = (i // group) * group
-    hi = lo + group if peers else lo
-    hold = step * dt < params[i, DELAY_END]
+    hold = t < params[i, DELAY_END]
     r = robot_step(
-        x, y, theta, params, i, hold, current, lo, hi, i, obstacles,
+        x, y, theta, params, i, hold, current, peer_lo, peer_hi, i, obstacles,
         k_avoid, peer_radius, min_x_oa, dt,
     )  # fmt: skip
     finished = 0
@@ -584,6 +604,7 @@ def advance_chunk(
     group, k_avoid, peer_radius, min_x_oa = interaction
     dt, first_step, max_steps, record_every = schedule
     peers = interacting(group, k_avoid, peer_radius)
+    span = group if peers else max(hi - lo, 1)
     remaining = 0
     for i in range(lo, hi):
         remaining += 1 if done_step[i] < 0 else 0
@@ -602,11 +623,15 @@ def advance_chunk(
         row = -1
         if recording and step % record_every == 0:
             row = step // record_every - first_row
-        for i in range(lo, hi):
-            remaining -= _advance_robot(
-                i, step, current, following, params, done_step, metrics, obstacles, group,
-                peers, k_avoid, peer_radius, min_x_oa, dt, record, row,
-            )  # fmt: skip
+        t = step * dt
+        for base in range(lo, hi, span):  # blocks of peers (the whole chunk without peers)
+            end = min(base + span, hi)
+            peer_hi = end if peers else base
+            for i in range(base, end):
+                remaining -= _advance_robot(
+                    i, step, t, current, following, params, done_step, metrics, obstacles,
+                    base, peer_hi, k_avoid, peer_radius, min_x_oa, dt, record, row,
+                )  # fmt: skip
         current, following = following, current
         ran += 1
     if ran % 2 == 1:
@@ -620,10 +645,18 @@ def _advance_chunks_in_parallel(chunk: int, n: int, *args: Any) -> int:
     """:func:`advance_chunk` on consecutive chunks of ``chunk`` of the ``n`` robots, spread
     over the threads (``args``: its arguments after ``lo, hi``); returns the most steps any
     chunk took."""
+    pose, spare, params, done_step, metrics, obstacles, interaction, schedule, record, pairs = args
+    # The threads get scalars and arrays only (parfors take no named tuples).
+    group, k_avoid, peer_radius, min_x_oa = interaction
+    dt, first_step, max_steps, record_every = schedule
     chunks = (n + chunk - 1) // chunk
     taken = np.zeros(chunks, dtype=np.int64)
     for c in prange(chunks):
-        taken[c] = advance_chunk(c * chunk, min(n, (c + 1) * chunk), *args)
+        taken[c] = advance_chunk(
+            c * chunk, min(n, (c + 1) * chunk), pose, spare, params, done_step, metrics,
+            obstacles, Interaction(group, k_avoid, peer_radius, min_x_oa),
+            Schedule(dt, first_step, max_steps, record_every), record, pairs,
+        )  # fmt: skip
     most = 0
     for c in range(chunks):
         most = max(most, taken[c])

@@ -315,3 +315,16 @@ def test_hold_stands_still_until_a_revision_releases_it() -> None:
 def test_a_waiting_robot_already_at_its_goal_reports_arrived() -> None:
     task = apply_assignment(None, park(goal=(0.0, 0.0, 0.0), start_delay_s=5.0), now=0.0)
     assert tick((0.0, 0.0, 0.0), task, now=0.0).mode is RobotMode.ARRIVED
+
+
+def test_the_control_step_is_compiled_at_import_and_ticks_never_compile() -> None:
+    """``robot_agent.logic`` imports the compiled step with explicit signatures: compiled (or
+    loaded from numba's cache) before any tick, and frozen -- a tick cannot compile."""
+    from fleet.core import step
+
+    entry = step._step_robot
+    assert len(entry.signatures) == 1 and not entry._can_compile
+    obstacles = obstacle_arrays([Obstacle(x=1.0, y=0.2, radius=1.0)])
+    for peers in (NO_PEERS, np.array([[0.3, 0.0], [2.0, 2.0]])):
+        tick((0.0, 0.0, 0.0), AgentTask(park()), peers=peers, obstacles=obstacles)
+    assert len(entry.signatures) == 1

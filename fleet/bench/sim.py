@@ -14,7 +14,8 @@ it is still active (the tolerances are tiny, so no robot finishes during a timed
 Rates are the best of a few repeats, per wall-clock second (the batch simulator spreads
 large batches over both cores) and per CPU second of this process (``time.process_time``,
 all threads: the work per core, less sensitive to other jobs on a shared machine). Ratios
-are against the plain loop measured in the same run, wall clock to wall clock.
+are against the plain loop measured in the same run, wall clock to wall clock and CPU
+second to CPU second.
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ class SimBenchRow:
     cpu_steps_per_s: float  # robot-steps per CPU second (all threads)
     ratio_vs_loop: float  # steps_per_s / the plain loop's, same scene, wall clock
     loop_steps_per_s: float  # the plain loop's robot-steps per wall-clock second
+    cpu_ratio_vs_loop: float  # cpu_steps_per_s / the plain loop's per CPU second
 
 
 @dataclass(frozen=True)
@@ -244,8 +246,8 @@ def steps_for(robots: int, robot_steps: int, min_steps: int, max_steps: int) -> 
 
 
 def _row(scene: str, robots: int, steps: int, batch: Rate, loop: Rate) -> SimBenchRow:
-    ratio = batch.wall / loop.wall
-    return SimBenchRow(scene, robots, steps, batch.wall, batch.cpu, ratio, loop.wall)
+    ratio, cpu_ratio = batch.wall / loop.wall, batch.cpu / loop.cpu
+    return SimBenchRow(scene, robots, steps, batch.wall, batch.cpu, ratio, loop.wall, cpu_ratio)
 
 
 def run_sim_bench(

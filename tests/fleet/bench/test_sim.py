@@ -20,6 +20,7 @@ ROW_KEYS = {
     "cpu_steps_per_s",
     "ratio_vs_loop",
     "loop_steps_per_s",
+    "cpu_ratio_vs_loop",
 }
 
 
@@ -55,6 +56,7 @@ def test_ratios_are_against_the_loop_of_the_same_scene_in_the_same_run() -> None
     report = bench_sim.quick_bench()
     for row in report.rows:
         assert row.ratio_vs_loop == pytest.approx(row.steps_per_s / row.loop_steps_per_s)
+        assert row.cpu_ratio_vs_loop > 0
     independent = {r.loop_steps_per_s for r in report.rows if r.scene == "independent"}
     assert len(independent) == 1  # one loop measurement for the whole scene
 

@@ -3,7 +3,8 @@
 The control step itself -- posture error (5) with the wraps (11)/(21), laws (17)/(20),
 repulsion (27), saturation, contact guard, Euler -- exists once, compiled, in
 :mod:`fleet.core.step`. This module keeps what works on whole arrays around it: law names,
-Eq. (2) for recorded controls, and the Lyapunov functions (12.a)/(22) for analysis.
+Eq. (2) both ways (recorded controls, drives that take body velocities), the Lyapunov
+functions (12.a)/(22) for analysis, and :func:`pose_error` on posture sequences.
 
 Law names used on every interface:
 
@@ -16,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from fleet.core import step
 from fleet.core.types import LAWS, BoolArray, FloatArray, Law
 
 #: Default guard of the repulsion singularity at x_OA -> 0, metres (``fleet.core.step``).
@@ -48,6 +50,26 @@ def wheel_speeds(
     r, b = _f(wheel_radius), _f(half_axle)
     u_, w_ = _f(u), _f(omega)
     return (u_ + b * w_) / r, (u_ - b * w_) / r
+
+
+def body_velocities(
+    right: npt.ArrayLike, left: npt.ArrayLike, wheel_radius: npt.ArrayLike, half_axle: npt.ArrayLike
+) -> tuple[FloatArray, FloatArray]:
+    """(u [m/s], omega [rad/s]) from right/left wheel speeds [rad/s], Eq. (2)."""
+    r, b = _f(wheel_radius), _f(half_axle)
+    ar, al = _f(right), _f(left)
+    return r / 2.0 * (ar + al), r / (2.0 * b) * (ar - al)
+
+
+def pose_error(
+    pose: npt.ArrayLike, goal: npt.ArrayLike, cw: bool | np.bool_
+) -> tuple[float, float, float]:
+    """Posture error (x_e [m], y_e [m], theta_e [rad]) of one robot, Eq. (5) with the law's
+    wrap: :func:`fleet.core.step.pose_error` on (x, y, theta) sequences (world frame)."""
+    p, g = _f(pose), _f(goal)
+    return step.pose_error(
+        float(p[0]), float(p[1]), float(p[2]), float(g[0]), float(g[1]), float(g[2]), bool(cw)
+    )
 
 
 def lyapunov_v(x_e: npt.ArrayLike, y_e: npt.ArrayLike, theta_e: npt.ArrayLike) -> FloatArray:

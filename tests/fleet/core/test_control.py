@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from fleet.core import step
-from fleet.core.control import is_cw, wheel_speeds
+from fleet.core.control import body_velocities, is_cw, pose_error, wheel_speeds
 
 
 def test_law_names_are_validated() -> None:
@@ -34,3 +34,28 @@ def test_wheel_speeds_of_recorded_controls_are_the_step_conversion(
     right, left = wheel_speeds(u, omega, r, b)
     for i in range(len(u)):
         assert (right[i], left[i]) == step.wheel_speeds(u[i], omega[i], r, b)
+
+
+@given(
+    arrays(np.float64, 8, elements=st.floats(-30, 30)),
+    arrays(np.float64, 8, elements=st.floats(-30, 30)),
+    st.floats(0.01, 0.5),
+    st.floats(0.05, 1.0),
+)
+def test_body_velocities_of_wheel_speeds_are_the_step_conversion(
+    right: np.ndarray, left: np.ndarray, r: float, b: float
+) -> None:
+    u, omega = body_velocities(right, left, r, b)
+    for i in range(len(right)):
+        assert (u[i], omega[i]) == step.body_velocities(right[i], left[i], r, b)
+
+
+@given(
+    st.tuples(st.floats(-5, 5), st.floats(-5, 5), st.floats(-7, 7)),
+    st.tuples(st.floats(-5, 5), st.floats(-5, 5), st.floats(-7, 7)),
+    st.booleans(),
+)
+def test_pose_error_of_a_posture_sequence_is_the_compiled_one(
+    pose: tuple[float, float, float], goal: tuple[float, float, float], cw: bool
+) -> None:
+    assert pose_error(np.array(pose), list(goal), cw) == step.pose_error(*pose, *goal, cw)

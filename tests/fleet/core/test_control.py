@@ -23,31 +23,19 @@ def test_law_names_are_validated() -> None:
 
 
 @given(
-    arrays(np.float64, 8, elements=st.floats(-3, 3)),
-    arrays(np.float64, 8, elements=st.floats(-3, 3)),
-    st.floats(0.01, 0.5),
-    st.floats(0.05, 1.0),
-)
-def test_wheel_speeds_of_recorded_controls_are_the_step_conversion(
-    u: np.ndarray, omega: np.ndarray, r: float, b: float
-) -> None:
-    right, left = wheel_speeds(u, omega, r, b)
-    for i in range(len(u)):
-        assert (right[i], left[i]) == step.wheel_speeds(u[i], omega[i], r, b)
-
-
-@given(
     arrays(np.float64, 8, elements=st.floats(-30, 30)),
     arrays(np.float64, 8, elements=st.floats(-30, 30)),
     st.floats(0.01, 0.5),
     st.floats(0.05, 1.0),
 )
-def test_body_velocities_of_wheel_speeds_are_the_step_conversion(
-    right: np.ndarray, left: np.ndarray, r: float, b: float
+def test_equation_2_on_arrays_is_the_step_conversion_both_ways(
+    first: np.ndarray, second: np.ndarray, r: float, b: float
 ) -> None:
-    u, omega = body_velocities(right, left, r, b)
-    for i in range(len(right)):
-        assert (u[i], omega[i]) == step.body_velocities(right[i], left[i], r, b)
+    right, left = wheel_speeds(first, second, r, b)  # (u, omega) -> wheels
+    u, omega = body_velocities(first, second, r, b)  # wheels -> (u, omega)
+    for i in range(len(first)):
+        assert (right[i], left[i]) == step.wheel_speeds(first[i], second[i], r, b)
+        assert (u[i], omega[i]) == step.body_velocities(first[i], second[i], r, b)
 
 
 @given(

@@ -54,8 +54,8 @@ def register(commands: Any, bench: Any) -> None:
     p.add_argument(
         "--max-kx",
         type=positive_float,
-        default=YARD_MAX_KX,
-        help=f"yard: largest kx [1/s] searched ({YARD_MAX_KX:g}, keeps Eq. 27's repulsion)",
+        help="yard: largest kx [1/s] searched (default Table 1's kx of the law, "
+        f"{YARD_MAX_KX['ccw']:g} ccw / {YARD_MAX_KX['cw']:g} cw: keeps Eq. 27's standoffs)",
     )
     p.add_argument(
         "-o",

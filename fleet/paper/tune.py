@@ -45,10 +45,12 @@ FAIL_PENALTY = 1000.0
 YARD_DT = 0.02
 #: The fleet's default arrival tolerance (``TaskRequest``), used by the yard target.
 YARD_TOLERANCE = Tolerance(position=0.1, heading=0.1)
-#: Largest kx [1/s] of the yard search: Table 1's 2.6. The repulsion of Eq. (27) is added to
-#: u = kx x_e, so its strength relative to the law scales with 1/kx; above this the
-#: direction planner found unsafe choices in most random 10-robot yards (README).
-YARD_MAX_KX = 2.6
+#: Largest kx [1/s] of the yard search per law: Table 1's (the previous defaults). The
+#: repulsion of Eq. (27) is added to u = kx x_e, so where two robots come to a standstill
+#: facing each other depends on kx (and K_avoid) only: capping kx keeps those standoffs, and
+#: the planner's safety margins tuned on them; above it the direction planner found unsafe
+#: choices in most random 10-robot yards (README).
+YARD_MAX_KX: dict[Law, float] = {law: SCENARIOS["first"].gains[law].kx for law in ("ccw", "cw")}
 #: Longest run [s] of a case target (the paper's first scenario under the wheel limit
 #: takes 73 s with Table 1's ccw gains).
 MAX_CASE_TIME = 300.0
@@ -204,11 +206,14 @@ def yard_target(
     trips: int = 200,
     seed: int = 2026,
     weights: Weights = YARD_WEIGHTS,
-    max_kx: float = YARD_MAX_KX,
+    max_kx: float | None = None,
     max_time: float = 90.0,
 ) -> TuneTarget:
     """Typical yard trips (:func:`yard_trips`) for the fleet's robot, time first; the
-    reference is the paper's Table 1 gains for ``law`` (chosen for one 10 m trip)."""
+    reference is the paper's Table 1 gains for ``law`` (chosen for one 10 m trip).
+    ``max_kx`` [1/s] defaults to :data:`YARD_MAX_KX` of the law."""
+    if max_kx is None:
+        max_kx = YARD_MAX_KX[law]
     if not GAIN_RANGE[0] < max_kx:
         raise ValueError(f"max_kx must exceed {GAIN_RANGE[0]}")
     starts, goals = yard_trips(trips, seed)

@@ -99,7 +99,9 @@ def test_yard_target_caps_kx_and_uses_the_fleet_robot() -> None:
     assert target.bounds[0] == (0.1, 2.0)
     assert target.profile == RobotProfile() and math.isfinite(target.profile.max_wheel_speed)
     assert target.reference == SCENARIOS["first"].gains["cw"]
-    assert SCENARIOS["first"].gains["ccw"].kx == YARD_MAX_KX
+    for law in ("ccw", "cw"):
+        assert yard_target(law, trips=1).bounds[0][1] == SCENARIOS["first"].gains[law].kx
+        assert YARD_MAX_KX[law] == SCENARIOS["first"].gains[law].kx
 
 
 @settings(max_examples=30)

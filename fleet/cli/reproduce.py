@@ -22,11 +22,19 @@ def register(commands: Any, bench: Any) -> None:
         "comparative cases I-III for laws (17), (20) and the baselines (VFO, FT, Astolfi, "
         "Park & Kuipers) in the same harness, beside the paper's VFO and FT rows.",
     )
-    p.add_argument(
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument(
         "--baselines",
         action="store_true",
         help="compare with VFO, FT (Tables 2, 3, 5, 7, 9), Astolfi and Park & Kuipers",
     )
+    mode.add_argument(
+        "--switching",
+        action="store_true",
+        help="the switching rule (fleet.core.switching) against both fixed laws: the paper's "
+        "cases and random yard trips",
+    )
+    p.add_argument("--trips", type=int, default=1000, help="--switching: random yard trips (1000)")
     add_json(p)
     p.set_defaults(func=run)
 
@@ -53,7 +61,43 @@ def _print_comparison(rows: list[ComparisonRow]) -> None:
     print("Targets: 2 % on effort and distance, 0.02 s on time; README explains the gaps.")
 
 
+def _switching(args: argparse.Namespace) -> int:
+    from fleet.paper.switching_study import paper_cases, yard
+
+    if args.trips < 1:
+        raise ValueError("--trips must be at least 1")
+    cases, trips = paper_cases(), yard(trips=args.trips)
+    if args.json:
+        print(json.dumps({"cases": [c.model_dump() for c in cases], "yard": trips.model_dump()}))
+        return 0
+    print(f"{'case':<8} {'ccw (m)':>9} {'cw (m)':>9} {'switching (m)':>14}  laws (switch times)")
+    for c in cases:
+        times = ", ".join(f"{t:.2f} s" for t in c.switch_times)
+        print(
+            f"{c.case:<8} {c.ccw:>9.4f} {c.cw:>9.4f} {c.switching:>14.4f}  "
+            f"{' -> '.join(c.laws)}" + (f" ({times})" if times else "")
+        )
+    y = trips
+    p = y.percentiles
+    print(
+        f"yard: {y.trips} random trips (seed {y.seed}), default gains, 20 rad/s, 50 Hz: "
+        f"arrived {y.arrived:.1%}, switched {y.switched:.1%}, shorter {y.shorter:.1%}"
+    )
+    print(
+        f"  path / better fixed law: mean {y.mean_ratio:.4f}, p5 {p['p5']:.4f}, "
+        f"p50 {p['p50']:.4f}, p95 {p['p95']:.4f}, worst {y.worst_ratio:.6f}"
+    )
+    d = y.mean_distance
+    print(
+        f"  mean distance: ccw {d['ccw']:.3f} m, cw {d['cw']:.3f} m, better fixed "
+        f"{d['best fixed']:.3f} m, switching {d['switching']:.3f} m"
+    )
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.switching:
+        return _switching(args)
     if args.baselines:
         comparison = compare()
         if args.json:

@@ -211,14 +211,13 @@ def plot_pareto(result: TuneResult) -> Figure:
     fig = Figure(figsize=(7.0, 5.0), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.subplots()
-    ax.scatter(
-        scores.effort[ok], scores.distance[ok], s=6, color="0.7", label="candidates", zorder=1
-    )
-    if ok.any():
-        front = pareto_front(scores.effort[ok], scores.distance[ok])
+    effort, distance = scores.effort[ok], scores.distance[ok]
+    ax.scatter(effort, distance, s=6, color="0.7", label="candidates", zorder=1)
+    front = pareto_front(effort, distance)
+    if front.size:
         ax.plot(
-            scores.effort[ok][front],
-            scores.distance[ok][front],
+            effort[front],
+            distance[front],
             "-o",
             color="tab:blue",
             markersize=3,
@@ -238,6 +237,12 @@ def plot_pareto(result: TuneResult) -> Figure:
             label=label,
             zorder=3,
         )
+    # Frame the front and the marked gains; far-off candidates fall outside the view.
+    e_seen = np.concatenate([effort[front], [m[0]["effort"] for m in marks]])
+    d_seen = np.concatenate([distance[front], [m[0]["distance"] for m in marks]])
+    for setter, seen in ((ax.set_xlim, e_seen), (ax.set_ylim, d_seen)):
+        lo, hi = float(seen.min()), float(seen.max())
+        setter(0.95 * lo, hi + 0.5 * (hi - lo) + 0.05 * hi)
     ax.set_xlabel("control effort, Eq. (25)")
     ax.set_ylabel("distance [m]")
     ax.grid(True, alpha=0.3)

@@ -85,7 +85,8 @@ def _switching(args: argparse.Namespace) -> int:
     )
     print(
         f"  path / better fixed law: mean {y.mean_ratio:.4f}, p5 {p['p5']:.4f}, "
-        f"p50 {p['p50']:.4f}, p95 {p['p95']:.4f}, worst {y.worst_ratio:.6f}"
+        f"p50 {p['p50']:.4f}, p95 {p['p95']:.4f}, best {y.best_ratio:.4f}, "
+        f"worst {y.worst_ratio:.6f}"
     )
     d = y.mean_distance
     print(

@@ -45,6 +45,7 @@ class YardSwitching(BaseModel):
     mean_ratio: float
     percentiles: dict[str, float]  # "p5", "p50", "p95" of the ratio
     worst_ratio: float
+    best_ratio: float
     shorter: float  # fraction of trips strictly shorter than the better fixed law
     switched: float  # fraction of trips with at least one switch
     mean_distance: dict[str, float]  # [m] "ccw", "cw", "best fixed", "switching"
@@ -111,6 +112,7 @@ def yard(trips: int = 1000, seed: int = 7, checkpoints: int = CHECKPOINTS) -> Ya
         mean_ratio=float(ratio.mean()),
         percentiles={f"p{q}": float(np.percentile(ratio, q)) for q in (5, 50, 95)},
         worst_ratio=float(ratio.max()),
+        best_ratio=float(ratio.min()),
         shorter=float((ratio < 1.0).mean()),
         switched=float((run.switches > 0).mean()),
         mean_distance={

@@ -44,9 +44,17 @@ def register(commands: Any, bench: Any) -> None:
     )
     p.add_argument("case", choices=TARGETS, metavar="CASE", help=" | ".join(TARGETS))
     p.add_argument("--law", choices=LAWS, required=True, help="ccw = Eq. (17), cw = Eq. (20)")
-    p.add_argument("--w-effort", type=_non_negative, help="weight of the effort (Eq. 25)")
-    p.add_argument("--w-distance", type=_non_negative, help="weight of the distance [1/m]")
-    p.add_argument("--w-time", type=_non_negative, help="weight of the time [1/s]")
+    for name, unit, c, y in (
+        ("effort", "(Eq. 25)", CASE_WEIGHTS.effort, YARD_WEIGHTS.effort),
+        ("distance", "[1/m]", CASE_WEIGHTS.distance, YARD_WEIGHTS.distance),
+        ("time", "[1/s]", CASE_WEIGHTS.time, YARD_WEIGHTS.time),
+    ):
+        p.add_argument(
+            f"--w-{name}",
+            type=_non_negative,
+            metavar="W",
+            help=f"weight of the {name} {unit} (default: case {c:g}, yard {y:g})",
+        )
     p.add_argument("--generations", type=int, default=60, help="at most this many (60)")
     p.add_argument("--popsize", type=int, default=15, help="scipy's multiplier (15)")
     p.add_argument("--seed", type=int, default=0, help="search seed (0)")

@@ -36,7 +36,7 @@ from scipy.optimize import differential_evolution
 
 from fleet.core.params import Gains, RobotProfile, Tolerance
 from fleet.core.simulate import PAPER_DT, BatchProblem, simulate
-from fleet.core.types import FloatArray, Law
+from fleet.core.types import LAWS, FloatArray, Law
 from fleet.paper.scenarios import SCENARIOS, CaseName
 
 #: Cost added per unit fraction of trips that do not reach the tolerance.
@@ -50,7 +50,7 @@ YARD_TOLERANCE = Tolerance(position=0.1, heading=0.1)
 #: facing each other depends on kx (and K_avoid) only: capping kx keeps those standoffs, and
 #: the planner's safety margins tuned on them; above it the direction planner found unsafe
 #: choices in most random 10-robot yards (README).
-YARD_MAX_KX: dict[Law, float] = {law: SCENARIOS["first"].gains[law].kx for law in ("ccw", "cw")}
+YARD_MAX_KX: dict[Law, float] = {law: SCENARIOS["first"].gains[law].kx for law in LAWS}
 #: Longest run [s] of a case target (the paper's first scenario under the wheel limit
 #: takes 73 s with Table 1's ccw gains).
 MAX_CASE_TIME = 300.0
@@ -344,8 +344,3 @@ def pareto_front(effort: npt.ArrayLike, distance: npt.ArrayLike) -> npt.NDArray[
             front.append(int(i))
             best_d = float(d[i])
     return np.asarray(front, dtype=np.intp)
-
-
-def with_weights(target: TuneTarget, weights: Weights) -> TuneTarget:
-    """The same target scored with other weights."""
-    return replace(target, weights=weights)

@@ -7,7 +7,7 @@ within tolerance (||(x_e, y_e)|| < position and |theta_e| < heading, theta_e = t
 theta_c wrapped to (-pi, pi]); that step is still applied, so its time is (k + 1) dt;
 afterwards it stands still. Metrics: control effort of Eq. (25), int(|u| + |omega|) dt;
 distance int |u| dt; time. An optional wheel limit scales (u, omega) together
-(:func:`fleet.core.control.saturate`), as the robots do.
+(:func:`fleet.core.step.saturate`), as the robots do.
 
 A controller is a :class:`Policy` made for one batch of start/goal postures (it may keep
 state between steps, e.g. VFO's continuous angle or FT's phase clock): called with the
@@ -23,9 +23,9 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
-from fleet.core.control import saturate
 from fleet.core.params import UNLIMITED, RobotProfile, Tolerance
 from fleet.core.simulate import PAPER_DT, SimResult, Trajectory
+from fleet.core.step import saturate
 from fleet.core.types import FloatArray
 
 Policy = Callable[[FloatArray, float], tuple[FloatArray, FloatArray]]
@@ -95,10 +95,11 @@ def closed_loop(
         u, omega = np.where(active, u, 0.0), np.where(active, omega, 0.0)
         if not (np.isfinite(u).all() and np.isfinite(omega).all()):
             raise ArithmeticError(f"{controller.name} gave a non-finite control at step {step}")
-        if limited:
-            u, omega = saturate(
-                u, omega, profile.wheel_radius, profile.half_axle, profile.max_wheel_speed
-            )
+        if limited:  # the robots' own saturation, robot by robot
+            for i in range(n):
+                u[i], omega[i] = saturate(
+                    u[i], omega[i], profile.wheel_radius, profile.half_axle, profile.max_wheel_speed
+                )
         if record:
             poses.append(pose.copy())
             controls.append(np.stack([u, omega], axis=1))

@@ -10,9 +10,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fleet.core.control import pose_error, posture_law, saturate
 from fleet.core.params import UNLIMITED, Gains, RobotProfile, Tolerance
 from fleet.core.simulate import BatchProblem, simulate
+from fleet.core.step import pose_error, posture_law, saturate
 from fleet.core.switching import switching_run
 from fleet.core.tasks import DEFAULT_GAINS
 from fleet.core.types import LAWS
@@ -119,8 +119,8 @@ def test_position_error_never_grows_under_either_law(
     # step of dt changes it by -s kx x_e^2 dt (1 - s kx dt / 2), s <= 1 the wheel-limit
     # scale: it never grows while kx dt <= 2, whichever law drives and however they switch.
     dt = 0.02
-    x_e, y_e, theta_e = pose_error(pose, goal, cw)
-    u, omega = posture_law(x_e, y_e, theta_e, gains, cw)
+    x_e, y_e, theta_e = pose_error(*pose, *goal, cw)
+    u, omega = posture_law(x_e, y_e, theta_e, *gains, cw)
     if limited:
         p = RobotProfile()
         u, omega = saturate(u, omega, p.wheel_radius, p.half_axle, p.max_wheel_speed)

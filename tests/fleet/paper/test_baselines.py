@@ -9,7 +9,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from fleet.core.control import pose_error, posture_law
+from fleet.core import step
 from fleet.core.params import UNLIMITED, Gains, RobotProfile, Tolerance
 from fleet.core.simulate import BatchProblem, simulate
 from fleet.core.types import FloatArray
@@ -42,9 +42,14 @@ class PaperLaw:
         self.name = "cw" if cw else "ccw"
 
     def policy(self, start: FloatArray, goal: FloatArray) -> Policy:
+        kx, ky, ktheta = (float(k) for k in self.gains)
+
         def control(pose: FloatArray, t: float) -> tuple[FloatArray, FloatArray]:
-            x_e, y_e, theta_e = pose_error(pose, goal, self.cw)
-            return posture_law(x_e, y_e, theta_e, self.gains, self.cw)
+            u, omega = np.empty(len(pose)), np.empty(len(pose))
+            for i, ((x, y, th), (gx, gy, gth)) in enumerate(zip(pose, goal, strict=True)):
+                error = step.pose_error(x, y, th, gx, gy, gth, self.cw)  # Eq. (5)
+                u[i], omega[i] = step.posture_law(*error, kx, ky, ktheta, self.cw)
+            return u, omega
 
         return control
 

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.reproduce",
     "fleet.cli.plot",
+    "fleet.cli.tune",
     "fleet.cli.router",
     "fleet.cli.agent",
     "fleet.cli.sim",

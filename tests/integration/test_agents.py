@@ -17,8 +17,8 @@ import pytest
 import zenoh
 from support import park, read_line, wait_for
 
-from fleet.core.control import pose_error
 from fleet.core.params import Gains, Tolerance
+from fleet.core.step import pose_error
 from fleet.core.wire import (
     Keys,
     Obstacle,
@@ -149,7 +149,7 @@ def test_agent_given_an_assignment_arrives_within_tolerance(
         and final.goal == Pose(x=1.5, y=1.0, theta=goal[2])
     )
     for pose in (final.pose.as_tuple(), true_pose):
-        x_e, y_e, theta_e = pose_error(pose, goal, False)
+        x_e, y_e, theta_e = pose_error(*pose, *goal, False)
         assert math.hypot(x_e, y_e) < TOL.position and abs(theta_e) < TOL.heading
     moved = states.since("r1", -1)
     assert any(s.mode is RobotMode.DRIVING for s in moved)

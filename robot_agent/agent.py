@@ -1,9 +1,10 @@
 """``RobotAgent``: one robot's control loop on Zenoh, over a :class:`~robot_agent.drive.Drive`.
 
-Each tick (default 50 Hz, ``Settings.control_rate_hz``, on the agent's monotonic clock):
-read the pose, apply pending assignment messages, decide with the pure
-:func:`robot_agent.logic.decide`, command the wheels, publish ``RobotState`` on
-``keys.state(id)`` (stamped with the wall clock). Zenoh edges:
+Each tick (default 50 Hz, ``Settings.control_rate_hz``, on the agent's monotonic clock) has
+two phases: :meth:`RobotAgent.sense` reads the pose and applies pending assignment
+messages; :meth:`RobotAgent.act` decides with the pure :func:`robot_agent.logic.decide`,
+commands the wheels and publishes ``RobotState`` on ``keys.state(id)`` (stamped with the
+wall clock). Zenoh edges:
 
 * liveliness token ``keys.alive(id)``;
 * subscriber on ``keys.assignment(id)`` (park / cancel, decoded by ``wire.Decoder``:
@@ -108,6 +109,7 @@ class RobotAgent:
         self._task: AgentTask | None = None
         self._seq = 0
         self._pose = Pose(x=0.0, y=0.0, theta=0.0)
+        self._reading: tuple[Pose, float, float] | None = None  # sensed (pose, stamp, now)
         self.tick_errors = 0
         self.last: AgentSnapshot | None = None
         self._handles: list[Any] = []
@@ -161,7 +163,18 @@ class RobotAgent:
 
     # -- control loop ---------------------------------------------------------------------
     def tick(self) -> AgentSnapshot | None:
-        """One control step: pose -> assignments -> decide -> wheels -> publish state."""
+        """One control step: :meth:`sense` then :meth:`act`."""
+        self.sense()
+        return self.act()
+
+    def sense(self) -> None:
+        """First phase of a tick: read the pose (time t), apply pending assignment messages,
+        and put the pose in the world view shared with agents on this session.
+
+        A lockstep simulation (``sim_agent.fleet``) senses every robot before any acts, so
+        each decides on its peers' poses of the same time t, as the batch simulator does.
+        """
+        self._reading = None
         try:
             pose, stamp = self.drive.read_pose()
             now = self.clock.now()
@@ -172,6 +185,18 @@ class RobotAgent:
                 except queue.Empty:
                     break
                 self._task = apply_assignment(self._task, message, now)
+            self.world.update_position(self.robot_id, pose.x, pose.y)
+            self._reading = (pose, stamp, now)
+        except Exception:
+            self._tick_failed()
+
+    def act(self) -> AgentSnapshot | None:
+        """Second phase of a tick: decide on the sensed pose, command the wheels, publish."""
+        reading, self._reading = self._reading, None
+        if reading is None:  # sensing failed (already counted and stopped)
+            return self._publish(TickResult(mode=RobotMode.HOLDING, task=self._task))
+        pose, stamp, now = reading
+        try:
             active = self._task is not None and self._task.status is AgentTaskStatus.ACTIVE
             decision = decide(
                 pose.as_tuple(),
@@ -191,12 +216,16 @@ class RobotAgent:
             else:
                 self.drive.stop()
         except Exception:
-            self.tick_errors += 1
-            if self.tick_errors <= 10 or self.tick_errors % 1000 == 0:
-                _log.exception("%s: tick failed (%d so far)", self.robot_id, self.tick_errors)
-            self._safe_stop()
+            self._tick_failed()
             decision = TickResult(mode=RobotMode.HOLDING, task=self._task)
         return self._publish(decision)
+
+    def _tick_failed(self) -> None:
+        """Count and log an exception of a tick, and stop the robot."""
+        self.tick_errors += 1
+        if self.tick_errors <= 10 or self.tick_errors % 1000 == 0:
+            _log.exception("%s: tick failed (%d so far)", self.robot_id, self.tick_errors)
+        self._safe_stop()
 
     def _publish(self, decision: TickResult) -> AgentSnapshot | None:
         task = decision.task

@@ -12,7 +12,7 @@ control loop (cheap; at most every ``probe_interval`` real seconds):
   (``session.info.routers_zid()`` empty) has lost its link; Zenoh sees a closed TCP
   connection at once and a silent one after the transport lease (``Settings.lease_ms``);
 * traffic heard through the router within ``link_timeout_s``: a remote peer state
-  (:attr:`robot_agent.world.WorldView.last_heard`), the fleet service's liveliness token
+  (:attr:`robot_agent.world_feed.WorldFeed.last_heard`), the fleet service's liveliness token
   appearing, or the reply to an echo query sent to the router's admin space
   (``@/<router zid>/router``) every ``link_timeout_s / 3``. The echo lets a lone robot
   with no peers and no service keep its link; a router without an admin space gives no

@@ -1,0 +1,14 @@
+"""Simulated robots standing in for hardware, on one machine (tests, the demo, benches).
+
+- :mod:`~sim_agent.drive`: :class:`SimDrive`, a kinematic unicycle implementing the
+  agent's Drive; ``make_drive`` is ``parkfleet agent --drive sim``.
+- :mod:`~sim_agent.fleet`: :class:`SimFleet`, N full robot agents sharing one Zenoh
+  session, ticked in lockstep (``--time-scale``); spawn layouts.
+
+Run a fleet with ``parkfleet sim --robots N``.
+"""
+
+from sim_agent.drive import SimDrive, make_drive
+from sim_agent.fleet import SimFleet, Spawn, spawn_layout
+
+__all__ = ["SimDrive", "SimFleet", "Spawn", "make_drive", "spawn_layout"]

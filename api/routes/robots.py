@@ -1,15 +1,17 @@
-"""``/robots``: the fleet's view of every robot."""
+"""``/robots``: the fleet's view of every robot; an operator removes a lost one."""
 
 from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Path
+from fastapi import APIRouter, Path, Response, status
 
-from api.deps import ServiceDep
+from api.deps import Authorized, ServiceDep
 from api.schemas import ErrorOut, RobotOut
 
 router = APIRouter(prefix="/robots", tags=["robots"])
+
+RobotIdPath = Annotated[str, Path(min_length=1, max_length=200)]
 
 
 @router.get("")
@@ -19,7 +21,23 @@ def list_robots(service: ServiceDep) -> list[RobotOut]:
 
 
 @router.get("/{robot_id}", responses={404: {"model": ErrorOut}})
-def get_robot(
-    robot_id: Annotated[str, Path(min_length=1, max_length=200)], service: ServiceDep
-) -> RobotOut:
+def get_robot(robot_id: RobotIdPath, service: ServiceDep) -> RobotOut:
     return RobotOut.of(service.robot(robot_id))
+
+
+@router.delete(
+    "/{robot_id}",
+    status_code=status.HTTP_204_NO_CONTENT,
+    response_class=Response,
+    dependencies=[Authorized],
+    responses={
+        401: {"model": ErrorOut, "description": "missing or wrong bearer token"},
+        404: {"model": ErrorOut, "description": "unknown robot"},
+        409: {"model": ErrorOut, "description": "the robot is connected or has a task"},
+    },
+)
+def remove_robot(robot_id: RobotIdPath, service: ServiceDep) -> Response:
+    """Forget a lost robot (taken out of the yard): it is no longer an obstacle, and queued
+    tasks naming it fail. A robot still connected, or with a task under way, is a 409."""
+    service.remove_robot(robot_id)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)

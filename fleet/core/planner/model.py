@@ -57,7 +57,11 @@ class TaskSnapshot:
 
     ``gains`` holds the gains the robot would use with each law; ``named_robot`` is the robot
     the request names (None: the fleet chooses). ``law``, ``revision``, ``hold`` and
-    ``start_delay_s`` are what was last sent (under way only).
+    ``start_delay_s`` are what was last sent (under way only). ``start_delay_left_s`` is how
+    much of that start delay the robot still has to wait at the snapshot [s, robot time]
+    (the service: ``max(0, start_delay_s - time since the revision was sent)``); None means
+    unknown: the whole delay while the task is ``assigned`` or its robot reports
+    ``waiting``, none otherwise.
     """
 
     task_id: str
@@ -73,6 +77,7 @@ class TaskSnapshot:
     revision: int = 0
     hold: bool = False
     start_delay_s: float = 0.0
+    start_delay_left_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -98,7 +103,12 @@ class TaskDecision:
     ``revision`` is the task revision the decision was made from: the service applies it
     only if the task still has that revision (and the same robot and status family), else
     the decision is stale and dropped. ``corridor`` samples the predicted path
-    ``(t [s], x [m], y [m])`` so the service can see when the robot leaves it.
+    ``(t [s], x [m], y [m])`` so the service can see when the robot leaves it
+    (:func:`fleet.core.planner.corridor.left_corridor` with the plan's
+    ``corridor_radius_m`` and ``corridor_slack_s``); ``t`` counts from the moment the plan
+    reaches the robots. ``keep`` decisions carry a fresh corridor and arrival too.
+    ``predicted_min_separation_m``: the closest predicted centre distance of this robot to
+    any other over the plan (inf when none comes near) [m].
     """
 
     task_id: str
@@ -111,6 +121,7 @@ class TaskDecision:
     reason: str | None = None
     predicted_arrival_s: float | None = None
     corridor: tuple[tuple[float, float, float], ...] = ()
+    predicted_min_separation_m: float = float("inf")
 
 
 @dataclass(frozen=True)
@@ -125,3 +136,10 @@ class Plan:
     clusters: int = 0  # independent groups of interacting robots searched
     waiting: int = 0  # robots held because no option was safe
     notes: tuple[str, ...] = ()
+    #: [m] how far a robot may stray from its corridor before the service re-plans
+    corridor_radius_m: float = 0.5
+    #: [s] timing slack of the corridor check (a robot a little late or early is on it)
+    corridor_slack_s: float = 2.0
+    #: [s, robot time] re-plan after this long even without a trigger (robots hold and
+    #: should be tried again); None: only on triggers and the service's own period
+    replan_in_s: float | None = None

@@ -52,10 +52,11 @@ def test_a_safe_swap_assigns_both_named_robots_with_a_law_and_no_hold() -> None:
 
 def test_when_no_option_is_safe_the_new_robots_hold_with_the_reason() -> None:
     result = plan(swap(5.0))  # no way round keeps 5 m on a 6 m swap
-    assert not result.safe and result.waiting == 2
+    assert result.safe and result.waiting == 2  # safe: it moves nobody
     for d in result.decisions:
         assert d.action == "assign" and d.hold
         assert d.reason is not None and "waiting" in d.reason
+    assert result.replan_in_s is not None  # held robots are planned again
 
 
 def test_nothing_to_plan_without_an_available_robot() -> None:

@@ -27,11 +27,12 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fleet.core.params import Avoidance, Gains, RobotProfile, Tolerance
+from fleet.bench.fleet import FleetScenario, random_yard_scenario
+from fleet.core.params import Avoidance, RobotProfile, Tolerance
 from fleet.core.planner import Plan, PlannerConfig, PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.planner.assign import pair_queued
 from fleet.core.planner.corridor import left_corridor
@@ -42,25 +43,6 @@ from fleet.core.wire import Obstacle
 
 Planner = Callable[[PlanningSnapshot], Plan]
 _STAND = Tolerance(position=1e-3, heading=1e-3)
-_LOOSE = Tolerance(position=0.1, heading=0.1)
-
-
-@dataclass(frozen=True)
-class Scenario:
-    """Robots' starts, tasks' goals (and when each task arrives) and static obstacles."""
-
-    name: str
-    starts: list[Posture]
-    goals: list[Posture]
-    named: bool = True
-    arrivals: list[float] | None = None  # [s] per task; None: all at 0
-    obstacles: list[Obstacle] = field(default_factory=list)
-    law_gains: dict[Law, Gains] | None = None
-    tolerance: Tolerance = _LOOSE
-
-    @property
-    def robot_ids(self) -> list[str]:
-        return [f"b{i + 1}" for i in range(len(self.starts))]
 
 
 @dataclass
@@ -106,8 +88,9 @@ class OfflineFleet:
 
     def __init__(
         self,
-        scenario: Scenario,
+        scenario: FleetScenario,
         *,
+        arrivals: Sequence[float] | None = None,
         profile: RobotProfile | None = None,
         avoidance: Avoidance | None = None,
         separation: float = 0.5,
@@ -124,7 +107,7 @@ class OfflineFleet:
         self.t = 0.0
         self.version = 0
         self.min_pair = np.full((len(self.ids), len(self.ids)), np.inf)
-        arrivals = scenario.arrivals or [0.0] * len(scenario.goals)
+        arrivals = list(arrivals) if arrivals is not None else [0.0] * len(scenario.goals)
         self.tasks = [
             _Task(
                 task_id=f"t{j + 1}",
@@ -323,17 +306,18 @@ class OfflineFleet:
 
 
 def run_closed_loop(
-    scenario: Scenario,
+    scenario: FleetScenario,
     policy: str,
     planner: Planner | None = None,
     *,
+    arrivals: Sequence[float] | None = None,
     replan_period_s: float = 2.0,
     time_limit_s: float = 240.0,
     keep_snapshots: bool = False,
     dt: float = 0.02,
 ) -> ClosedLoopResult:
     """Run ``scenario`` to the end under ``policy`` (``auto`` with ``planner``, or a law)."""
-    fleet = OfflineFleet(scenario, dt=dt)
+    fleet = OfflineFleet(scenario, arrivals=arrivals, dt=dt)
     walls: list[float] = []
     rollouts: list[int] = []
     clusters: list[int] = []
@@ -387,45 +371,34 @@ def run_closed_loop(
     )
 
 
-def swap(n: int, radius: float = 6.0, mirror: bool = False) -> Scenario:
-    """Antipodal swap of ``n`` robots on a circle (the fleet bench's, or its mirror image)."""
-    starts: list[Posture] = []
-    goals: list[Posture] = []
-    sign = -1.0 if mirror else 1.0
-    for i in range(n):
-        a = 2 * math.pi * i / n
-        c, s = radius * math.cos(a), radius * math.sin(a)
-        starts.append((c, sign * s, sign * (a + math.pi - math.pi / 4)))
-        goals.append((-c, -sign * s, sign * (a + math.pi + math.pi / 4)))
-    return Scenario(name=f"swap-{n}{'-mirror' if mirror else ''}", starts=starts, goals=goals)
+def mirrored(scenario: FleetScenario) -> FleetScenario:
+    """The mirror image of ``scenario`` in the x axis (y -> -y, theta -> -theta): a swap of
+    the other chirality."""
 
+    def flip(p: Posture) -> Posture:
+        return (p[0], -p[1], -p[2])
 
-def yard(
-    n: int, seed: int, density: float = 0.1, spacing: float = 1.5, staggered: float = 0.0
-) -> Scenario:
-    """``n`` robots and ``n`` unnamed goals at random in a square yard of ``density``
-    robots per m^2 (10 robots: 10 m x 10 m), starts and goals ``spacing`` apart; with
-    ``staggered`` > 0 tasks arrive as a Poisson stream of that mean gap [s]."""
-    rng = np.random.default_rng(seed)
-    half = 0.5 * math.sqrt(n / density)
-    points: list[tuple[float, float]] = []
-    while len(points) < 2 * n:
-        x, y = (float(v) for v in rng.uniform(-half, half, size=2))
-        if all(math.hypot(x - px, y - py) >= spacing for px, py in points):
-            points.append((x, y))
-    heads = rng.uniform(-math.pi, math.pi, size=2 * n)
-    poses = [(x, y, float(t)) for (x, y), t in zip(points, heads, strict=True)]
-    arrivals = None
-    if staggered > 0:
-        arrivals = [float(v) for v in np.cumsum(rng.exponential(staggered, size=n)) - 0.0]
-        arrivals[0] = 0.0
-    return Scenario(
-        name=f"yard-{n}-s{seed}{'-stream' if staggered else ''}",
-        starts=poses[:n],
-        goals=poses[n:],
-        named=False,
-        arrivals=arrivals,
+    return replace(
+        scenario,
+        name=f"{scenario.name}-mirror",
+        starts=[flip(p) for p in scenario.starts],
+        goals=[flip(p) for p in scenario.goals],
+        obstacles=[Obstacle(x=o.x, y=-o.y, radius=o.radius) for o in scenario.obstacles],
     )
+
+
+def yard(n: int, seed: int, density: float = 0.1) -> FleetScenario:
+    """``n`` robots and ``n`` unnamed goals at random in a square yard of ``density`` robots
+    per m^2 (10 robots: the fleet bench's 10 m x 10 m yard)."""
+    half = 0.5 * math.sqrt(n / density)
+    return replace(random_yard_scenario(n, seed, half=half), name=f"yard-{n}-s{seed}")
+
+
+def stream(n: int, seed: int, mean_gap_s: float) -> list[float]:
+    """Arrival times [s] of ``n`` tasks: the first at 0, then a Poisson stream."""
+    gaps = np.random.default_rng(seed).exponential(mean_gap_s, size=n)
+    gaps[0] = 0.0
+    return [float(t) for t in np.cumsum(gaps)]
 
 
 def percentile(values: Sequence[float], q: float) -> float:
@@ -436,9 +409,9 @@ __all__ = [
     "ClosedLoopResult",
     "OfflineFleet",
     "Planner",
-    "Scenario",
+    "mirrored",
     "percentile",
     "run_closed_loop",
-    "swap",
+    "stream",
     "yard",
 ]

@@ -28,8 +28,9 @@ class PlannerConfig:
     Clusters (:mod:`fleet.core.planner.clusters`): robots interact when their predicted
     positions come within peer radius + ``interaction_margin_m`` of each other within
     ``cluster_slack_s`` of the same time; predictions are sampled every
-    ``sample_period_s``; at most ``merge_rounds`` re-plans merge clusters whose plans came
-    to interact.
+    ``sample_period_s``; clusters whose chosen plans came to interact are searched again
+    (``recheck_budget`` rollouts of conflict repair, ``merge_rounds`` times; then baseline
+    and safety net only).
 
     Corridors: sampled every ``corridor_period_s``; the service re-plans when a robot is
     farther than ``corridor_radius_m`` from its corridor within ``corridor_slack_s``.
@@ -38,7 +39,7 @@ class PlannerConfig:
     exhaustive_limit: int = 4
     budget: int = 96
     rounds: int = 10
-    improve_rounds: int = 3
+    improve_rounds: int = 1
     improve_candidates: int = 12
     delays_s: tuple[float, ...] = (1.5, 3.0, 6.0, 12.0)
     #: robots of an unsafe candidate's closest pairs that the local search moves per round
@@ -59,6 +60,8 @@ class PlannerConfig:
     #: unsafe or hopeless candidates stop [s]
     segment_s: float = 1.0
     merge_rounds: int = 2
+    #: rollouts of a cluster searched again after the check (conflict repair only)
+    recheck_budget: int = 24
     corridor_period_s: float = 0.5
     corridor_radius_m: float = 0.5
     corridor_slack_s: float = 2.0

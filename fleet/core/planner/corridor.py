@@ -31,10 +31,8 @@ def sample_corridor(times: FloatArray, xy: FloatArray, every: int) -> Corridor:
     picks = list(range(0, n, max(every, 1)))
     if picks[-1] != n - 1:
         picks.append(n - 1)
-    return tuple(
-        (round(float(times[i]), 3), round(float(xy[i, 0]), 3), round(float(xy[i, 1]), 3))
-        for i in picks
-    )
+    rows = np.column_stack([times[picks], xy[picks]]).round(3).tolist()
+    return tuple((t, x, y) for t, x, y in rows)
 
 
 def corridor_distance(

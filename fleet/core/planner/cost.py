@@ -13,7 +13,8 @@ Lexicographic, smaller is better (:attr:`Score.key`):
 4. **makespan** -- the latest predicted arrival of a moving robot [s], plus
    ``change_penalty_s`` per change to a robot under way (a flip, a new delay, a hold): a
    change must pay for itself, so a stable plan stays stable;
-5. the **sum of arrival times** [s] (same penalty).
+5. the **sum of arrival times plus driving times** [s] (distance driven / top speed, so a
+   plan whose robots wander round each other costs more; same penalty).
 
 Arrival times count from the moment the plan reaches the robots; a robot that does not
 arrive counts ``horizon + remaining distance / top speed``.
@@ -186,7 +187,8 @@ def score(
         held=int(np.count_nonzero(c.hold)),
         unfinished=unfinished,
         makespan=float(np.nanmax(arrival)) if moving.any() else 0.0,
-        total=float(np.nansum(arrival)),
+        total=float(np.nansum(arrival))
+        + float(outcome.distance[:k][moving].sum()) / fleet.top_speed,
         changes=changes(fleet, movers, c),
         min_separation=min_sep,
         arrival=arrival,

@@ -6,17 +6,22 @@
    mover's solo predictions.
 3. **Seed and clusters**: a prioritised plan on the solo predictions staggers the robots
    (:mod:`~fleet.core.planner.reserve`, no simulation); robots whose staggered paths come
-   within the peer radius (+ a margin) of each other at about the same time are searched
-   together, the others apart (:mod:`~fleet.core.planner.clusters`). Standing robots
-   (lost ones too) join only the clusters that pass near them.
+   within the peer radius (+ a margin) of each other at about the same time while both
+   move are searched together, the others apart (:mod:`~fleet.core.planner.clusters`).
+   Standing robots (lost ones too) join only the clusters that pass near them, and a robot
+   waiting at its start or parked at its goal where another cluster passes is a standing
+   obstacle ("phantom") of that cluster.
 4. **Search** (:mod:`~fleet.core.planner.search`): per cluster a law, a start delay or a
-   hold for every robot, by closed-loop rollouts at the agents' step; every cluster's round
-   goes to the simulator together (:mod:`~fleet.core.planner.rollout`).
-5. **Check**: the chosen plans are rolled out once more, recorded. Clusters whose plans
-   now come within the peer radius of each other (or of a standing robot they did not
-   know) are merged and searched again, seeded with their plans -- with the full budget
-   ``merge_rounds`` times, then with the baseline and the safety net only -- until no
-   plan interacts with another cluster's. The recordings give the corridors.
+   hold for every robot, by closed-loop rollouts at the agents' step; every cluster's
+   round goes to the simulator together (:mod:`~fleet.core.planner.rollout`).
+5. **Check**: the chosen plans' recorded rollouts are checked against each other. Clusters
+   whose robots now meet while both move are merged, and a cluster that passes a robot
+   of another standing where it did not know, or a standing robot it did not know, gets
+   it; those are searched again, seeded with their plans -- repairing conflicts only,
+   within ``recheck_budget``, ``merge_rounds`` times, then with the baseline and the safety
+   net only, and after that whatever still meets is merged -- until no plan meets what its
+   cluster did not see.
+   The recordings give the corridors.
 
 Never unsafe: a cluster's chosen plan keeps ``separation_m`` for every pair involving a
 moving robot (the search's safety net holds robots until it does); robots held carry the
@@ -34,9 +39,10 @@ import numpy as np
 from fleet.core.planner.assign import pair_queued
 from fleet.core.planner.clusters import (
     Cluster,
+    Phantom,
     clusters,
     components,
-    interacting_pairs,
+    encounters,
     near_standing,
 )
 from fleet.core.planner.config import PlannerConfig
@@ -45,9 +51,9 @@ from fleet.core.planner.cost import Limits, Score, score
 from fleet.core.planner.model import Action, Plan, PlanningSnapshot, TaskDecision
 from fleet.core.planner.reserve import reservation
 from fleet.core.planner.rollout import Live, Outcome, advance
-from fleet.core.planner.scene import NEW, Candidate, Fleet, build_fleet, scene_rows
+from fleet.core.planner.scene import NEW, Candidate, Fleet, build_fleet, row_names, scene_rows
 from fleet.core.planner.search import ClusterSearch
-from fleet.core.types import LAWS, FloatArray
+from fleet.core.types import LAWS, BoolArray, FloatArray
 
 #: [m] added to the peer radius when checking that chosen plans of clusters stay apart.
 _CHECK_MARGIN = 0.1
@@ -77,7 +83,7 @@ def _drive(fleet: Fleet, searches: Sequence[ClusterSearch], config: PlannerConfi
         for i, cands in pending.items():
             s = searches[i]
             for c in cands:
-                rows = scene_rows(fleet, s.cluster.movers, s.cluster.standing, c)
+                rows = scene_rows(fleet, s.cluster, c)
                 jobs.append((i, c, rows, Live(rows), Limits.of(fleet.separation, rows, ~c.hold)))
         limit = {i: searches[i].run_horizon for i in pending}
         segment = period * max(1, round(config.segment_s / period))
@@ -130,8 +136,7 @@ def _hold_reasons(fleet: Fleet, search: ClusterSearch) -> dict[int, str]:
     best = search.best
     assert best is not None
     out: dict[int, str] = {}
-    ids = [fleet.movers.robot_ids[i] for i in search.cluster.movers]
-    ids += [fleet.standing_ids[j] for j in search.cluster.standing]
+    ids = row_names(fleet, search.cluster)
     for pos in (int(v) for v in np.flatnonzero(best.candidate.hold)):
         released = [s for s in search.memo.values() if not s.candidate.hold[pos]]
         me = ids[pos]
@@ -162,70 +167,105 @@ def _settle(fleet: Fleet, searches: Sequence[ClusterSearch]) -> list[_Settled]:
     return out
 
 
-def _paths(settled: Sequence[_Settled], movers: int) -> tuple[FloatArray, list[int]]:
-    """Every mover's recorded positions on one time grid (T, 2), padded with the last."""
-    length = max((s.outcome.xy.shape[0] for s in settled if s.outcome.xy is not None), default=1)
-    paths = np.zeros((movers, length, 2))
-    owner = []
-    for s in settled:
-        assert s.outcome.xy is not None
-        xy = s.outcome.xy
-        for pos, i in enumerate(s.cluster.movers):
-            n = xy.shape[0]
-            paths[i, :n] = xy[:, pos]
-            paths[i, n:] = xy[-1, pos]
-            owner.append(i)
-    return paths, owner
+def _moving(o: Outcome, c: Candidate, k: int) -> tuple[FloatArray, BoolArray]:
+    """Positions (T, k, 2) of a rollout's movers and where each moves (T, k)."""
+    assert o.xy is not None and o.times is not None
+    arrival = np.where(np.isnan(o.time[:k]), np.inf, o.time[:k])
+    t = o.times[:, None]
+    return o.xy[:, :k], (~c.hold[None, :]) & (t >= c.delay[None, :]) & (t < arrival[None, :])
 
 
-def _merge(fleet: Fleet, settled: Sequence[_Settled], config: PlannerConfig) -> list[list[int]]:
-    """Groups of settled clusters (indices) to search again together (each of >= 1 cluster
-    whose plan meets another cluster's or a standing robot it did not know)."""
+def _paths(fleet: Fleet, settled: Sequence[_Settled]) -> tuple[FloatArray, BoolArray]:
+    """Every mover's recorded positions on one time grid (k, T, 2), padded with the last,
+    and where each moves (k, T)."""
     k = fleet.movers.size
-    paths, _ = _paths(settled, k)
+    length = max((s.outcome.xy.shape[0] for s in settled if s.outcome.xy is not None), default=1)
+    paths = np.zeros((k, length, 2))
+    moving = np.zeros((k, length), dtype=bool)
+    for s in settled:
+        xy, mov = _moving(s.outcome, s.best.candidate, len(s.cluster.movers))
+        n = xy.shape[0]
+        for pos, i in enumerate(s.cluster.movers):
+            paths[i, :n], paths[i, n:] = xy[:, pos], xy[-1, pos]
+            moving[i, :n] = mov[:, pos]
+    return paths, moving
+
+
+@dataclass(frozen=True)
+class _Redo:
+    """Settled clusters to search again as one, with what they did not see."""
+
+    group: list[int]
+    phantoms: set[Phantom]
+    standing: set[int]
+
+
+def _check(fleet: Fleet, settled: Sequence[_Settled], force: bool) -> list[_Redo]:
+    """What the chosen plans meet that their clusters did not see (module docstring, 5).
+
+    ``force``: a cluster that missed a robot of another cluster is merged with it."""
+    k = fleet.movers.size
+    paths, moving = _paths(fleet, settled)
     where = np.zeros(k, dtype=np.int64)
     for c, s in enumerate(settled):
         where[list(s.cluster.movers)] = c
     reach = max(fleet.world.avoidance.peer_radius, fleet.separation) + _CHECK_MARGIN
-    links = [
-        (int(where[i]), int(where[j]))
-        for i, j in interacting_pairs(paths, list(range(k)), reach, 1)
-        if where[i] != where[j]
-    ]
-    grown = set()
-    for i, j in near_standing(paths, list(range(k)), fleet.standing_xy, reach):
-        if j not in settled[int(where[i])].cluster.standing:
-            grown.add(int(where[i]))
-    groups = components(len(settled), links)
-    return [g for g in groups if len(g) > 1 or g[0] in grown]
+    found = encounters(paths, moving, list(range(k)), reach, 1)
+    links = [(int(where[i]), int(where[j])) for i, j in found.pairs if where[i] != where[j]]
+    ghosts: dict[int, set[Phantom]] = {}
+    for i, wanted in found.phantoms.items():
+        c = int(where[i])
+        for p in wanted:
+            if where[p[2]] != c and not settled[c].cluster.knows(p):
+                if force:
+                    links.append((c, int(where[p[2]])))
+                else:
+                    ghosts.setdefault(c, set()).add(p)
+    stand: dict[int, set[int]] = {}
+    live = np.flatnonzero(moving.any(axis=1))
+    for i, j in near_standing(paths[live], live.tolist(), fleet.standing_xy, reach):
+        c = int(where[i])
+        if j not in settled[c].cluster.standing:
+            stand.setdefault(c, set()).add(j)
+    touched = {c for pair in links for c in pair} | set(ghosts) | set(stand)
+    out = []
+    for group in components(len(settled), links):
+        if any(c in touched for c in group):
+            out.append(
+                _Redo(
+                    group,
+                    set().union(*(ghosts.get(c, set()) for c in group)),
+                    set().union(*(stand.get(c, set()) for c in group)),
+                )
+            )
+    return out
 
 
-def _regroup(
-    fleet: Fleet, settled: Sequence[_Settled], group: Sequence[int], config: PlannerConfig
-) -> tuple[Cluster, Candidate]:
-    """One cluster for a group of settled clusters, and the seed their plans make."""
-    movers = sorted(i for c in group for i in settled[c].cluster.movers)
-    k = fleet.movers.size
-    paths, _ = _paths([settled[c] for c in group], k)
-    reach = max(fleet.world.avoidance.peer_radius, fleet.separation) + _CHECK_MARGIN
-    near = {j for i, j in near_standing(paths[movers], movers, fleet.standing_xy, reach)}
-    standing = sorted(near.union(*(settled[c].cluster.standing for c in group)))
+def _regroup(fleet: Fleet, settled: Sequence[_Settled], redo: _Redo) -> tuple[Cluster, Candidate]:
+    """One cluster for ``redo`` and the seed its clusters' plans make."""
+    parts = [settled[c] for c in redo.group]
+    movers = sorted(i for s in parts for i in s.cluster.movers)
+    members = set(movers)
+    standing = sorted(redo.standing.union(*(s.cluster.standing for s in parts)))
+    ghosts = {p for s in parts for p in s.cluster.phantoms if p[2] not in members}
+    ghosts |= {p for p in redo.phantoms if p[2] not in members}
     seed = fleet.keep(movers)
-    for c in group:
-        cand = settled[c].best.candidate
-        for pos, i in enumerate(settled[c].cluster.movers):
+    for s in parts:
+        cand = s.best.candidate
+        for pos, i in enumerate(s.cluster.movers):
             j = movers.index(i)
             seed.law[j], seed.delay[j], seed.hold[j] = (
                 cand.law[pos],
                 cand.delay[pos],
                 cand.hold[pos],
             )
-    return Cluster(tuple(movers), tuple(standing)), seed
+    return Cluster(tuple(movers), tuple(standing), tuple(sorted(ghosts))), seed
 
 
 def _initial_clusters(fleet: Fleet, config: PlannerConfig) -> list[tuple[Cluster, list[Candidate]]]:
     """Clusters of the prioritised seed's paths, each with its share of the seed."""
-    k = fleet.movers.size
+    m = fleet.movers
+    k = m.size
     sep = fleet.separation
     seed, paths = reservation(
         fleet,
@@ -235,11 +275,14 @@ def _initial_clusters(fleet: Fleet, config: PlannerConfig) -> list[tuple[Cluster
         sep + config.reserve_margin_m,
         sep + config.reserve_margin_m / 2,
     )
-    reach = fleet.world.avoidance.peer_radius + config.interaction_margin_m
     period = fleet.solo_times[1] - fleet.solo_times[0] if fleet.solo_times.size > 1 else 1.0
+    t = np.arange(paths.shape[1])[None, :] * period
+    solo = fleet.solo_time[np.arange(k), seed.law]
+    moving = (t >= seed.delay[:, None]) & (t < (seed.delay + solo)[:, None])
+    reach = fleet.world.avoidance.peer_radius + config.interaction_margin_m
     window = max(1, round(config.cluster_slack_s / period))
     out = []
-    for c in clusters(paths, list(range(k)), k, fleet.standing_xy, reach, window):
+    for c in clusters(paths, moving, k, fleet.standing_xy, reach, window):
         idx = np.asarray(c.movers, dtype=np.int64)
         out.append((c, [Candidate(seed.law[idx], seed.delay[idx], seed.hold[idx])]))
     return out
@@ -295,17 +338,22 @@ def plan(snapshot: PlanningSnapshot, config: PlannerConfig | None = None) -> Pla
     settled: list[_Settled] = []
     rollouts, merges, round_ = 0, 0, 0
     while todo:
-        budget = config.budget if round_ <= config.merge_rounds else 0
-        searches = [ClusterSearch(fleet, c, config, seeds, budget) for c, seeds in todo]
+        if round_ == 0:
+            budget = config.budget
+        else:
+            budget = config.recheck_budget if round_ <= config.merge_rounds else 0
+        searches = [
+            ClusterSearch(fleet, c, config, seeds, budget, improve=round_ == 0) for c, seeds in todo
+        ]
         _drive(fleet, searches, config)
         rollouts += sum(s.rollouts for s in searches)
         settled += _settle(fleet, searches)
-        groups = _merge(fleet, settled, config)
-        if not groups:
+        redo = _check(fleet, settled, force=round_ > config.merge_rounds + 1)
+        if not redo:
             break
-        merges += len(groups)
-        regrouped = [_regroup(fleet, settled, g, config) for g in groups]
-        gone = {c for g in groups for c in g}
+        merges += len(redo)
+        regrouped = [_regroup(fleet, settled, r) for r in redo]
+        gone = {c for r in redo for c in r.group}
         settled = [s for c, s in enumerate(settled) if c not in gone]
         todo = [(cluster, [seed]) for cluster, seed in regrouped]
         round_ += 1
@@ -319,7 +367,7 @@ def plan(snapshot: PlanningSnapshot, config: PlannerConfig | None = None) -> Pla
         f"clusters: {sorted((len(s.cluster.movers) for s in settled), reverse=True)}",
     ]
     if merges:
-        notes.append(f"merged {merges} time(s) after checking the chosen plans")
+        notes.append(f"searched {merges} cluster(s) again after checking the chosen plans")
     if fleet.lead_min_separation < fleet.separation:
         notes.append(
             f"lead-in: robots under way come within {fleet.lead_min_separation:.2f} m before "

@@ -24,41 +24,42 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from fleet.core.planner.scene import UNDER_WAY, Candidate, Fleet
+from fleet.core.planner.scene import UNDER_WAY, Candidate, Fleet, IntArray
 from fleet.core.types import FloatArray
 
 
-def _shifted(path: FloatArray, shift: int, length: int) -> FloatArray:
-    """``path`` (T, 2) delayed by ``shift`` samples (standing at its start), to ``length``."""
-    out = np.empty((length, 2))
-    head = min(shift, length)
-    out[:head] = path[0]
-    body = path[: max(length - head, 0)]
-    out[head : head + body.shape[0]] = body
-    out[head + body.shape[0] :] = path[-1]
+def _options(solo: FloatArray, laws: IntArray, shifts: IntArray, length: int) -> FloatArray:
+    """Paths (O, L, 2) of one robot: option o is its solo path with law ``laws[o]`` (solo:
+    (T, 2 laws, 2)) delayed by ``shifts[o]`` samples -- standing at its start meanwhile, at
+    its end once done."""
+    t = solo.shape[0]
+    idx = np.clip(np.arange(length)[None, :] - shifts[:, None], 0, t - 1)
+    out: FloatArray = solo[idx, laws[:, None]]
     return out
 
 
-def _first_conflict(
-    path: FloatArray, placed: FloatArray, standing: FloatArray, reach: float, stand_reach: float
-) -> int:
-    """First sample index where ``path`` (L, 2) comes within ``reach`` of a placed path
-    (P, L, 2) at about the same time, or ``stand_reach`` of a standing robot; L if none."""
-    length = path.shape[0]
-    hit = np.zeros(length, dtype=bool)
-    if placed.shape[0]:  # only placed paths whose box comes near this one's
-        lo, hi = path.min(axis=0) - reach, path.max(axis=0) + reach
-        near = ((placed.max(axis=1) >= lo) & (placed.min(axis=1) <= hi)).all(axis=1)
-        placed = placed[near]
-    if placed.shape[0]:
-        for off in (-1, 0, 1):
-            idx = np.clip(np.arange(length) + off, 0, length - 1)
-            d = placed[:, idx] - path[None]
-            hit |= ((d * d).sum(axis=2) < reach * reach).any(axis=0)
+def _first_conflicts(
+    paths: FloatArray, placed: FloatArray, standing: FloatArray, reach: float, stand_reach: float
+) -> IntArray:
+    """Per option path (O, L, 2): the first sample where it comes within ``reach`` of a
+    placed path (P, L, 2) at about the same time (one sample either side), or within
+    ``stand_reach`` of a standing robot; L where it never does."""
+    n_opt, length = paths.shape[0], paths.shape[1]
+    hit = np.zeros((n_opt, length), dtype=bool)
+    if placed.shape[0]:  # only placed paths whose box comes near these ones'
+        lo = paths.min(axis=(0, 1)) - reach
+        hi = paths.max(axis=(0, 1)) + reach
+        placed = placed[((placed.max(axis=1) >= lo) & (placed.min(axis=1) <= hi)).all(axis=1)]
+    r2 = reach * reach
+    for off in (-1, 0, 1) if placed.shape[0] else ():
+        idx = np.clip(np.arange(length) + off, 0, length - 1)
+        d = placed[None, :, idx] - paths[:, None]  # (O, P, L, 2)
+        hit |= ((d * d).sum(axis=3) < r2).any(axis=1)
     if standing.shape[0]:
-        d = path[:, None, :] - standing[None]
-        hit |= ((d * d).sum(axis=2) < stand_reach * stand_reach).any(axis=1)
-    return int(np.argmax(hit)) if hit.any() else length
+        d = paths[:, :, None, :] - standing[None, None]
+        hit |= ((d * d).sum(axis=3) < stand_reach * stand_reach).any(axis=2)
+    first: IntArray = np.where(hit.any(axis=1), np.argmax(hit, axis=1), length)
+    return first
 
 
 def reservation(
@@ -77,37 +78,34 @@ def reservation(
     keep.hold[:] = False  # every robot gets a way to go; the search holds if it must
     times = fleet.solo_times
     period = float(times[1] - times[0]) if times.size > 1 else 1.0
-    shifts = [(d, round(d / period)) for d in (0.0, *delays)]
-    length = times.size + max(s for _, s in shifts)
-    solo = np.where(np.isfinite(fleet.solo_time[idx]), fleet.solo_time[idx], np.inf)
+    waits = np.array([0.0, *delays])
+    shifts = np.round(waits / period).astype(np.int64)
+    length = times.size + int(shifts.max())
+    solo = fleet.solo_time[idx]
     fastest = np.min(np.where(m.allowed[idx], solo, np.inf), axis=1)
     kept = (m.kind[idx] == UNDER_WAY) & ~m.keep_hold[idx]
     order = sorted(range(idx.size), key=lambda p: (not kept[p], -fastest[p], p))
     fixed = fleet.standing_xy[np.asarray(standing, dtype=np.int64)].reshape(-1, 2)
-    placed: list[FloatArray] = []
+    paths = np.zeros((idx.size, length, 2))
+    placed: list[int] = []
     for p in order:
         i = int(idx[p])
         if kept[p]:
-            options = [(int(keep.law[p]), float(keep.delay[p]))]
+            laws = np.array([keep.law[p]])
+            wait = np.array([keep.delay[p]])
         else:
-            options = [(law, d) for law in (0, 1) if m.allowed[i, law] for d, _ in shifts]
-            options.sort(key=lambda o: o[1] + solo[p, o[0]])
-        stack = np.stack(placed) if placed else np.zeros((0, length, 2))
-        best, best_at = options[0], -1
-        for law, d in options:
-            path = _shifted(fleet.solo_xy[:, i, law], round(d / period), length)
-            at = _first_conflict(path, stack, fixed, reach, stand_reach)
-            if at == length:
-                best, best_at = (law, d), at
-                break
-            if at > best_at:
-                best, best_at = (law, d), at
-        law, d = best
-        keep.law[p], keep.delay[p] = law, d
-        placed.append(_shifted(fleet.solo_xy[:, i, law], round(d / period), length))
-    paths = np.zeros((idx.size, length, 2))
-    for p, path in zip(order, placed, strict=True):
-        paths[p] = path
+            laws = np.repeat([law for law in (0, 1) if m.allowed[i, law]], waits.size)
+            wait = np.tile(waits, laws.size // waits.size)
+            order_opt = np.argsort(wait + solo[p, laws], kind="stable")  # soonest arrival first
+            laws, wait = laws[order_opt], wait[order_opt]
+        shift = np.round(wait / period).astype(np.int64)
+        options = _options(fleet.solo_xy[:, i], laws, shift, length)
+        first = _first_conflicts(options, paths[placed], fixed, reach, stand_reach)
+        clear = np.flatnonzero(first == length)
+        pick = int(clear[0]) if clear.size else int(np.argmax(first))
+        keep.law[p], keep.delay[p] = int(laws[pick]), float(wait[pick])
+        paths[p] = options[pick]
+        placed.append(p)
     return keep, paths
 
 

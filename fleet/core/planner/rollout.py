@@ -21,12 +21,11 @@ peers and static obstacles.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
-from functools import lru_cache
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fleet.core.params import Avoidance, RobotProfile, Tolerance
+from fleet.core.params import Avoidance, RobotProfile
 from fleet.core.simulate import BatchProblem, simulate
 from fleet.core.types import BoolArray, FloatArray
 from fleet.core.wire import Obstacle
@@ -89,13 +88,15 @@ class Rows:
 class Outcome:
     """One scene's rollout. ``min_pair`` (n, n): closest centre distance of each pair over
     the run [m] (inf on the diagonal; None without peers); ``time`` [s] of arrival (NaN if
-    not done); ``times`` (T,) and ``xy`` (T, n, 2): sampled positions when recorded."""
+    not done); ``distance`` driven [m]; ``times`` (T,) and ``xy`` (T, n, 2): sampled positions
+    when recorded."""
 
     min_pair: FloatArray | None
     done: BoolArray
     time: FloatArray
     final: FloatArray  # (n, 3)
     steps: int
+    distance: FloatArray  # (n,) driven [m]
     times: FloatArray | None = None
     xy: FloatArray | None = None
 
@@ -107,11 +108,6 @@ class World:
     profile: RobotProfile
     avoidance: Avoidance
     obstacles: tuple[Obstacle, ...] = ()
-
-
-@lru_cache(maxsize=256)
-def _tolerance(position: float, heading: float) -> Tolerance:
-    return Tolerance(position=position, heading=heading)
 
 
 def _bucket(n: int) -> int:
@@ -128,14 +124,14 @@ def _padding(m: int) -> Rows:
 
 
 def _problem(rows: Rows, world: World, peers: bool) -> BatchProblem:
+    """The batch problem of ``rows`` (tolerances as arrays: the problem's own columns)."""
     obstacles = world.obstacles
     avoid = world.avoidance
-    return BatchProblem.build(
+    problem = BatchProblem.build(
         rows.start,
         rows.goal,
         rows.gains,
         rows.cw,
-        tolerance=[_tolerance(float(p), float(h)) for p, h in rows.tolerance],
         profile=world.profile,
         obstacles=[(o.x, o.y) for o in obstacles],
         obstacle_radius=[o.radius for o in obstacles],
@@ -143,6 +139,11 @@ def _problem(rows: Rows, world: World, peers: bool) -> BatchProblem:
         peer_radius=avoid.peer_radius if peers else 0.0,
         min_x_oa=avoid.min_x_oa,
         start_delay=rows.delay,
+    )
+    return replace(
+        problem,
+        tol_position=np.ascontiguousarray(rows.tolerance[:, 0]),
+        tol_heading=np.ascontiguousarray(rows.tolerance[:, 1]),
     )
 
 
@@ -208,6 +209,7 @@ def roll_out(
                 time=result.time[s].copy(),
                 final=result.final_pose[s].copy(),
                 steps=result.steps,
+                distance=result.distance[s].copy(),
                 times=times,
                 xy=None if result.trajectory is None else result.trajectory.poses[:, s, :2].copy(),
             )
@@ -232,6 +234,7 @@ class Live:
         self.min_pair = np.full((n, n), np.inf)
         self.elapsed = 0.0
         self.steps = 0
+        self.distance = np.zeros(n)
         self.stopped = n == 0
         self._xy: list[FloatArray] = []
         self._times: list[FloatArray] = []
@@ -260,6 +263,7 @@ class Live:
             self._xy.append(o.xy[keep])
             self._times.append(o.times[keep] + self.elapsed)
         self.pose = o.final
+        self.distance += o.distance
         self.steps += o.steps
         self.elapsed = self.steps * dt
         if self.done.all():
@@ -277,6 +281,7 @@ class Live:
             time=self.time.copy(),
             final=self.pose.copy(),
             steps=self.steps,
+            distance=self.distance.copy(),
             times=times,
             xy=xy,
         )
@@ -314,6 +319,7 @@ def _empty() -> Outcome:
         time=np.zeros(0),
         final=np.zeros((0, 3)),
         steps=0,
+        distance=np.zeros(0),
     )
 
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
 from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.planner.rollout import STANDING_TOLERANCE, Rows, World, roll_out
@@ -292,12 +293,13 @@ def _solo(
     return solo_time, result.times, xy
 
 
-def scene_rows(fleet: Fleet, movers: Sequence[int], standing: Sequence[int], c: Candidate) -> Rows:
-    """Rows of one rollout: the cluster's movers with option ``c``, then its standing robots.
+def scene_rows(fleet: Fleet, cluster: Cluster, c: Candidate) -> Rows:
+    """Rows of one rollout: the cluster's movers with option ``c``, then its standing robots,
+    then its phantoms (:mod:`fleet.core.planner.clusters`).
 
     A held mover stands where it is (goal = start, done at once)."""
     m = fleet.movers
-    idx = np.asarray(movers, dtype=np.int64)
+    idx = np.asarray(cluster.movers, dtype=np.int64)
     start = m.start[idx]
     hold = c.hold[:, None]
     rows = Rows(
@@ -308,11 +310,20 @@ def scene_rows(fleet: Fleet, movers: Sequence[int], standing: Sequence[int], c: 
         tolerance=np.where(hold, STANDING_TOLERANCE, m.tolerance[idx]),
         delay=np.where(c.hold, 0.0, c.delay),
     )
-    if len(standing) == 0:
+    still = [fleet.standing_xy[np.asarray(cluster.standing, dtype=np.int64)].reshape(-1, 2)]
+    still.append(np.array([p[:2] for p in cluster.phantoms], dtype=np.float64).reshape(-1, 2))
+    fixed = np.concatenate(still)
+    if fixed.shape[0] == 0:
         return rows
-    return Rows.concat(
-        [rows, Rows.standing(fleet.standing_xy[np.asarray(standing, dtype=np.int64)])]
-    )
+    return Rows.concat([rows, Rows.standing(fixed)])
+
+
+def row_names(fleet: Fleet, cluster: Cluster) -> list[str]:
+    """Robot ids of the rows of :func:`scene_rows` (a phantom: "<id> where it stands")."""
+    names = [fleet.movers.robot_ids[i] for i in cluster.movers]
+    names += [fleet.standing_ids[j] for j in cluster.standing]
+    names += [f"{fleet.movers.robot_ids[p[2]]} where it stands" for p in cluster.phantoms]
+    return names
 
 
 __all__ = [
@@ -325,5 +336,6 @@ __all__ = [
     "Fleet",
     "Movers",
     "build_fleet",
+    "row_names",
     "scene_rows",
 ]

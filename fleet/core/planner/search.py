@@ -60,9 +60,11 @@ class ClusterSearch:
         config: PlannerConfig,
         seeds: Sequence[Candidate] = (),
         budget: int | None = None,
+        improve: bool = True,
     ) -> None:
         self.fleet, self.cluster, self.config = fleet, cluster, config
         self.budget = config.budget if budget is None else budget
+        self.improve = improve
         m = fleet.movers
         idx = np.asarray(cluster.movers, dtype=np.int64)
         self._idx = idx
@@ -304,6 +306,8 @@ class ClusterSearch:
         if phase != self._phase:
             self._phase, self._rounds, stuck = phase, 0, False
         limit = self.config.rounds if phase == "repair" else self.config.improve_rounds
+        if phase == "improve" and not self.improve:
+            limit = 0
         left = self.budget - self._spent
         if phase == "improve":
             left = min(left, self.config.improve_candidates)

@@ -31,6 +31,7 @@ delay or hold changes, ``keep`` (with a fresh corridor) otherwise.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -306,7 +307,7 @@ def _decisions(
                 hold or (law_i == int(m.keep_law[i]) and abs(delay - m.keep_delay[i]) <= 1e-6)
             )
             action: Action = "assign" if kind == NEW else "keep" if same else "revise"
-            arrival = s.best.arrival[pos]
+            arrival = s.best.arrival[pos] if o.done[pos] else math.nan
             out.append(
                 TaskDecision(
                     task_id=task.task_id,

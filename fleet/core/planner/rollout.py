@@ -11,7 +11,13 @@ Scenes of different sizes are padded to a common group size with inert rows: sta
 away from everything and from each other (beyond every influence radius), done at the first
 step. Scenes share one world: they are not offset, so every scene sees the same static
 obstacles (Eq. 27) -- group isolation is what keeps them apart. Scenes are bucketed by
-padded size (at most 1.5x padding) and chunked to ``max_rows`` rows per call.
+padded size (at most 1.5x padding) and chunked to ``max_rows`` rows per call. A scene's
+outcome does not depend on its partners in a call: one whose robots are all done ends at
+its last arrival, even if the call went on.
+
+A :class:`Live` rollout advances in segments (:func:`advance`): between segments the
+planner stops candidates that are unsafe or can no longer win; segments change nothing
+else (the simulator's state is the poses, which robots are done and the time elapsed).
 
 The step is the agents' control step (``dt``) and the model is the robots' own: the same
 simulator the fleet's agents are checked against, wheel limits, Eq. (27) repulsion from
@@ -26,7 +32,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fleet.core.params import Avoidance, RobotProfile
-from fleet.core.simulate import BatchProblem, simulate
+from fleet.core.simulate import BatchProblem, SimResult, simulate
 from fleet.core.types import BoolArray, FloatArray
 from fleet.core.wire import Obstacle
 
@@ -123,7 +129,7 @@ def _padding(m: int) -> Rows:
     return Rows.standing(xy)
 
 
-def _problem(rows: Rows, world: World, peers: bool) -> BatchProblem:
+def problem_of(rows: Rows, world: World, peers: bool = True) -> BatchProblem:
     """The batch problem of ``rows`` (tolerances as arrays: the problem's own columns)."""
     obstacles = world.obstacles
     avoid = world.avoidance
@@ -183,7 +189,7 @@ def roll_out(
             if peers and scenes[i].size < g:
                 parts.append(_padding(g - scenes[i].size))
         result = simulate(
-            _problem(Rows.concat(parts), world, peers),
+            problem_of(Rows.concat(parts), world, peers),
             dt=dt,
             max_time=max_time,
             track_separation=peers,
@@ -201,19 +207,36 @@ def roll_out(
             n = scenes[i].size
             s = slice(offset, offset + n)
             offset += g if peers else n
-            out[i] = Outcome(
-                min_pair=None
-                if result.min_pair_distance is None
-                else result.min_pair_distance[s, s].copy(),
-                done=result.done[s].copy(),
-                time=result.time[s].copy(),
-                final=result.final_pose[s].copy(),
-                steps=result.steps,
-                distance=result.distance[s].copy(),
-                times=times,
-                xy=None if result.trajectory is None else result.trajectory.poses[:, s, :2].copy(),
-            )
+            out[i] = _own(result, s, times, dt)
     return [o for o in out if o is not None]
+
+
+def _own(result: SimResult, rows: slice, times: FloatArray | None, dt: float) -> Outcome:
+    """One scene's share of a call: a scene whose robots were all done before the call
+    ended (its partners kept it going) ends at its last arrival, as if alone."""
+    done = result.done[rows]
+    steps = result.steps
+    if done.all() and done.size:
+        steps = min(steps, round(float(np.max(result.time[rows])) / dt))
+    xy = None
+    if result.trajectory is not None and times is not None:
+        keep = int(np.searchsorted(times, steps * dt - 1e-9))  # samples before the end
+        xy = np.concatenate(
+            [result.trajectory.poses[:keep, rows, :2], result.final_pose[None, rows, :2]]
+        )
+        times = np.append(times[:keep], steps * dt)
+    return Outcome(
+        min_pair=None
+        if result.min_pair_distance is None
+        else result.min_pair_distance[rows, rows].copy(),
+        done=done.copy(),
+        time=result.time[rows].copy(),
+        final=result.final_pose[rows].copy(),
+        steps=steps,
+        distance=result.distance[rows].copy(),
+        times=times,
+        xy=xy,
+    )
 
 
 class Live:
@@ -323,4 +346,13 @@ def _empty() -> Outcome:
     )
 
 
-__all__ = ["STANDING_TOLERANCE", "Live", "Outcome", "Rows", "World", "advance", "roll_out"]
+__all__ = [
+    "STANDING_TOLERANCE",
+    "Live",
+    "Outcome",
+    "Rows",
+    "World",
+    "advance",
+    "problem_of",
+    "roll_out",
+]

@@ -14,9 +14,25 @@ Decisions, per task (see :class:`TaskDecision`):
   until a later revision: the planner found no safe option; the task is ``waiting``);
 * ``revise`` -- a task under way gets ``revision + 1`` with a new law, delay or hold (a flip
   of the law, a hold, or a resume after a hold);
-* ``keep`` -- nothing to send.
+* ``keep`` -- nothing to send; the decision still carries the fresh corridor and arrival.
 
 A plan never starts or resumes a robot it predicts unsafe: such robots hold, with the reason.
+
+What the service does with a plan (the receding horizon):
+
+* fill ``TaskSnapshot.start_delay_left_s`` for tasks under way (the delay still to wait);
+  a robot reporting ``holding`` or ``lost`` is a standing obstacle (its task gets no
+  decision), and so is every robot without a task;
+* apply decisions whose ``revision`` still matches; send ``start_delay_s`` and ``hold``
+  with the assignment (``ParkAssignment``); a held task is ``waiting`` with ``reason``;
+* keep every decision's ``corridor`` (its ``t`` counts from when the plan was applied) and
+  re-plan when a robot leaves it
+  (:func:`~fleet.core.planner.corridor.left_corridor` with ``Plan.corridor_radius_m`` and
+  ``Plan.corridor_slack_s``), when robots join, finish or are lost, after
+  ``Plan.replan_in_s`` if set (held robots), and at a modest period; each call with robots
+  under way costs about one rollout per cluster when nothing changed;
+* count plans with ``waiting > 0`` (fallbacks) and plans that are not ``safe`` (only the
+  lead-in can make one unsafe: robots under way already too close before the plan lands).
 """
 
 from __future__ import annotations

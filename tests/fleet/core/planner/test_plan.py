@@ -207,3 +207,32 @@ def test_held_tasks_are_released_once_it_is_safe() -> None:
     result = plan(dataclasses.replace(snapshot, robots=robots, tasks=held))
     assert result.waiting == 0
     assert all(d.action == "revise" and not d.hold and d.revision == 1 for d in result.decisions)
+
+
+def test_robots_under_way_are_rolled_on_until_the_plan_reaches_them() -> None:
+    snapshot = swap2()
+    first = plan(snapshot)
+    moving = dataclasses.replace(moved_on(snapshot, first, 0.0), lead_time_s=1.0)
+    result = plan(moving)
+    for r, d in zip(moving.robots, result.decisions, strict=True):
+        t0, x0, y0 = d.corridor[0]
+        assert t0 == 0.0 and d.action == "keep"
+        assert 0.1 < math.dist((x0, y0), r.pose[:2]) < 1.5  # where it will be in 1 s
+
+
+def test_static_obstacles_are_avoided_and_known_to_the_prediction() -> None:
+    """The paper's comparative case III: (0, 2, 0) to (0, -2, 0) between two obstacles."""
+    from fleet.core.wire import Obstacle
+    from fleet.paper.scenarios import SCENARIOS
+
+    case = SCENARIOS["III"]
+    snapshot = dataclasses.replace(
+        scene([case.start], [case.goal]),
+        obstacles=(Obstacle(x=0.8, y=0.0, radius=1.0), Obstacle(x=-0.8, y=0.0, radius=1.0)),
+    )
+    result = plan(snapshot)
+    (d,) = result.decisions
+    assert result.safe and not d.hold and d.predicted_arrival_s is not None
+    run = replay(snapshot, result)
+    assert run.result.done.all()
+    assert float(run.result.time[0]) == pytest.approx(d.predicted_arrival_s, abs=1e-6)

@@ -36,6 +36,7 @@ from fleet.core.params import Avoidance, RobotProfile, Tolerance
 from fleet.core.planner import Plan, PlannerConfig, PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.planner.assign import pair_queued
 from fleet.core.planner.corridor import left_corridor
+from fleet.core.planner.rollout import STANDING_DELAY
 from fleet.core.simulate import BatchProblem, simulate
 from fleet.core.tasks import DEFAULT_GAINS, Direction, RobotStatus, TaskStatus
 from fleet.core.types import LAWS, Law, Posture
@@ -239,7 +240,7 @@ class OfflineFleet:
         gains = np.tile(self.gains["ccw"].as_tuple(), (n, 1))
         cw = np.zeros(n, dtype=bool)
         tol: list[Tolerance] = [_STAND] * n
-        delay = np.zeros(n)
+        delay = np.full(n, STANDING_DELAY)  # robots without a task never move
         active: dict[int, _Task] = {}
         for t in self.tasks:
             if t.status.final or t.robot_id is None or t.hold or t.law is None:

@@ -16,6 +16,7 @@ import numpy as np
 
 from fleet.core.params import Tolerance
 from fleet.core.planner import Plan, PlanningSnapshot, RobotSnapshot, TaskSnapshot
+from fleet.core.planner.rollout import STANDING_DELAY
 from fleet.core.simulate import BatchProblem, SimResult, simulate
 from fleet.core.tasks import DEFAULT_GAINS, Direction, RobotStatus, TaskStatus
 from fleet.core.types import Law, Posture
@@ -107,7 +108,7 @@ def replay(snapshot: PlanningSnapshot, result: Plan, max_time: float = 300.0) ->
         gains.append(DEFAULT_GAINS[law or "ccw"])
         laws.append(law or "ccw")
         tols.append(task.tolerance if drives and task is not None else _STAND)
-        delays.append(delay if drives else 0.0)
+        delays.append(delay if drives else STANDING_DELAY)  # standing robots never move
         moving.append(drives)
     obstacles = snapshot.obstacles
     avoid = snapshot.avoidance

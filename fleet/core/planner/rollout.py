@@ -26,6 +26,7 @@ peers and static obstacles.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -40,8 +41,13 @@ from fleet.core.wire import Obstacle
 _BUCKETS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512)
 #: Where inert padding rows stand [m]: far from any yard, 10 m apart (beyond any influence).
 _PAD_X, _PAD_STEP = 1.0e6, 10.0
-#: Tolerance of a standing row: it is done at once and never moves [m], [rad].
+#: Tolerance of a standing row [m], [rad]: it is done at once.
 STANDING_TOLERANCE = (1e-3, 1e-3)
+#: Start delay of a standing row [s]: it never moves. A row done at a call's first step
+#: still has that step applied, repulsion included, so without the delay a standing robot
+#: beside a peer would be nudged at every call (and every segment); real agents that are
+#: idle, arrived or held do not move at all.
+STANDING_DELAY = math.inf
 
 
 @dataclass(frozen=True)
@@ -65,7 +71,7 @@ class Rows:
 
     @staticmethod
     def standing(xy: FloatArray) -> Rows:
-        """Robots standing still at ``xy`` (m, 2): done from the first step."""
+        """Robots standing still at ``xy`` (m, 2): done from the first step, never moving."""
         m = xy.shape[0]
         pose = np.zeros((m, 3))
         pose[:, :2] = xy
@@ -75,7 +81,7 @@ class Rows:
             gains=np.ones((m, 3)),
             cw=np.zeros(m, dtype=bool),
             tolerance=np.tile(STANDING_TOLERANCE, (m, 1)),
-            delay=np.zeros(m),
+            delay=np.full(m, STANDING_DELAY),
         )
 
     @staticmethod
@@ -271,7 +277,7 @@ class Live:
             gains=r.gains,
             cw=r.cw,
             tolerance=np.where(done, STANDING_TOLERANCE, r.tolerance),
-            delay=np.where(self.done, 0.0, np.maximum(r.delay - self.elapsed, 0.0)),
+            delay=np.where(self.done, STANDING_DELAY, np.maximum(r.delay - self.elapsed, 0.0)),
         )
 
     def absorb(self, o: Outcome, dt: float) -> None:
@@ -347,6 +353,7 @@ def _empty() -> Outcome:
 
 
 __all__ = [
+    "STANDING_DELAY",
     "STANDING_TOLERANCE",
     "Live",
     "Outcome",

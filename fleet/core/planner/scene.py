@@ -32,7 +32,7 @@ import numpy.typing as npt
 from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
 from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
-from fleet.core.planner.rollout import STANDING_TOLERANCE, Rows, World, roll_out
+from fleet.core.planner.rollout import STANDING_DELAY, STANDING_TOLERANCE, Rows, World, roll_out
 from fleet.core.tasks import RobotStatus, TaskStatus
 from fleet.core.types import LAWS, BoolArray, FloatArray, Law
 
@@ -207,7 +207,7 @@ def build_fleet(
                     gains=gains[np.arange(k), law_now],
                     cw=law_now == 1,
                     tolerance=np.where(still[:, None], STANDING_TOLERANCE, tolerance),
-                    delay=delay_now,
+                    delay=np.where(still, STANDING_DELAY, delay_now),
                 ),
                 Rows.standing(standing_xy),
             ]
@@ -308,7 +308,7 @@ def scene_rows(fleet: Fleet, cluster: Cluster, c: Candidate) -> Rows:
         gains=m.gains[idx, c.law],
         cw=c.law == 1,
         tolerance=np.where(hold, STANDING_TOLERANCE, m.tolerance[idx]),
-        delay=np.where(c.hold, 0.0, c.delay),
+        delay=np.where(c.hold, STANDING_DELAY, c.delay),
     )
     still = [fleet.standing_xy[np.asarray(cluster.standing, dtype=np.int64)].reshape(-1, 2)]
     still.append(np.array([p[:2] for p in cluster.phantoms], dtype=np.float64).reshape(-1, 2))

@@ -28,7 +28,10 @@ def rows(draw: st.DrawFn) -> Rows:
     cw = np.array(draw(st.lists(st.booleans(), min_size=n, max_size=n)))
     gains = np.array([DEFAULT_GAINS["cw" if c else "ccw"].as_tuple() for c in cw])
     delay = np.array(draw(st.lists(st.sampled_from([0.0, 0.5, 1.25]), min_size=n, max_size=n)))
-    return Rows(start, goal, gains, cw, np.tile([0.1, 0.1], (n, 1)), delay)
+    movers = Rows(start, goal, gains, cw, np.tile([0.3, 0.5], (n, 1)), delay)
+    k = draw(st.integers(0, 2))  # robots standing among them (repelling, never moving)
+    still = np.array([[draw(coord), draw(coord)] for _ in range(k)]).reshape(k, 2)
+    return Rows.concat([movers, Rows.standing(still)])
 
 
 def alone(r: Rows, max_time: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -52,8 +55,9 @@ def test_scenes_rolled_out_together_are_each_as_if_alone(scenes: list[Rows]) -> 
 
 
 @settings(max_examples=15)
-@given(rows(), st.lists(st.sampled_from([0.5, 1.0, 2.0]), min_size=1, max_size=5))
+@given(rows(), st.lists(st.sampled_from([0.5, 1.0, 2.0, 8.0]), min_size=1, max_size=6))
 def test_a_rollout_advanced_in_segments_equals_one_run(r: Rows, segments: list[float]) -> None:
+    """Also after robots arrived (they stand, as do the standing rows: nobody nudges them)."""
     live = Live(r)
     for duration in segments:
         advance([live], WORLD, dt=DT, duration=duration, record_every=5)
@@ -75,3 +79,17 @@ def test_a_standing_row_never_moves_and_is_done_at_once() -> None:
     (o,) = roll_out([Rows.standing(xy)], WORLD, dt=DT, max_time=2.0)
     np.testing.assert_array_equal(o.final[:, :2], xy)
     assert o.done.all() and o.steps == 1
+
+
+def test_a_standing_row_is_not_pushed_by_a_peer_beside_it() -> None:
+    still = Rows.standing(np.array([[0.5, 0.0]]))
+    peer = Rows(
+        np.array([[0.0, 0.0, 0.0]]),
+        np.array([[4.0, 0.0, 0.0]]),
+        np.array([DEFAULT_GAINS["ccw"].as_tuple()]),
+        np.array([False]),
+        np.array([[0.1, 0.1]]),
+        np.array([0.0]),
+    )
+    (o,) = roll_out([Rows.concat([still, peer])], WORLD, dt=DT, max_time=1.0)
+    np.testing.assert_array_equal(o.final[0, :2], [0.5, 0.0])

@@ -6,9 +6,13 @@ Lexicographic, smaller is better (:attr:`Score.key`):
    whole run (a pair that starts closer must not get closer than it started). An unsafe
    candidate ranks after every safe one; its rollout stopped at the first violation, so
    unsafe ones rank by holds, then the *later* their first violation the better (conflicts
-   are resolved in time order), then by how many pairs violate, then by the solo estimate
-   of their arrivals (each robot's delay plus its solo time with its law);
-2. **held** -- robots that stand because they hold (a hold is the last resort);
+   are resolved in time order) -- a violation with a robot that stands (a standing row)
+   counts as at once: waiting cannot fix it --, then by how many pairs violate, then by
+   the solo estimate of their arrivals (each robot's delay plus its solo time with its
+   law);
+2. **trapped**, then **held** -- robots that stand because they hold (a hold is the last
+   resort), and first among them those that a robot this plan moves will trap by parking
+   on their way (``Fleet.blocks``): such a hold would never be released;
 3. **unfinished** -- moving robots that do not arrive within the horizon;
 4. **makespan** -- the latest predicted arrival of a moving robot [s], plus
    ``change_penalty_s`` per change to a robot under way (a flip, a new delay, a hold): a
@@ -45,6 +49,7 @@ class Violation:
     distance: float
     allowed: float
     time: float
+    standing: bool = False  # b is a standing row: only a law change or a hold helps
 
 
 @dataclass(frozen=True)
@@ -54,6 +59,7 @@ class Score:
     candidate: Candidate
     shortfall: float  # [m] >= 0
     held: int
+    trapped: int
     unfinished: int
     makespan: float  # [s] without penalties
     total: float  # [s] without penalties
@@ -73,13 +79,20 @@ class Score:
         return self.shortfall <= _EPS
 
     @property
-    def key(self) -> tuple[float, float, float, float, float]:
+    def key(self) -> tuple[float, float, float, float, float, float]:
         """Smaller is better (see the module docstring)."""
         p = self.penalty_s * self.changes
         if not self.safe:
-            first = self.violations[0].time if self.violations else self.stopped_at
-            return (1.0, self.held, -first, len(self.violations), self.estimate + p)
-        return (0.0, self.held, self.unfinished, self.makespan + p, self.total + p)
+            first = min((0.0 if v.standing else v.time for v in self.violations), default=0.0)
+            return (1.0, self.held, -first, len(self.violations), self.estimate + p, 0.0)
+        return (
+            0.0,
+            self.trapped,
+            self.held,
+            self.unfinished,
+            self.makespan + p,
+            self.total + p,
+        )
 
 
 def changes(fleet: Fleet, movers: Sequence[int], c: Candidate) -> int:
@@ -121,6 +134,13 @@ class Limits:
 
     def broken(self, min_pair: FloatArray) -> bool:
         return bool(self.involved.any()) and float(self.gap(min_pair).max()) > _EPS
+
+
+def trapped(fleet: Fleet, movers: Sequence[int], c: Candidate) -> int:
+    """Held movers whose every way is blocked by the goal of a mover ``c`` moves."""
+    idx = np.asarray(movers, dtype=np.int64)
+    blocks = fleet.blocks[np.ix_(idx, idx)]
+    return int(np.count_nonzero(c.hold & (blocks & ~c.hold[None, :]).any(axis=1)))
 
 
 def _first_below(
@@ -185,6 +205,7 @@ def score(
         candidate=c,
         shortfall=max(shortfall, 0.0),
         held=int(np.count_nonzero(c.hold)),
+        trapped=trapped(fleet, movers, c),
         unfinished=unfinished,
         makespan=float(np.nanmax(arrival)) if moving.any() else 0.0,
         total=float(np.nansum(arrival))
@@ -202,4 +223,4 @@ def score(
     )
 
 
-__all__ = ["Limits", "Score", "Violation", "changes", "score"]
+__all__ = ["Limits", "Score", "Violation", "changes", "score", "trapped"]

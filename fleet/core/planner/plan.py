@@ -1,6 +1,7 @@
 """``plan``: who takes which task, with which law, when -- and who waits (pure).
 
-1. **Assignment** (:mod:`~fleet.core.planner.assign`): queued tasks get available robots.
+1. **Assignment** (:mod:`~fleet.core.planner.assign`): queued tasks get available robots
+   (a pair whose every way passes a robot standing there is tried with another robot).
 2. **Scene** (:mod:`~fleet.core.planner.scene`): the robots to decide (new, under way,
    held), the standing robots, the lead-in until the plan reaches the robots, and each
    mover's solo predictions.
@@ -52,7 +53,15 @@ from fleet.core.planner.cost import Limits, Score, score
 from fleet.core.planner.model import Action, Plan, PlanningSnapshot, TaskDecision
 from fleet.core.planner.reserve import reservation
 from fleet.core.planner.rollout import Live, Outcome, advance
-from fleet.core.planner.scene import NEW, Candidate, Fleet, build_fleet, row_names, scene_rows
+from fleet.core.planner.scene import (
+    NEW,
+    Candidate,
+    Fleet,
+    build_fleet,
+    row_names,
+    scene_rows,
+    stuck,
+)
 from fleet.core.planner.search import ClusterSearch
 from fleet.core.types import LAWS, BoolArray, FloatArray
 
@@ -333,6 +342,14 @@ def plan(snapshot: PlanningSnapshot, config: PlannerConfig | None = None) -> Pla
     config = config or PlannerConfig()
     pairs = pair_queued(snapshot, config)
     fleet = build_fleet(snapshot, pairs, config)
+    avoid = frozenset(
+        (t.task_id, fleet.movers.robot_ids[i])
+        for i in stuck(fleet)
+        if (t := fleet.movers.tasks[i]).named_robot is None
+    )
+    if avoid:  # another robot may take these tasks (assign's module docstring)
+        pairs = pair_queued(snapshot, config, avoid)
+        fleet = build_fleet(snapshot, pairs, config)
     if fleet.movers.size == 0:
         return Plan(snapshot.version, (), True, float("inf"))
     todo = _initial_clusters(fleet, config)

@@ -5,7 +5,9 @@ the robots of a cluster. Robots are placed one at a time, each against the space
 paths of those placed before it:
 
 * robots under way that keep what they do come first, with their current law and delay;
-* then the others, longest solo trip first (they decide the makespan);
+* then the others, longest solo trip first (they decide the makespan) -- except that a
+  robot whose every way passes another's goal comes before it (``Fleet.blocks``: it must
+  pass before that one parks);
 * each takes the option -- a law it may use and a start delay from ``delays`` -- that
   arrives first (delay + solo time) among those whose solo path, shifted by the delay
   (standing at its start meanwhile), stays at least ``reach`` [m] from every placed path
@@ -25,7 +27,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from fleet.core.planner.scene import UNDER_WAY, Candidate, Fleet, IntArray
-from fleet.core.types import FloatArray
+from fleet.core.types import BoolArray, FloatArray
 
 
 def _options(solo: FloatArray, laws: IntArray, shifts: IntArray, length: int) -> FloatArray:
@@ -62,6 +64,25 @@ def _first_conflicts(
     return first
 
 
+def _order(preferred: Sequence[int], blocks: BoolArray) -> list[int]:
+    """``preferred`` reordered so that every x with ``blocks[x, y]`` comes before y
+    (depth first; a cycle keeps the preferred order)."""
+    out: list[int] = []
+    seen: set[int] = set()
+
+    def place(y: int) -> None:
+        seen.add(y)
+        for x in preferred:
+            if blocks[x, y] and x not in seen:
+                place(x)
+        out.append(y)
+
+    for y in preferred:
+        if y not in seen:
+            place(y)
+    return out
+
+
 def reservation(
     fleet: Fleet,
     movers: Sequence[int],
@@ -84,7 +105,10 @@ def reservation(
     solo = fleet.solo_time[idx]
     fastest = np.min(np.where(m.allowed[idx], solo, np.inf), axis=1)
     kept = (m.kind[idx] == UNDER_WAY) & ~m.keep_hold[idx]
-    order = sorted(range(idx.size), key=lambda p: (not kept[p], -fastest[p], p))
+    order = _order(
+        sorted(range(idx.size), key=lambda p: (not kept[p], -fastest[p], p)),
+        fleet.blocks[np.ix_(idx, idx)],
+    )
     fixed = fleet.standing_xy[np.asarray(standing, dtype=np.int64)].reshape(-1, 2)
     paths = np.zeros((idx.size, length, 2))
     placed: list[int] = []

@@ -14,8 +14,8 @@ A :class:`Fleet` holds
   whole fleet. Every candidate starts from the lead-in's end (``start``), and the
   separation during the lead-in is reported (no decision can change it);
 * the **solo predictions**: each mover alone (static obstacles, no peers) with each law it
-  may use, from ``start``: arrival times (lower bounds, horizons, default law) and sampled
-  paths (clusters).
+  may use, from ``start``: arrival times (lower bounds, horizons, default law), sampled
+  paths (clusters) and which movers must pass before which others park (``blocks``).
 
 A :class:`Candidate` gives every mover of a cluster a law, a start delay and a hold flag;
 :func:`scene_rows` turns it into the rows of one rollout (movers first, then standing).
@@ -37,6 +37,13 @@ from fleet.core.tasks import RobotStatus, TaskStatus
 from fleet.core.types import LAWS, BoolArray, FloatArray, Law
 
 IntArray = npt.NDArray[np.int64]
+
+#: [m] beyond the separation: a solo path this near another mover's goal is blocked once
+#: that mover parks there (see ``Fleet.blocks``).
+BLOCK_MARGIN_M = 0.1
+#: [m] beyond the separation: a new robot whose every solo path passes this near a robot
+#: standing there is stuck (the repulsion bends paths towards it by up to about this).
+STUCK_MARGIN_M = 0.3
 
 NEW, UNDER_WAY, HELD = 0, 1, 2
 LAW_INDEX: dict[Law, int] = {"ccw": 0, "cw": 1}
@@ -107,6 +114,9 @@ class Fleet:
     solo_time: FloatArray  # (k, 2) [s]; inf where the law is not allowed or never arrives
     solo_times: FloatArray  # (T,) sample times of the solo paths [s]
     solo_xy: FloatArray  # (T, k, 2, 2) positions per sample, mover, law [m]
+    #: (k, k): ``blocks[x, y]`` -- every law mover x may use passes its solo path within
+    #: ``separation + BLOCK_MARGIN_M`` of mover y's goal: x must pass before y parks there
+    blocks: BoolArray
 
     @property
     def top_speed(self) -> float:
@@ -255,7 +265,33 @@ def build_fleet(
         solo_time=solo_time,
         solo_times=solo_times,
         solo_xy=solo_xy,
+        blocks=_blocks(solo_xy, allowed, goal, snapshot.separation_m + BLOCK_MARGIN_M),
     )
+
+
+def stuck(fleet: Fleet) -> list[int]:
+    """New movers whose every law passes a standing robot within ``separation +
+    STUCK_MARGIN_M``: they would hold until that robot leaves."""
+    m = fleet.movers
+    if fleet.standing_xy.shape[0] == 0:
+        return []
+    reach = fleet.separation + STUCK_MARGIN_M
+    d = fleet.solo_xy[:, :, :, None, :] - fleet.standing_xy[None, None, None]  # T,k,law,s,2
+    near = ((d * d).sum(axis=4) < reach * reach).any(axis=(0, 3))  # (k, law)
+    blocked = np.where(m.allowed, near, True).all(axis=1)
+    return [int(i) for i in np.flatnonzero(blocked & (m.kind == NEW))]
+
+
+def _blocks(solo_xy: FloatArray, allowed: BoolArray, goal: FloatArray, reach: float) -> BoolArray:
+    """(k, k) which movers' solo paths (every law they may use) pass near which goals."""
+    k = goal.shape[0]
+    if k == 0:
+        return np.zeros((0, 0), dtype=bool)
+    d = solo_xy[:, :, :, None, :] - goal[None, None, None, :, :2]  # (T, k, law, k, 2)
+    near = ((d * d).sum(axis=4) < reach * reach).any(axis=0)  # (k, law, k)
+    out: BoolArray = np.asarray(np.where(allowed[:, :, None], near, True).all(axis=1))
+    np.fill_diagonal(out, False)
+    return out
 
 
 def _solo(
@@ -327,9 +363,11 @@ def row_names(fleet: Fleet, cluster: Cluster) -> list[str]:
 
 
 __all__ = [
+    "BLOCK_MARGIN_M",
     "HELD",
     "LAW_INDEX",
     "NEW",
+    "STUCK_MARGIN_M",
     "UNDER_WAY",
     "UNDER_WAY_STATUSES",
     "Candidate",
@@ -338,4 +376,5 @@ __all__ = [
     "build_fleet",
     "row_names",
     "scene_rows",
+    "stuck",
 ]

@@ -70,6 +70,7 @@ class ClusterSearch:
         self._idx = idx
         self._kind = m.kind[idx]
         self._allowed = m.allowed[idx]
+        self._blocks = fleet.blocks[np.ix_(idx, idx)]
         solo = fleet.solo_time[idx]
         self.solo = np.where(np.isfinite(solo), solo, config.max_horizon_s)
         keep_delay = m.keep_delay[idx]
@@ -144,10 +145,12 @@ class ClusterSearch:
             for r in (v.a, v.b):
                 if r < k and r not in targets and not c.hold[r]:
                     targets.append(r)
+        # against a robot that stands, waiting does not help: only a law change or a hold
+        pinned = {v.a for v in best.violations if v.standing}
         for i in targets[: self.config.repair_targets]:
             if self._flippable(i):
                 out.append(c.with_(i, law=1 - int(c.law[i])))
-            for d in self.config.delays_s:
+            for d in () if i in pinned else self.config.delays_s:
                 if c.delay[i] + d <= self.max_delay + 1e-9:
                     out.append(c.with_(i, delay=float(c.delay[i]) + d))
             out.append(c.with_(i, hold=True))
@@ -217,18 +220,23 @@ class ClusterSearch:
 
     def _safety_net(self, best: Score) -> list[Candidate]:
         """``best`` with more robots held, from one per violating pair (new and held robots
-        first) to every robot (safe: nobody moves); see the module docstring."""
+        first, and of two the one that would not trap the other by parking on its way) to
+        every robot (safe: nobody moves); see the module docstring."""
         c = best.candidate
         k = self.size
         kind = self._kind
         one, both = c.hold.copy(), c.hold.copy()
+        blocks = self._blocks
         for v in best.violations:
             side = [r for r in (v.a, v.b) if r < k and not c.hold[r]]
             both[side] = True
             if not side or one[side].any():
                 continue
             fresh = [r for r in side if kind[r] in (NEW, HELD)]
-            one[max(fresh, key=lambda r: (kind[r] == NEW, r)) if fresh else side] = True
+            if fresh:  # hold the one that would not trap the other by parking on its way
+                one[max(fresh, key=lambda r: (not blocks[r].any(), kind[r] == NEW, r))] = True
+            else:
+                one[side] = True
         new = c.hold | (kind != UNDER_WAY)
         every = np.ones(k, dtype=bool)
         return [

@@ -24,13 +24,15 @@ TEST_GAINS = Gains(kx=1.0, ky=2.0, ktheta=1.0)
 TEST_TOLERANCE = Tolerance(position=0.1, heading=0.1)
 
 
-def wait_for(predicate: Callable[[], bool], timeout: float, what: str) -> None:
-    """Poll ``predicate`` until true; fail the test after ``timeout`` [s] naming ``what``."""
+def wait_for(predicate: Callable[[], bool], timeout: float, what: str, poll: float = 0.01) -> None:
+    """Poll ``predicate`` every ``poll`` [s] until true; fail the test after ``timeout`` [s]
+    naming ``what``. The timeout only bounds a hung test: make it generous (the machine is
+    shared), never a measure of speed. A predicate may act too (re-send until received)."""
     end = time.monotonic() + timeout
     while not predicate():
         if time.monotonic() > end:
             raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(0.01)
+        time.sleep(poll)
 
 
 def read_line(proc: subprocess.Popen[bytes], timeout: float) -> str:

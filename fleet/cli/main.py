@@ -28,6 +28,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.bench_api",
     "fleet.cli.bench_fleet",
     "fleet.cli.bench_on_state",
+    "fleet.cli.bench_plan",
     "fleet.cli.bench_soak",
 )
 

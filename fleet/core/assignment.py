@@ -9,9 +9,12 @@ out -- their interaction is the direction choice's job, ``fleet.core.direction``
 horizon costs ``horizon + remaining distance / top speed``, so unreachable pairs rank last
 but still rank by how far off they end.
 
-All pairs (and both laws) are simulated in one vectorised batch. The assignment minimising
-the total cost is the Hungarian method (``scipy.optimize.linear_sum_assignment``); with more
-tasks than robots only as many tasks as robots are matched.
+All pairs (and both laws) are simulated in one vectorised batch; with ``nearest`` = K only
+the pairs of each task's K nearest robots and each robot's K nearest tasks are (a large
+yard stays cheap), the others cost ``horizon + straight-line distance / top speed``, like a
+pair that does not arrive. The assignment minimising the total cost is the Hungarian method
+(``scipy.optimize.linear_sum_assignment``); with more tasks than robots only as many tasks
+as robots are matched.
 """
 
 from __future__ import annotations
@@ -51,14 +54,32 @@ def predicted_times(
     avoidance: Avoidance = _DEFAULT_AVOIDANCE,
     dt: float = PREDICTION_DT,
     horizon: float = PREDICTION_HORIZON,
+    nearest: int | None = None,
 ) -> FloatArray:
     """(R, T) matrix of predicted arrival times [s] (see the module docstring)."""
     n_r, n_t = len(starts), len(tasks)
     cost = np.full((n_r, n_t), np.inf)
     if n_r == 0 or n_t == 0:
         return cost
+    top_speed = max(profile.max_speed, 1e-3) if np.isfinite(profile.max_speed) else 1.0
+    xy_r = np.array([s[:2] for s in starts], dtype=np.float64)
+    xy_t = np.array([t.goal[:2] for t in tasks], dtype=np.float64)
+    dist = np.hypot(xy_r[:, None, 0] - xy_t[None, :, 0], xy_r[:, None, 1] - xy_t[None, :, 1])
+    priced = np.ones((n_r, n_t), dtype=bool)
+    if nearest is not None and nearest < max(n_r, n_t):
+        priced[:] = False
+        k_r, k_t = min(nearest, n_r), min(nearest, n_t)
+        by_task = np.argsort(dist, axis=0, kind="stable")[:k_r]  # nearest robots per task
+        priced[by_task, np.arange(n_t)[None, :]] = True
+        by_robot = np.argsort(dist, axis=1, kind="stable")[:, :k_t]  # nearest tasks per robot
+        priced[np.arange(n_r)[:, None], by_robot] = True
+        cost = np.where(priced, np.inf, horizon + dist / top_speed)
     rows: list[tuple[int, int, Law]] = [
-        (i, j, law) for i in range(n_r) for j, task in enumerate(tasks) for law in task.laws
+        (i, j, law)
+        for i in range(n_r)
+        for j, task in enumerate(tasks)
+        if priced[i, j]
+        for law in task.laws
     ]
     start = np.array([starts[i] for i, _, _ in rows], dtype=np.float64)
     goal = np.array([tasks[j].goal for _, j, _ in rows], dtype=np.float64)
@@ -75,7 +96,6 @@ def predicted_times(
         min_x_oa=avoidance.min_x_oa,
     )
     result = simulate(problem, dt=dt, max_time=horizon)
-    top_speed = max(profile.max_speed, 1e-3) if np.isfinite(profile.max_speed) else 1.0
     remaining = np.hypot(result.final_pose[:, 0] - goal[:, 0], result.final_pose[:, 1] - goal[:, 1])
     times = np.where(result.done, result.time, horizon + remaining / top_speed)
     for (i, j, _), t in zip(rows, times, strict=True):

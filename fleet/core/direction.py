@@ -1,5 +1,10 @@
 """Direction choice for ``auto`` tasks: cw (law 20) or ccw (law 17) per robot (pure).
 
+**Superseded by** :mod:`fleet.core.planner` (laws *and* start delays and holds, clusters,
+corridors). Kept only while ``fleet.service`` still calls :func:`choose_directions`;
+delete it, with ``tests/fleet/core/test_direction.py``, once the service calls
+:func:`fleet.core.planner.plan`.
+
 A candidate choice is scored by a closed-loop rollout of the whole fleet with the batch
 simulator (``fleet.core.simulate``, the same control code the robots run):
 

@@ -14,9 +14,25 @@ Decisions, per task (see :class:`TaskDecision`):
   until a later revision: the planner found no safe option; the task is ``waiting``);
 * ``revise`` -- a task under way gets ``revision + 1`` with a new law, delay or hold (a flip
   of the law, a hold, or a resume after a hold);
-* ``keep`` -- nothing to send.
+* ``keep`` -- nothing to send; the decision still carries the fresh corridor and arrival.
 
 A plan never starts or resumes a robot it predicts unsafe: such robots hold, with the reason.
+
+What the service does with a plan (the receding horizon):
+
+* fill ``TaskSnapshot.start_delay_left_s`` for tasks under way (the delay still to wait);
+  a robot reporting ``holding`` or ``lost`` is a standing obstacle (its task gets no
+  decision), and so is every robot without a task;
+* apply decisions whose ``revision`` still matches; send ``start_delay_s`` and ``hold``
+  with the assignment (``ParkAssignment``); a held task is ``waiting`` with ``reason``;
+* keep every decision's ``corridor`` (its ``t`` counts from when the plan was applied) and
+  re-plan when a robot leaves it
+  (:func:`~fleet.core.planner.corridor.left_corridor` with ``Plan.corridor_radius_m`` and
+  ``Plan.corridor_slack_s``), when robots join, finish or are lost, after
+  ``Plan.replan_in_s`` if set (held robots), and at a modest period; each call with robots
+  under way costs about one rollout per cluster when nothing changed;
+* count plans with ``waiting > 0`` (fallbacks) and plans that are not ``safe`` (only the
+  lead-in can make one unsafe: robots under way already too close before the plan lands).
 """
 
 from __future__ import annotations
@@ -57,7 +73,11 @@ class TaskSnapshot:
 
     ``gains`` holds the gains the robot would use with each law; ``named_robot`` is the robot
     the request names (None: the fleet chooses). ``law``, ``revision``, ``hold`` and
-    ``start_delay_s`` are what was last sent (under way only).
+    ``start_delay_s`` are what was last sent (under way only). ``start_delay_left_s`` is how
+    much of that start delay the robot still has to wait at the snapshot [s, robot time]
+    (the service: ``max(0, start_delay_s - time since the revision was sent)``); None means
+    unknown: the whole delay while the task is ``assigned`` or its robot reports
+    ``waiting``, none otherwise.
     """
 
     task_id: str
@@ -73,6 +93,7 @@ class TaskSnapshot:
     revision: int = 0
     hold: bool = False
     start_delay_s: float = 0.0
+    start_delay_left_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -98,7 +119,12 @@ class TaskDecision:
     ``revision`` is the task revision the decision was made from: the service applies it
     only if the task still has that revision (and the same robot and status family), else
     the decision is stale and dropped. ``corridor`` samples the predicted path
-    ``(t [s], x [m], y [m])`` so the service can see when the robot leaves it.
+    ``(t [s], x [m], y [m])`` so the service can see when the robot leaves it
+    (:func:`fleet.core.planner.corridor.left_corridor` with the plan's
+    ``corridor_radius_m`` and ``corridor_slack_s``); ``t`` counts from the moment the plan
+    reaches the robots. ``keep`` decisions carry a fresh corridor and arrival too.
+    ``predicted_min_separation_m``: the closest predicted centre distance of this robot to
+    any other over the plan (inf when none comes near) [m].
     """
 
     task_id: str
@@ -111,6 +137,7 @@ class TaskDecision:
     reason: str | None = None
     predicted_arrival_s: float | None = None
     corridor: tuple[tuple[float, float, float], ...] = ()
+    predicted_min_separation_m: float = float("inf")
 
 
 @dataclass(frozen=True)
@@ -125,3 +152,10 @@ class Plan:
     clusters: int = 0  # independent groups of interacting robots searched
     waiting: int = 0  # robots held because no option was safe
     notes: tuple[str, ...] = ()
+    #: [m] how far a robot may stray from its corridor before the service re-plans
+    corridor_radius_m: float = 0.5
+    #: [s] timing slack of the corridor check (a robot a little late or early is on it)
+    corridor_slack_s: float = 2.0
+    #: [s, robot time] re-plan after this long even without a trigger (robots hold and
+    #: should be tried again); None: only on triggers and the service's own period
+    replan_in_s: float | None = None

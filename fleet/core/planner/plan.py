@@ -1,180 +1,409 @@
-"""``plan``: who takes which task, with which law, and when (pure; snapshot in, plan out).
+"""``plan``: who takes which task, with which law, when -- and who waits (pure).
 
-This first planner keeps the service's original rules (it moved here from the service):
+1. **Assignment** (:mod:`~fleet.core.planner.assign`): queued tasks get available robots
+   (a pair whose every way passes a robot standing there is tried with another robot).
+2. **Scene** (:mod:`~fleet.core.planner.scene`): the robots to decide (new, under way,
+   held), the standing robots, the lead-in until the plan reaches the robots, and each
+   mover's solo predictions.
+3. **Seed and clusters**: a prioritised plan on the solo predictions staggers the robots
+   (:mod:`~fleet.core.planner.reserve`, no simulation); robots whose staggered paths come
+   within the peer radius (+ a margin) of each other at about the same time while both
+   move are searched together, the others apart (:mod:`~fleet.core.planner.clusters`).
+   Standing robots (lost ones too) join only the clusters that pass near them, and a robot
+   waiting at its start or parked at its goal where another cluster passes is a standing
+   obstacle ("phantom") of that cluster.
+4. **Search** (:mod:`~fleet.core.planner.search`): per cluster a law, a start delay or a
+   hold for every robot, by closed-loop rollouts at the agents' step; every cluster's
+   round goes to the simulator together (:mod:`~fleet.core.planner.rollout`).
+5. **Check**: the chosen plans' recorded rollouts are checked against each other. Clusters
+   whose robots now meet while both move are merged, and a cluster that passes a robot
+   of another standing where it did not know, or a standing robot it did not know, gets
+   it; those are searched again, seeded with their plans -- repairing conflicts only,
+   within ``recheck_budget``, ``merge_rounds`` times, then with the baseline and the safety
+   net only, and after that whatever still meets is merged -- until no plan meets what its
+   cluster did not see.
+   The recordings give the corridors.
 
-1. **Assignment.** Queued tasks that name a robot go to it first come, first served when it
-   is available; the others go to available robots by the optimal assignment on predicted
-   solo arrival times (:mod:`fleet.core.assignment`).
-2. **Direction.** ``auto`` tasks get cw or ccw from closed-loop rollouts of the whole
-   fleet (:func:`fleet.core.direction.choose_directions`): robots under way keep their law
-   unless flipping some of them is strictly safer; standing robots (idle, arrived,
-   holding, waiting, lost) are obstacles where they stand.
-3. **Never unsafe.** When the chosen laws are still predicted to bring a pair of robots
-   closer than ``separation_m``, the new robots do not start: they are assigned with
-   ``hold`` and the reason (their tasks wait), and are planned again later.
+Never unsafe: a cluster's chosen plan keeps ``separation_m`` for every pair involving a
+moving robot (the search's safety net holds robots until it does); robots held carry the
+reason. Decisions: ``assign`` for new tasks, ``revise`` for a task under way whose law,
+delay or hold changes, ``keep`` (with a fresh corridor) otherwise.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
-from fleet.core.assignment import TaskSpec, optimal_assignment, predicted_times
-from fleet.core.direction import Mover, Scene, choose_directions
-from fleet.core.planner.model import (
-    Plan,
-    PlanningSnapshot,
-    RobotSnapshot,
-    TaskDecision,
-    TaskSnapshot,
-)
-from fleet.core.tasks import TaskStatus
-from fleet.core.types import LAWS, Law
+import numpy as np
 
-#: Task statuses of a task under way (it has a robot).
-UNDER_WAY = (TaskStatus.ASSIGNED, TaskStatus.DRIVING, TaskStatus.WAITING)
+from fleet.core.planner.assign import pair_queued
+from fleet.core.planner.clusters import (
+    Cluster,
+    Phantom,
+    clusters,
+    components,
+    encounters,
+    near_standing,
+)
+from fleet.core.planner.config import PlannerConfig
+from fleet.core.planner.corridor import sample_corridor
+from fleet.core.planner.cost import Limits, Score, score
+from fleet.core.planner.model import Action, Plan, PlanningSnapshot, TaskDecision
+from fleet.core.planner.reserve import reservation
+from fleet.core.planner.rollout import Live, Outcome, advance
+from fleet.core.planner.scene import (
+    NEW,
+    Candidate,
+    Fleet,
+    build_fleet,
+    row_names,
+    scene_rows,
+    stuck,
+)
+from fleet.core.planner.search import ClusterSearch
+from fleet.core.types import LAWS, BoolArray, FloatArray
+
+#: [m] added to the peer radius when checking that chosen plans of clusters stay apart.
+_CHECK_MARGIN = 0.1
 
 
 @dataclass(frozen=True)
-class PlannerConfig:
-    """Search bounds of the planner (see :func:`fleet.core.direction.choose_directions`)."""
+class _Settled:
+    """A cluster's chosen plan and its recorded rollout."""
 
-    exhaustive_limit: int = 4
-    budget: int = 24
+    cluster: Cluster
+    best: Score
+    outcome: Outcome
+    reasons: dict[int, str]
 
 
-def _pairs(
-    snapshot: PlanningSnapshot, queued: list[TaskSnapshot]
-) -> list[tuple[TaskSnapshot, RobotSnapshot]]:
-    """Queued tasks matched to available robots (named first come, first served)."""
-    available = {r.robot_id: r for r in snapshot.robots if r.available}
-    pairs: list[tuple[TaskSnapshot, RobotSnapshot]] = []
-    for task in queued:
-        rid = task.named_robot
-        if rid is not None and rid in available:
-            pairs.append((task, available.pop(rid)))
-    unnamed = [t for t in queued if t.named_robot is None][: len(available)]
-    if unnamed and available:
-        robots = list(available.values())
-        specs = [
-            TaskSpec(
-                goal=t.goal,
-                laws=LAWS if t.direction == "auto" else (t.direction,),
-                gains=t.gains,
-                tolerance=t.tolerance,
+def _drive(fleet: Fleet, searches: Sequence[ClusterSearch], config: PlannerConfig) -> None:
+    """Run every search's rounds; each round's candidates of all clusters advance together
+    in segments, and a candidate stops once done, unsafe, or past its cluster's horizon.
+
+    Segments double from ``segment_s`` (conflicts are mostly early, and a long run then
+    costs few calls); each is a whole number of recording periods."""
+    every = _record_every(fleet, config)
+    period = every * fleet.dt
+    pending = {i: s.start() for i, s in enumerate(searches)}
+    while pending:
+        jobs = []
+        for i, cands in pending.items():
+            s = searches[i]
+            for c in cands:
+                rows = scene_rows(fleet, s.cluster, c)
+                jobs.append((i, c, rows, Live(rows), Limits.of(fleet.separation, rows, ~c.hold)))
+        limit = {i: searches[i].run_horizon for i in pending}
+        segment = period * max(1, round(config.segment_s / period))
+        while True:
+            live = [j for j in jobs if not j[3].stopped]
+            if not live:
+                break
+            advance(
+                [j[3] for j in live],
+                fleet.world,
+                dt=fleet.dt,
+                duration=segment,
+                record_every=every,
+                max_rows=config.max_rows_per_call,
             )
-            for t in unnamed
-        ]
-        cost = predicted_times(
-            [r.pose for r in robots],
-            specs,
-            snapshot.profile,
-            snapshot.obstacles,
-            snapshot.avoidance,
+            segment *= 2
+            for i, _, _, lv, lim in live:
+                if lv.elapsed >= limit[i] - 1e-9 or lim.broken(lv.min_pair):
+                    lv.stopped = True
+        scores: dict[int, list[Score]] = {i: [] for i in pending}
+        for i, c, rows, lv, _ in jobs:
+            s = searches[i]
+            scores[i].append(
+                score(
+                    fleet,
+                    s.cluster.movers,
+                    c,
+                    rows,
+                    lv.outcome(),
+                    s.horizon,
+                    config.change_penalty_s,
+                    s.solo,
+                )
+            )
+        nxt = {}
+        for i in pending:
+            more = searches[i].send(scores[i])
+            if more:
+                nxt[i] = more
+        pending = nxt
+
+
+def _record_every(fleet: Fleet, config: PlannerConfig) -> int:
+    """Steps between recorded positions (the clusters' sample period)."""
+    return max(1, round(config.sample_period_s / fleet.dt))
+
+
+def _hold_reasons(fleet: Fleet, search: ClusterSearch) -> dict[int, str]:
+    """Why each held robot of the chosen plan holds: the closest call of its best release."""
+    best = search.best
+    assert best is not None
+    out: dict[int, str] = {}
+    ids = row_names(fleet, search.cluster)
+    for pos in (int(v) for v in np.flatnonzero(best.candidate.hold)):
+        released = [s for s in search.memo.values() if not s.candidate.hold[pos]]
+        me = ids[pos]
+        if not released:
+            out[pos] = f"waiting: {me} has no safe option yet (not rolled out)"
+            continue
+        top = min(released, key=lambda s: s.key)
+        mine = [v for v in top.violations if pos in (v.a, v.b)] or list(top.violations)
+        if not mine:
+            out[pos] = f"waiting: holding {me} keeps the others safe; it will be planned again"
+            continue
+        v = mine[0]
+        other = ids[v.b] if v.a == pos else ids[v.a]
+        if pos not in (v.a, v.b):
+            other = f"{ids[v.a]} and {ids[v.b]}"
+        out[pos] = (
+            f"waiting: every option tried for {me} was predicted to bring {other} within "
+            f"{v.distance:.2f} m (< {v.allowed:.2f} m)"
         )
-        for i, j in optimal_assignment(cost):
-            pairs.append((unnamed[j], robots[i]))
-    return pairs
+    return out
+
+
+def _settle(fleet: Fleet, searches: Sequence[ClusterSearch]) -> list[_Settled]:
+    out = []
+    for s in searches:
+        assert s.best is not None and s.best.outcome is not None
+        out.append(_Settled(s.cluster, s.best, s.best.outcome, _hold_reasons(fleet, s)))
+    return out
+
+
+def _moving(o: Outcome, c: Candidate, k: int) -> tuple[FloatArray, BoolArray]:
+    """Positions (T, k, 2) of a rollout's movers and where each moves (T, k)."""
+    assert o.xy is not None and o.times is not None
+    arrival = np.where(np.isnan(o.time[:k]), np.inf, o.time[:k])
+    t = o.times[:, None]
+    return o.xy[:, :k], (~c.hold[None, :]) & (t >= c.delay[None, :]) & (t < arrival[None, :])
+
+
+def _paths(fleet: Fleet, settled: Sequence[_Settled]) -> tuple[FloatArray, BoolArray]:
+    """Every mover's recorded positions on one time grid (k, T, 2), padded with the last,
+    and where each moves (k, T)."""
+    k = fleet.movers.size
+    length = max((s.outcome.xy.shape[0] for s in settled if s.outcome.xy is not None), default=1)
+    paths = np.zeros((k, length, 2))
+    moving = np.zeros((k, length), dtype=bool)
+    for s in settled:
+        xy, mov = _moving(s.outcome, s.best.candidate, len(s.cluster.movers))
+        n = xy.shape[0]
+        for pos, i in enumerate(s.cluster.movers):
+            paths[i, :n], paths[i, n:] = xy[:, pos], xy[-1, pos]
+            moving[i, :n] = mov[:, pos]
+    return paths, moving
+
+
+@dataclass(frozen=True)
+class _Redo:
+    """Settled clusters to search again as one, with what they did not see."""
+
+    group: list[int]
+    phantoms: set[Phantom]
+    standing: set[int]
+
+
+def _check(fleet: Fleet, settled: Sequence[_Settled], force: bool) -> list[_Redo]:
+    """What the chosen plans meet that their clusters did not see (module docstring, 5).
+
+    ``force``: a cluster that missed a robot of another cluster is merged with it."""
+    k = fleet.movers.size
+    paths, moving = _paths(fleet, settled)
+    where = np.zeros(k, dtype=np.int64)
+    for c, s in enumerate(settled):
+        where[list(s.cluster.movers)] = c
+    reach = max(fleet.world.avoidance.peer_radius, fleet.separation) + _CHECK_MARGIN
+    found = encounters(paths, moving, list(range(k)), reach, 1)
+    links = [(int(where[i]), int(where[j])) for i, j in found.pairs if where[i] != where[j]]
+    ghosts: dict[int, set[Phantom]] = {}
+    for i, wanted in found.phantoms.items():
+        c = int(where[i])
+        for p in wanted:
+            if where[p[2]] != c and not settled[c].cluster.knows(p):
+                if force:
+                    links.append((c, int(where[p[2]])))
+                else:
+                    ghosts.setdefault(c, set()).add(p)
+    stand: dict[int, set[int]] = {}
+    live = np.flatnonzero(moving.any(axis=1))
+    for i, j in near_standing(paths[live], live.tolist(), fleet.standing_xy, reach):
+        c = int(where[i])
+        if j not in settled[c].cluster.standing:
+            stand.setdefault(c, set()).add(j)
+    touched = {c for pair in links for c in pair} | set(ghosts) | set(stand)
+    out = []
+    for group in components(len(settled), links):
+        if any(c in touched for c in group):
+            out.append(
+                _Redo(
+                    group,
+                    set().union(*(ghosts.get(c, set()) for c in group)),
+                    set().union(*(stand.get(c, set()) for c in group)),
+                )
+            )
+    return out
+
+
+def _regroup(fleet: Fleet, settled: Sequence[_Settled], redo: _Redo) -> tuple[Cluster, Candidate]:
+    """One cluster for ``redo`` and the seed its clusters' plans make."""
+    parts = [settled[c] for c in redo.group]
+    movers = sorted(i for s in parts for i in s.cluster.movers)
+    members = set(movers)
+    standing = sorted(redo.standing.union(*(s.cluster.standing for s in parts)))
+    ghosts = {p for s in parts for p in s.cluster.phantoms if p[2] not in members}
+    ghosts |= {p for p in redo.phantoms if p[2] not in members}
+    seed = fleet.keep(movers)
+    for s in parts:
+        cand = s.best.candidate
+        for pos, i in enumerate(s.cluster.movers):
+            j = movers.index(i)
+            seed.law[j], seed.delay[j], seed.hold[j] = (
+                cand.law[pos],
+                cand.delay[pos],
+                cand.hold[pos],
+            )
+    return Cluster(tuple(movers), tuple(standing), tuple(sorted(ghosts))), seed
+
+
+def _initial_clusters(fleet: Fleet, config: PlannerConfig) -> list[tuple[Cluster, list[Candidate]]]:
+    """Clusters of the prioritised seed's paths, each with its share of the seed."""
+    m = fleet.movers
+    k = m.size
+    sep = fleet.separation
+    seed, paths = reservation(
+        fleet,
+        list(range(k)),
+        list(range(fleet.standing_xy.shape[0])),
+        config.reserve_delays_s,
+        sep + config.reserve_margin_m,
+        sep + config.reserve_margin_m / 2,
+    )
+    period = fleet.solo_times[1] - fleet.solo_times[0] if fleet.solo_times.size > 1 else 1.0
+    t = np.arange(paths.shape[1])[None, :] * period
+    solo = fleet.solo_time[np.arange(k), seed.law]
+    moving = (t >= seed.delay[:, None]) & (t < (seed.delay + solo)[:, None])
+    reach = fleet.world.avoidance.peer_radius + config.interaction_margin_m
+    window = max(1, round(config.cluster_slack_s / period))
+    out = []
+    for c in clusters(paths, moving, k, fleet.standing_xy, reach, window):
+        idx = np.asarray(c.movers, dtype=np.int64)
+        out.append((c, [Candidate(seed.law[idx], seed.delay[idx], seed.hold[idx])]))
+    return out
+
+
+def _decisions(
+    fleet: Fleet, settled: Sequence[_Settled], config: PlannerConfig
+) -> list[TaskDecision]:
+    m = fleet.movers
+    every = max(1, round(config.corridor_period_s / config.sample_period_s))
+    out = []
+    for s in settled:
+        c = s.best.candidate
+        o = s.outcome
+        assert o.xy is not None and o.times is not None
+        for pos, i in enumerate(s.cluster.movers):
+            task = m.tasks[i]
+            law_i, delay, hold = int(c.law[pos]), float(c.delay[pos]), bool(c.hold[pos])
+            kind = int(m.kind[i])
+            same = hold == bool(m.keep_hold[i]) and (
+                hold or (law_i == int(m.keep_law[i]) and abs(delay - m.keep_delay[i]) <= 1e-6)
+            )
+            action: Action = "assign" if kind == NEW else "keep" if same else "revise"
+            arrival = s.best.arrival[pos] if o.done[pos] else math.nan
+            out.append(
+                TaskDecision(
+                    task_id=task.task_id,
+                    robot_id=m.robot_ids[i],
+                    action=action,
+                    law=LAWS[law_i],
+                    revision=task.revision,
+                    start_delay_s=round(delay, 3),
+                    hold=hold,
+                    reason=s.reasons.get(pos) if hold else None,
+                    predicted_arrival_s=None
+                    if hold or not np.isfinite(arrival)
+                    else round(float(arrival), 3),
+                    corridor=sample_corridor(o.times, o.xy[:, pos], every),
+                    predicted_min_separation_m=float(s.best.separation[pos]),
+                )
+            )
+    return out
 
 
 def plan(snapshot: PlanningSnapshot, config: PlannerConfig | None = None) -> Plan:
     """Decide the queued and under-way tasks of ``snapshot`` (see the module docstring)."""
     config = config or PlannerConfig()
-    robots = {r.robot_id: r for r in snapshot.robots}
-    queued = sorted(
-        (t for t in snapshot.tasks if t.status == TaskStatus.QUEUED), key=lambda t: t.created_at
+    pairs = pair_queued(snapshot, config)
+    fleet = build_fleet(snapshot, pairs, config)
+    avoid = frozenset(
+        (t.task_id, fleet.movers.robot_ids[i])
+        for i in stuck(fleet)
+        if (t := fleet.movers.tasks[i]).named_robot is None
     )
-    under_way = [
-        t
-        for t in snapshot.tasks
-        if t.status in UNDER_WAY and t.robot_id in robots and t.law is not None and not t.hold
-    ]
-    pairs = _pairs(snapshot, queued)
-    if not pairs:
+    if avoid:  # another robot may take these tasks (assign's module docstring)
+        pairs = pair_queued(snapshot, config, avoid)
+        fleet = build_fleet(snapshot, pairs, config)
+    if fleet.movers.size == 0:
         return Plan(snapshot.version, (), True, float("inf"))
-
-    movers: list[Mover] = []
-    moving: set[str] = set()
-    for t in under_way:
-        assert t.robot_id is not None and t.law is not None
-        movers.append(
-            Mover(
-                robot_id=t.robot_id,
-                pose=robots[t.robot_id].pose,
-                goal=t.goal,
-                gains=t.gains,
-                tolerance=t.tolerance,
-                law=t.law,
-                auto=t.direction == "auto",
-            )
-        )
-        moving.add(t.robot_id)
-    for task, robot in pairs:
-        fixed: Law | None = None if task.direction == "auto" else task.direction
-        movers.append(
-            Mover(
-                robot_id=robot.robot_id,
-                pose=robot.pose,
-                goal=task.goal,
-                gains=task.gains,
-                tolerance=task.tolerance,
-                law=fixed,
-                auto=fixed is None,
-            )
-        )
-        moving.add(robot.robot_id)
-    standing = [r.pose[:2] for r in snapshot.robots if r.robot_id not in moving]
-    scene = Scene(
-        movers=movers,
-        standing=[(x, y) for x, y in standing],
-        obstacles=snapshot.obstacles,
-        avoidance=snapshot.avoidance,
-        profile=snapshot.profile,
-        lead_time=snapshot.lead_time_s,
-    )
-    choice = choose_directions(
-        scene,
-        snapshot.separation_m,
-        dt=snapshot.control_dt,
-        exhaustive_limit=config.exhaustive_limit,
-        budget=config.budget,
-    )
-    best = choice.best
-    laws = best.laws
-    decisions: list[TaskDecision] = []
-    for k, t in enumerate(under_way):
-        assert t.robot_id is not None and t.law is not None
-        if laws[k] != t.law:
-            decisions.append(
-                TaskDecision(t.task_id, t.robot_id, "revise", laws[k], revision=t.revision)
-            )
-    first_new = len(under_way)
-    hold_reason = None
-    if not best.safe:
-        hold_reason = (
-            f"waiting: every option was predicted to bring robots within "
-            f"{best.min_separation:.2f} m of each other (< {snapshot.separation_m:g} m)"
-        )
-    for k, (task, robot) in enumerate(pairs):
-        decisions.append(
-            TaskDecision(
-                task.task_id,
-                robot.robot_id,
-                "assign",
-                laws[first_new + k],
-                hold=hold_reason is not None,
-                reason=hold_reason,
-            )
+    todo = _initial_clusters(fleet, config)
+    settled: list[_Settled] = []
+    rollouts, merges, round_ = 0, 0, 0
+    while todo:
+        if round_ == 0:
+            budget = config.budget
+        else:
+            budget = config.recheck_budget if round_ <= config.merge_rounds else 0
+        searches = [
+            ClusterSearch(fleet, c, config, seeds, budget, improve=round_ == 0) for c, seeds in todo
+        ]
+        _drive(fleet, searches, config)
+        rollouts += sum(s.rollouts for s in searches)
+        settled += _settle(fleet, searches)
+        redo = _check(fleet, settled, force=round_ > config.merge_rounds + 1)
+        if not redo:
+            break
+        merges += len(redo)
+        regrouped = [_regroup(fleet, settled, r) for r in redo]
+        gone = {c for r in redo for c in r.group}
+        settled = [s for c, s in enumerate(settled) if c not in gone]
+        todo = [(cluster, [seed]) for cluster, seed in regrouped]
+        round_ += 1
+    settled.sort(key=lambda s: s.cluster.movers[0])
+    decisions = _decisions(fleet, settled, config)
+    waiting = sum(d.hold for d in decisions)
+    plan_min = min((s.best.min_separation for s in settled), default=float("inf"))
+    min_sep = min(plan_min, fleet.lead_min_separation)
+    safe = all(s.best.safe for s in settled) and fleet.lead_min_separation >= fleet.separation
+    notes = [
+        f"clusters: {sorted((len(s.cluster.movers) for s in settled), reverse=True)}",
+    ]
+    if merges:
+        notes.append(f"searched {merges} cluster(s) again after checking the chosen plans")
+    if fleet.lead_min_separation < fleet.separation:
+        notes.append(
+            f"lead-in: robots under way come within {fleet.lead_min_separation:.2f} m before "
+            "the plan reaches them"
         )
     return Plan(
         snapshot_version=snapshot.version,
         decisions=tuple(decisions),
-        safe=best.safe,
-        min_separation_m=best.min_separation,
-        rollouts=choice.evaluations,
-        clusters=1,
-        waiting=len(pairs) if hold_reason else 0,
-        notes=tuple(choice.searched),
+        safe=safe,
+        min_separation_m=min_sep,
+        rollouts=rollouts,
+        clusters=len(settled),
+        waiting=waiting,
+        notes=tuple(notes),
+        corridor_radius_m=config.corridor_radius_m,
+        corridor_slack_s=config.corridor_slack_s,
+        replan_in_s=config.hold_retry_s if waiting else None,
     )
 
 
-__all__ = ["UNDER_WAY", "PlannerConfig", "plan"]
+__all__ = ["PlannerConfig", "plan"]

@@ -330,10 +330,11 @@ def _other(law: Law | None) -> Law:
     return "cw" if law == "ccw" else "ccw"
 
 
-def test_a_strictly_safer_replan_sends_the_next_revision_with_the_new_law(fleet: Fleet) -> None:
+def test_a_replan_that_changes_a_robot_under_way_sends_the_next_revision(fleet: Fleet) -> None:
     """Two robots swap sides; the second one's task fixes the opposite sense of the first
-    one's law, which would make them meet head on (mixed senses collide). Flipping the
-    robot under way is strictly safer: it gets revision 1 with the new law."""
+    one's law, which would make them meet head on (mixed senses collide). The planner must
+    change the robot under way (flip its law, or stop it for a while so the other passes
+    first): it gets revision 1 carrying that change, re-sent until acknowledged."""
     fleet.service.lead_time_max = 0.0  # plan from the reported poses (deterministic)
     q = math.pi / 4
     fleet.join("r0", 4.0, 0.0)
@@ -359,11 +360,13 @@ def test_a_strictly_safer_replan_sends_the_next_revision_with_the_new_law(fleet:
     )
     fleet.service.tick()
     revised = fleet.service.task(first.id)
-    assert revised.law == _other(park0.law) and revised.revision == 1
+    assert revised.revision == 1
+    assert revised.law != park0.law or revised.start_delay_s > 0 or revised.hold
     assert revised.status == TaskStatus.DRIVING
     assert fleet.service.task(second.id).law == _other(park0.law)
     _, park1 = fleet.parks("r0")
     assert (park1.task_id, park1.revision, park1.law) == (first.id, 1, revised.law)
+    assert (park1.start_delay_s, park1.hold) == (revised.start_delay_s, revised.hold)
     assert park1.gains == revised.request.gains_for(revised.law)
     # stored before announced, as every transition
     assert [ev for _, ev, _ in fleet.store.history(first.id)][-1] == "replanned"
@@ -379,12 +382,11 @@ def test_a_strictly_safer_replan_sends_the_next_revision_with_the_new_law(fleet:
     fleet.service.tick()
     assert len(fleet.parks("r0")) == 3
 
-    # The robot's side: revision 1 replaces the law; late copies of revision 0 do not.
+    # The robot's side: revision 1 replaces revision 0; late copies of revision 0 do not.
     task = None
     for msg in [park0, park1, park0, park1, park0]:
         task = apply_assignment(task, msg)
-    assert task is not None and task.assignment.law == revised.law
-    assert task.assignment.revision == 1
+    assert task is not None and task.assignment == park1
 
 
 def test_a_safe_robot_under_way_is_not_replanned(fleet: Fleet) -> None:

@@ -1,68 +1,238 @@
-"""The planner's contract: snapshot in, decisions out (assignment, law, hold with reason)."""
+"""The planner's contract on scenes worth naming: swaps, a robot that must wait, holds,
+robots under way (keep, revise), lost robots, corridors."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
-from fleet.core.params import Tolerance
-from fleet.core.planner import PlanningSnapshot, RobotSnapshot, TaskSnapshot, plan
+import pytest
+from planning import TOL, idle, moved_on, queued, replay, scene, swap2
+
+from fleet.core.planner import (
+    Plan,
+    PlanningSnapshot,
+    RobotSnapshot,
+    TaskDecision,
+    TaskSnapshot,
+    left_corridor,
+    plan,
+)
 from fleet.core.tasks import DEFAULT_GAINS, RobotStatus, TaskStatus
-from fleet.core.types import Posture
-
-TOL = Tolerance(position=0.1, heading=0.1)
 
 
-def robot(rid: str, pose: Posture) -> RobotSnapshot:
-    return RobotSnapshot(rid, pose, RobotStatus.IDLE, available=True)
+def by_task(result: Plan) -> dict[str, TaskDecision]:
+    return {d.task_id: d for d in result.decisions}
 
 
-def task(tid: str, goal: Posture, created: float, named: str | None = None) -> TaskSnapshot:
-    return TaskSnapshot(
-        task_id=tid,
-        goal=goal,
-        direction="auto",
-        gains=dict(DEFAULT_GAINS),
-        tolerance=TOL,
-        status=TaskStatus.QUEUED,
-        created_at=created,
-        named_robot=named,
-    )
-
-
-def swap(separation: float) -> PlanningSnapshot:
-    return PlanningSnapshot(
-        version=7,
-        robots=(robot("a", (-3.0, 0.0, 0.0)), robot("b", (3.0, 0.0, math.pi))),
-        tasks=(task("ta", (3.0, 0.0, 0.0), 1.0, "a"), task("tb", (-3.0, 0.0, math.pi), 2.0, "b")),
-        separation_m=separation,
-        control_dt=0.05,
-    )
-
-
-def test_a_safe_swap_assigns_both_named_robots_with_a_law_and_no_hold() -> None:
-    result = plan(swap(0.5))
-    assert result.snapshot_version == 7 and result.safe
-    by_task = {d.task_id: d for d in result.decisions}
-    assert {t: (d.robot_id, d.action, d.hold) for t, d in by_task.items()} == {
-        "ta": ("a", "assign", False),
-        "tb": ("b", "assign", False),
+@pytest.mark.parametrize("mirror", [False, True], ids=["chirality-a", "chirality-b"])
+def test_a_swap_of_two_gets_a_safe_plan_in_both_chiralities(mirror: bool) -> None:
+    snapshot = swap2(mirror)
+    result = plan(snapshot)
+    assert result.safe and result.waiting == 0 and result.snapshot_version == 1
+    assert {(d.task_id, d.robot_id, d.action, d.hold) for d in result.decisions} == {
+        ("t0", "r0", "assign", False),
+        ("t1", "r1", "assign", False),
     }
-    assert result.min_separation_m >= 0.5 and result.waiting == 0
+    assert result.min_separation_m >= snapshot.separation_m
+    run = replay(snapshot, result)  # the plan, run by the simulator on its own
+    assert run.worst_shortfall(snapshot.separation_m) <= 0
+    assert run.result.done.all()
+    for i, d in enumerate(result.decisions):
+        assert d.predicted_arrival_s == pytest.approx(float(run.result.time[i]), abs=0.05)
+
+
+CROSSING = dict(
+    starts=[(-4.0, 0.0, 0.0), (0.0, -4.0, math.pi / 2)],
+    goals=[(4.0, 0.0, 0.0), (0.0, 4.0, math.pi / 2)],
+)
+
+
+def test_a_robot_waits_for_a_peer_to_pass_when_it_must() -> None:
+    """Two robots crossing at right angles reach the middle together; with fixed laws and
+    0.9 m to keep, the repulsion alone cannot keep them apart: one must wait."""
+    snapshot = scene(**CROSSING, separation=0.9, direction="cw")  # type: ignore[arg-type]
+    both_go = Plan(
+        1,
+        tuple(TaskDecision(f"t{i}", f"r{i}", "assign", "cw") for i in range(2)),  # no waiting
+        True,
+        0.0,
+    )
+    assert replay(snapshot, both_go).worst_shortfall(0.9) > 0  # so waiting is needed
+    result = plan(snapshot)
+    assert result.safe and result.waiting == 0
+    waits = [d for d in result.decisions if d.start_delay_s > 0]
+    assert len(waits) == 1 and not waits[0].hold
+    run = replay(snapshot, result)
+    assert run.worst_shortfall(0.9) <= 0 and run.result.done.all()
 
 
 def test_when_no_option_is_safe_the_new_robots_hold_with_the_reason() -> None:
-    result = plan(swap(5.0))  # no way round keeps 5 m on a 6 m swap
-    assert not result.safe and result.waiting == 2
+    result = plan(swap2(separation=5.0))  # no way round keeps 5 m on a 6 m swap
+    assert result.safe and result.waiting == 2  # safe: it moves nobody
     for d in result.decisions:
         assert d.action == "assign" and d.hold
         assert d.reason is not None and "waiting" in d.reason
+        assert d.predicted_arrival_s is None
+    assert result.replan_in_s is not None  # held robots are planned again
 
 
 def test_nothing_to_plan_without_an_available_robot() -> None:
-    snapshot = swap(0.5)
+    snapshot = swap2()
     busy = tuple(
         RobotSnapshot(r.robot_id, r.pose, RobotStatus.DRIVING, available=False)
         for r in snapshot.robots
     )
-    result = plan(PlanningSnapshot(version=1, robots=busy, tasks=snapshot.tasks))
+    result = plan(dataclasses.replace(snapshot, robots=busy))
     assert result.decisions == () and result.safe
+
+
+def test_unnamed_tasks_go_to_the_nearest_robots() -> None:
+    robots = (idle("near", (0.0, 0.0, 0.0)), idle("far", (9.0, 9.0, 0.0)))
+    tasks = (queued("t", (2.0, 0.0, 0.0), None),)
+    result = plan(PlanningSnapshot(1, robots, tasks, control_dt=0.05))
+    assert [(d.task_id, d.robot_id, d.action) for d in result.decisions] == [
+        ("t", "near", "assign")
+    ]
+
+
+def test_robots_under_way_that_are_safe_are_kept_with_a_fresh_corridor() -> None:
+    snapshot = swap2()
+    first = plan(snapshot)
+    again = plan(moved_on(snapshot, first, 0.0))
+    assert [d.action for d in again.decisions] == ["keep", "keep"]
+    for old, new in zip(first.decisions, again.decisions, strict=True):
+        assert new.law == old.law and new.corridor and not new.hold
+        assert new.predicted_arrival_s == pytest.approx(old.predicted_arrival_s, abs=0.05)
+
+
+def test_a_robot_under_way_on_a_collision_course_is_revised() -> None:
+    """Both robots already drive at each other with laws that do not keep 0.9 m: the plan
+    changes at least one (flip, wait or hold) as a new revision, and is safe."""
+    snapshot = scene(**CROSSING, separation=0.9)  # type: ignore[arg-type]
+    driving = tuple(
+        dataclasses.replace(t, status=TaskStatus.DRIVING, robot_id=f"r{i}", law="cw", revision=3)
+        for i, t in enumerate(snapshot.tasks)
+    )
+    robots = tuple(
+        RobotSnapshot(r.robot_id, r.pose, RobotStatus.DRIVING, False, f"t{i}", "cw", 3)
+        for i, r in enumerate(snapshot.robots)
+    )
+    moving = dataclasses.replace(snapshot, robots=robots, tasks=driving)
+    result = plan(moving)
+    revised = [d for d in result.decisions if d.action == "revise"]
+    assert revised and all(d.revision == 3 for d in revised)
+    assert replay(moving, result).worst_shortfall(0.9) <= 0
+
+
+def test_a_lost_robot_far_away_is_not_part_of_the_plan() -> None:
+    snapshot = swap2()
+    lost = RobotSnapshot("gone", (80.0, 80.0, 0.0), RobotStatus.LOST, available=False)
+    with_lost = dataclasses.replace(snapshot, robots=(*snapshot.robots, lost))
+    assert by_task(plan(with_lost)) == by_task(plan(snapshot))
+
+
+def with_lost(y: float) -> PlanningSnapshot:
+    """One robot driving along the x axis past a lost robot at (0, ``y``)."""
+    free = scene([(-4.0, 0.0, 0.0)], [(4.0, 0.0, 0.0)])
+    lost = RobotSnapshot("gone", (0.0, y, 0.0), RobotStatus.LOST, available=False)
+    return dataclasses.replace(free, robots=(*free.robots, lost))
+
+
+def test_a_lost_robot_beside_the_way_is_an_obstacle() -> None:
+    snapshot = with_lost(0.8)
+    result = plan(snapshot)
+    (d,) = result.decisions
+    assert not d.hold
+    assert d.predicted_min_separation_m < 1.0  # it passes the lost robot, knowing it is there
+    assert replay(snapshot, result).worst_shortfall(0.5) <= 0
+
+
+def test_a_robot_with_a_lost_robot_straight_ahead_holds() -> None:
+    """Neither law bends a straight run: no option passes the lost robot safely."""
+    (d,) = plan(with_lost(0.0)).decisions
+    assert d.hold and d.reason is not None and "gone" in d.reason
+
+
+def test_the_corridor_follows_the_predicted_path_and_is_left_elsewhere() -> None:
+    result = plan(swap2())
+    for d in result.decisions:
+        t0, x0, y0 = d.corridor[0]
+        assert t0 == 0.0
+        for t, x, y in d.corridor[:: max(1, len(d.corridor) // 10)]:
+            assert not left_corridor(d.corridor, t, x, y, 0.05, 0.0)
+        assert left_corridor(d.corridor, 0.0, x0 + 3.0, y0, 0.5, 1.0)
+
+
+def test_a_task_under_way_with_a_lost_robot_gets_no_decision() -> None:
+    snapshot = swap2()
+    t0 = dataclasses.replace(snapshot.tasks[0], status=TaskStatus.DRIVING, robot_id="r0", law="cw")
+    r0 = RobotSnapshot("r0", snapshot.robots[0].pose, RobotStatus.LOST, False, "t0", "cw")
+    result = plan(
+        dataclasses.replace(
+            snapshot, robots=(r0, snapshot.robots[1]), tasks=(t0, snapshot.tasks[1])
+        )
+    )
+    assert [d.task_id for d in result.decisions] == ["t1"]
+
+
+def test_fixed_directions_are_respected() -> None:
+    result = plan(scene(**CROSSING, direction="ccw"))  # type: ignore[arg-type]
+    assert {d.law for d in result.decisions} == {"ccw"}
+
+
+def test_held_tasks_are_released_once_it_is_safe() -> None:
+    snapshot = swap2()
+    held = tuple(
+        TaskSnapshot(
+            task_id=t.task_id,
+            goal=t.goal,
+            direction="auto",
+            gains=dict(DEFAULT_GAINS),
+            tolerance=TOL,
+            status=TaskStatus.WAITING,
+            created_at=t.created_at,
+            named_robot=t.named_robot,
+            robot_id=t.named_robot,
+            law="ccw",
+            revision=1,
+            hold=True,
+        )
+        for t in snapshot.tasks
+    )
+    robots = tuple(
+        RobotSnapshot(r.robot_id, r.pose, RobotStatus.WAITING, False, f"t{i}", "ccw", 1)
+        for i, r in enumerate(snapshot.robots)
+    )
+    result = plan(dataclasses.replace(snapshot, robots=robots, tasks=held))
+    assert result.waiting == 0
+    assert all(d.action == "revise" and not d.hold and d.revision == 1 for d in result.decisions)
+
+
+def test_robots_under_way_are_rolled_on_until_the_plan_reaches_them() -> None:
+    snapshot = swap2()
+    first = plan(snapshot)
+    moving = dataclasses.replace(moved_on(snapshot, first, 0.0), lead_time_s=1.0)
+    result = plan(moving)
+    for r, d in zip(moving.robots, result.decisions, strict=True):
+        t0, x0, y0 = d.corridor[0]
+        assert t0 == 0.0 and d.action == "keep"
+        assert 0.1 < math.dist((x0, y0), r.pose[:2]) < 1.5  # where it will be in 1 s
+
+
+def test_static_obstacles_are_avoided_and_known_to_the_prediction() -> None:
+    """The paper's comparative case III: (0, 2, 0) to (0, -2, 0) between two obstacles."""
+    from fleet.core.wire import Obstacle
+    from fleet.paper.scenarios import SCENARIOS
+
+    case = SCENARIOS["III"]
+    snapshot = dataclasses.replace(
+        scene([case.start], [case.goal]),
+        obstacles=(Obstacle(x=0.8, y=0.0, radius=1.0), Obstacle(x=-0.8, y=0.0, radius=1.0)),
+    )
+    result = plan(snapshot)
+    (d,) = result.decisions
+    assert result.safe and not d.hold and d.predicted_arrival_s is not None
+    run = replay(snapshot, result)
+    assert run.result.done.all()
+    assert float(run.result.time[0]) == pytest.approx(d.predicted_arrival_s, abs=1e-6)

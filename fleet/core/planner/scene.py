@@ -1,0 +1,380 @@
+"""The planning problem of one snapshot: who may move, from where, and how (pure arrays).
+
+A :class:`Fleet` holds
+
+* the *movers*: robots with a task to decide -- ``NEW`` (a queued task just paired with an
+  available robot), ``UNDER_WAY`` (driving, or in its start delay) and ``HELD`` (its task
+  waits on a hold). Each has its goal, gains per law, tolerance, the laws it may use and
+  what it does now (``keep_*``: law, remaining start delay, hold);
+* the *standing* robots: every other robot of the snapshot (idle, arrived, holding, lost,
+  and robots under way whose robot does not drive: ``holding``/``lost``). They stand
+  still and repel like peers wherever a plan passes near them;
+* the **lead-in**: the plan reaches the robots ``lead_time_s`` after the snapshot; until
+  then the robots under way go on as they are (new robots stand), rolled out once for the
+  whole fleet. Every candidate starts from the lead-in's end (``start``), and the
+  separation during the lead-in is reported (no decision can change it);
+* the **solo predictions**: each mover alone (static obstacles, no peers) with each law it
+  may use, from ``start``: arrival times (lower bounds, horizons, default law), sampled
+  paths (clusters) and which movers must pass before which others park (``blocks``).
+
+A :class:`Candidate` gives every mover of a cluster a law, a start delay and a hold flag;
+:func:`scene_rows` turns it into the rows of one rollout (movers first, then standing).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from fleet.core.planner.clusters import Cluster
+from fleet.core.planner.config import PlannerConfig
+from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
+from fleet.core.planner.rollout import STANDING_DELAY, STANDING_TOLERANCE, Rows, World, roll_out
+from fleet.core.tasks import RobotStatus, TaskStatus
+from fleet.core.types import LAWS, BoolArray, FloatArray, Law
+
+IntArray = npt.NDArray[np.int64]
+
+#: [m] beyond the separation: a solo path this near another mover's goal is blocked once
+#: that mover parks there (see ``Fleet.blocks``).
+BLOCK_MARGIN_M = 0.1
+#: [m] beyond the separation: a new robot whose every solo path passes this near a robot
+#: standing there is stuck (the repulsion bends paths towards it by up to about this).
+STUCK_MARGIN_M = 0.3
+
+NEW, UNDER_WAY, HELD = 0, 1, 2
+LAW_INDEX: dict[Law, int] = {"ccw": 0, "cw": 1}
+#: Task statuses of a task under way (it has a robot).
+UNDER_WAY_STATUSES = (TaskStatus.ASSIGNED, TaskStatus.DRIVING, TaskStatus.WAITING)
+#: Robots that do not drive whatever their task says: they stand.
+_STILL = (RobotStatus.LOST, RobotStatus.HOLDING)
+
+
+@dataclass(frozen=True)
+class Movers:
+    """The robots whose task the plan decides (k of them, arrays indexed by mover)."""
+
+    tasks: tuple[TaskSnapshot, ...]
+    robot_ids: tuple[str, ...]
+    kind: IntArray  # NEW, UNDER_WAY or HELD
+    start: FloatArray  # (k, 3) pose when the plan reaches the robot (after the lead-in)
+    goal: FloatArray  # (k, 3)
+    gains: FloatArray  # (k, 2, 3) per law index (0 ccw, 1 cw)
+    tolerance: FloatArray  # (k, 2) position [m], heading [rad]
+    allowed: BoolArray  # (k, 2) laws it may use
+    keep_law: IntArray  # (k,) law it runs now (NEW: its fastest solo law)
+    keep_delay: FloatArray  # (k,) start delay left when the plan arrives [s]
+    keep_hold: BoolArray  # (k,) held now
+
+    @property
+    def size(self) -> int:
+        return len(self.robot_ids)
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One option per mover of a cluster: law index, start delay [s], hold."""
+
+    law: IntArray
+    delay: FloatArray
+    hold: BoolArray
+
+    def key(self) -> bytes:
+        return self.law.tobytes() + self.delay.round(6).tobytes() + self.hold.tobytes()
+
+    def with_(
+        self, i: int, law: int | None = None, delay: float | None = None, hold: bool | None = None
+    ) -> Candidate:
+        """A copy with mover ``i``'s option changed."""
+        c = Candidate(self.law.copy(), self.delay.copy(), self.hold.copy())
+        if law is not None:
+            c.law[i] = law
+        if delay is not None:
+            c.delay[i] = delay
+        if hold is not None:
+            c.hold[i] = hold
+        return c
+
+
+@dataclass(frozen=True)
+class Fleet:
+    """Everything a plan of one snapshot is searched on (see the module docstring)."""
+
+    movers: Movers
+    standing_ids: tuple[str, ...]
+    standing_xy: FloatArray  # (s, 2)
+    world: World
+    separation: float  # [m]
+    dt: float  # the agents' control step [s]
+    lead_time: float  # [s]
+    lead_min_separation: float  # [m] over the lead-in, pairs involving a moving robot
+    solo_time: FloatArray  # (k, 2) [s]; inf where the law is not allowed or never arrives
+    solo_times: FloatArray  # (T,) sample times of the solo paths [s]
+    solo_xy: FloatArray  # (T, k, 2, 2) positions per sample, mover, law [m]
+    #: (k, k): ``blocks[x, y]`` -- every law mover x may use passes its solo path within
+    #: ``separation + BLOCK_MARGIN_M`` of mover y's goal: x must pass before y parks there
+    blocks: BoolArray
+
+    @property
+    def top_speed(self) -> float:
+        speed = self.world.profile.max_speed
+        return speed if np.isfinite(speed) and speed > 0 else 1.0
+
+    def keep(self, movers: Sequence[int]) -> Candidate:
+        """What the movers do now (new robots: their fastest law, no delay)."""
+        m = self.movers
+        idx = np.asarray(movers, dtype=np.int64)
+        return Candidate(m.keep_law[idx].copy(), m.keep_delay[idx].copy(), m.keep_hold[idx].copy())
+
+
+def _start_delay_left(task: TaskSnapshot, robot: RobotSnapshot) -> float:
+    if task.start_delay_left_s is not None:
+        return max(0.0, task.start_delay_left_s)
+    unknown_full = task.status == TaskStatus.ASSIGNED or robot.status == RobotStatus.WAITING
+    return max(0.0, task.start_delay_s) if unknown_full else 0.0
+
+
+def _gains(task: TaskSnapshot) -> FloatArray:
+    rows = []
+    for law in LAWS:
+        g = task.gains.get(law) or next(iter(task.gains.values()))
+        rows.append(g.as_tuple())
+    return np.array(rows, dtype=np.float64)
+
+
+def _allowed(task: TaskSnapshot) -> tuple[bool, bool]:
+    if task.direction == "auto":
+        return (True, True)
+    return (task.direction == "ccw", task.direction == "cw")
+
+
+def build_fleet(
+    snapshot: PlanningSnapshot,
+    pairs: Sequence[tuple[TaskSnapshot, RobotSnapshot]],
+    config: PlannerConfig,
+) -> Fleet:
+    """The movers (tasks under way and the ``pairs`` of new assignments), the standing
+    robots, the lead-in and the solo predictions of ``snapshot``."""
+    robots = {r.robot_id: r for r in snapshot.robots}
+    tasks: list[TaskSnapshot] = []
+    owners: list[RobotSnapshot] = []
+    kinds: list[int] = []
+    for t in snapshot.tasks:
+        if t.status not in UNDER_WAY_STATUSES or t.robot_id not in robots or t.law is None:
+            continue
+        robot = robots[t.robot_id]
+        if robot.status in _STILL:
+            continue
+        tasks.append(t)
+        owners.append(robot)
+        kinds.append(HELD if t.hold else UNDER_WAY)
+    for t, robot in pairs:
+        tasks.append(t)
+        owners.append(robot)
+        kinds.append(NEW)
+    k = len(tasks)
+    moving_ids = {r.robot_id for r in owners}
+    standing = [r for r in snapshot.robots if r.robot_id not in moving_ids]
+    pose0 = np.array([r.pose for r in owners], dtype=np.float64).reshape(k, 3)
+    kind = np.array(kinds, dtype=np.int64)
+    law_now = np.array(
+        [
+            LAW_INDEX[t.law] if t.law is not None and kd != NEW else 0
+            for t, kd in zip(tasks, kinds, strict=True)
+        ],
+        dtype=np.int64,
+    )
+    delay_now = np.array(
+        [
+            _start_delay_left(t, r) if kd == UNDER_WAY else 0.0
+            for t, r, kd in zip(tasks, owners, kinds, strict=True)
+        ],
+        dtype=np.float64,
+    )
+    goal = np.array([t.goal for t in tasks], dtype=np.float64).reshape(k, 3)
+    gains = np.array([_gains(t) for t in tasks], dtype=np.float64).reshape(k, 2, 3)
+    tolerance = np.array(
+        [(t.tolerance.position, t.tolerance.heading) for t in tasks], dtype=np.float64
+    ).reshape(k, 2)
+    allowed = np.array([_allowed(t) for t in tasks], dtype=bool).reshape(k, 2)
+    standing_xy = np.array([r.pose[:2] for r in standing], dtype=np.float64).reshape(-1, 2)
+    world = World(snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles))
+
+    # Lead-in: robots under way go on as they are; new and held robots stand.
+    driving = kind == UNDER_WAY
+    start, lead_min = pose0.copy(), float("inf")
+    lead = snapshot.lead_time_s
+    if lead > 0 and driving.any():
+        still = ~driving
+        rows = Rows.concat(
+            [
+                Rows(
+                    start=pose0,
+                    goal=np.where(still[:, None], pose0, goal),
+                    gains=gains[np.arange(k), law_now],
+                    cw=law_now == 1,
+                    tolerance=np.where(still[:, None], STANDING_TOLERANCE, tolerance),
+                    delay=np.where(still, STANDING_DELAY, delay_now),
+                ),
+                Rows.standing(standing_xy),
+            ]
+        )
+        (result,) = roll_out([rows], world, dt=snapshot.control_dt, max_time=lead)
+        start = result.final[:k].copy()
+        start[still] = pose0[still]
+        assert result.min_pair is not None
+        involved = np.zeros(rows.size, dtype=bool)
+        involved[:k] = driving
+        pairs_involved = involved[:, None] | involved[None, :]
+        if pairs_involved.any():
+            lead_min = float(np.min(np.where(pairs_involved, result.min_pair, np.inf)))
+        delay_now = np.maximum(delay_now - lead, 0.0)
+
+    solo_time, solo_times, solo_xy = _solo(
+        start, goal, gains, tolerance, allowed, world, snapshot.control_dt, config
+    )
+    fastest = np.where(
+        allowed[:, 0] & (~allowed[:, 1] | (solo_time[:, 0] <= solo_time[:, 1])), 0, 1
+    )
+    keep_law = np.where(kind == NEW, fastest, law_now)
+    movers = Movers(
+        tasks=tuple(tasks),
+        robot_ids=tuple(r.robot_id for r in owners),
+        kind=kind,
+        start=start,
+        goal=goal,
+        gains=gains,
+        tolerance=tolerance,
+        allowed=allowed,
+        keep_law=keep_law.astype(np.int64),
+        keep_delay=delay_now,
+        keep_hold=kind == HELD,
+    )
+    return Fleet(
+        movers=movers,
+        standing_ids=tuple(r.robot_id for r in standing),
+        standing_xy=standing_xy,
+        world=world,
+        separation=snapshot.separation_m,
+        dt=snapshot.control_dt,
+        lead_time=max(lead, 0.0),
+        lead_min_separation=lead_min,
+        solo_time=solo_time,
+        solo_times=solo_times,
+        solo_xy=solo_xy,
+        blocks=_blocks(solo_xy, allowed, goal, snapshot.separation_m + BLOCK_MARGIN_M),
+    )
+
+
+def stuck(fleet: Fleet) -> list[int]:
+    """New movers whose every law passes a standing robot within ``separation +
+    STUCK_MARGIN_M``: they would hold until that robot leaves."""
+    m = fleet.movers
+    if fleet.standing_xy.shape[0] == 0:
+        return []
+    reach = fleet.separation + STUCK_MARGIN_M
+    d = fleet.solo_xy[:, :, :, None, :] - fleet.standing_xy[None, None, None]  # T,k,law,s,2
+    near = ((d * d).sum(axis=4) < reach * reach).any(axis=(0, 3))  # (k, law)
+    blocked = np.where(m.allowed, near, True).all(axis=1)
+    return [int(i) for i in np.flatnonzero(blocked & (m.kind == NEW))]
+
+
+def _blocks(solo_xy: FloatArray, allowed: BoolArray, goal: FloatArray, reach: float) -> BoolArray:
+    """(k, k) which movers' solo paths (every law they may use) pass near which goals."""
+    k = goal.shape[0]
+    if k == 0:
+        return np.zeros((0, 0), dtype=bool)
+    d = solo_xy[:, :, :, None, :] - goal[None, None, None, :, :2]  # (T, k, law, k, 2)
+    near = ((d * d).sum(axis=4) < reach * reach).any(axis=0)  # (k, law, k)
+    out: BoolArray = np.asarray(np.where(allowed[:, :, None], near, True).all(axis=1))
+    np.fill_diagonal(out, False)
+    return out
+
+
+def _solo(
+    start: FloatArray,
+    goal: FloatArray,
+    gains: FloatArray,
+    tolerance: FloatArray,
+    allowed: BoolArray,
+    world: World,
+    dt: float,
+    config: PlannerConfig,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Each mover alone with each allowed law: arrival times (k, 2) and sampled paths."""
+    k = start.shape[0]
+    solo_time = np.full((k, 2), np.inf)
+    step = max(dt, config.solo_dt)
+    every = max(1, round(config.sample_period_s / step))
+    if k == 0:
+        return solo_time, np.zeros(1), np.zeros((1, 0, 2, 2))
+    rows = Rows(
+        start=np.repeat(start, 2, axis=0),
+        goal=np.repeat(goal, 2, axis=0),
+        gains=gains.reshape(2 * k, 3),
+        cw=np.tile([False, True], k),
+        tolerance=np.repeat(tolerance, 2, axis=0),
+        delay=np.zeros(2 * k),
+    )
+    (result,) = roll_out(
+        [rows], world, dt=step, max_time=config.max_horizon_s, peers=False, record_every=every
+    )
+    times = result.time.reshape(k, 2)
+    solo_time = np.where(allowed & result.done.reshape(k, 2), times, np.inf)
+    assert result.xy is not None and result.times is not None
+    xy = result.xy.reshape(-1, k, 2, 2)
+    return solo_time, result.times, xy
+
+
+def scene_rows(fleet: Fleet, cluster: Cluster, c: Candidate) -> Rows:
+    """Rows of one rollout: the cluster's movers with option ``c``, then its standing robots,
+    then its phantoms (:mod:`fleet.core.planner.clusters`).
+
+    A held mover stands where it is (goal = start, done at once)."""
+    m = fleet.movers
+    idx = np.asarray(cluster.movers, dtype=np.int64)
+    start = m.start[idx]
+    hold = c.hold[:, None]
+    rows = Rows(
+        start=start,
+        goal=np.where(hold, start, m.goal[idx]),
+        gains=m.gains[idx, c.law],
+        cw=c.law == 1,
+        tolerance=np.where(hold, STANDING_TOLERANCE, m.tolerance[idx]),
+        delay=np.where(c.hold, STANDING_DELAY, c.delay),
+    )
+    still = [fleet.standing_xy[np.asarray(cluster.standing, dtype=np.int64)].reshape(-1, 2)]
+    still.append(np.array([p[:2] for p in cluster.phantoms], dtype=np.float64).reshape(-1, 2))
+    fixed = np.concatenate(still)
+    if fixed.shape[0] == 0:
+        return rows
+    return Rows.concat([rows, Rows.standing(fixed)])
+
+
+def row_names(fleet: Fleet, cluster: Cluster) -> list[str]:
+    """Robot ids of the rows of :func:`scene_rows` (a phantom: "<id> where it stands")."""
+    names = [fleet.movers.robot_ids[i] for i in cluster.movers]
+    names += [fleet.standing_ids[j] for j in cluster.standing]
+    names += [f"{fleet.movers.robot_ids[p[2]]} where it stands" for p in cluster.phantoms]
+    return names
+
+
+__all__ = [
+    "BLOCK_MARGIN_M",
+    "HELD",
+    "LAW_INDEX",
+    "NEW",
+    "STUCK_MARGIN_M",
+    "UNDER_WAY",
+    "UNDER_WAY_STATUSES",
+    "Candidate",
+    "Fleet",
+    "Movers",
+    "build_fleet",
+    "row_names",
+    "scene_rows",
+    "stuck",
+]

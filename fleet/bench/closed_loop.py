@@ -27,11 +27,11 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from fleet.bench.fleet import FleetScenario, random_yard_scenario
+from fleet.bench.scenarios import Scenario, random_yard
 from fleet.core.params import Avoidance, RobotProfile, Tolerance
 from fleet.core.planner import Plan, PlannerConfig, PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.planner.assign import pair_queued
@@ -40,7 +40,6 @@ from fleet.core.planner.rollout import STANDING_DELAY
 from fleet.core.simulate import BatchProblem, simulate
 from fleet.core.tasks import DEFAULT_GAINS, Direction, RobotStatus, TaskStatus
 from fleet.core.types import LAWS, Law, Posture
-from fleet.core.wire import Obstacle
 
 Planner = Callable[[PlanningSnapshot], Plan]
 _STAND = Tolerance(position=1e-3, heading=1e-3)
@@ -89,7 +88,7 @@ class OfflineFleet:
 
     def __init__(
         self,
-        scenario: FleetScenario,
+        scenario: Scenario,
         *,
         arrivals: Sequence[float] | None = None,
         profile: RobotProfile | None = None,
@@ -108,7 +107,9 @@ class OfflineFleet:
         self.t = 0.0
         self.version = 0
         self.min_pair = np.full((len(self.ids), len(self.ids)), np.inf)
-        arrivals = list(arrivals) if arrivals is not None else [0.0] * len(scenario.goals)
+        if arrivals is None:
+            arrivals = [r.arrival_s for r in scenario.robots]
+        arrivals = list(arrivals)
         self.tasks = [
             _Task(
                 task_id=f"t{j + 1}",
@@ -179,7 +180,7 @@ class OfflineFleet:
             version=self.version,
             robots=tuple(robots),
             tasks=tuple(tasks),
-            obstacles=tuple(self.scenario.obstacles),
+            obstacles=tuple(o.as_obstacle() for o in self.scenario.obstacles),
             profile=self.profile,
             avoidance=self.avoidance,
             separation_m=self.separation,
@@ -307,7 +308,7 @@ class OfflineFleet:
 
 
 def run_closed_loop(
-    scenario: FleetScenario,
+    scenario: Scenario,
     policy: str,
     planner: Planner | None = None,
     *,
@@ -372,30 +373,32 @@ def run_closed_loop(
     )
 
 
-def mirrored(scenario: FleetScenario) -> FleetScenario:
+def mirrored(scenario: Scenario) -> Scenario:
     """The mirror image of ``scenario`` in the x axis (y -> -y, theta -> -theta): a swap of
     the other chirality."""
 
     def flip(p: Posture) -> Posture:
         return (p[0], -p[1], -p[2])
 
-    return replace(
-        scenario,
-        name=f"{scenario.name}-mirror",
-        starts=[flip(p) for p in scenario.starts],
-        goals=[flip(p) for p in scenario.goals],
-        obstacles=[Obstacle(x=o.x, y=-o.y, radius=o.radius) for o in scenario.obstacles],
+    return scenario.model_copy(
+        update={
+            "name": f"{scenario.name}-mirror",
+            "robots": [
+                r.model_copy(update={"start": flip(r.start), "goal": flip(r.goal)})
+                for r in scenario.robots
+            ],
+            "obstacles": [o.model_copy(update={"y": -o.y}) for o in scenario.obstacles],
+        }
     )
 
 
-def yard(n: int, seed: int, density: float = 0.1) -> FleetScenario:
+def yard(n: int, seed: int, density: float = 0.1) -> Scenario:
     """``n`` robots and ``n`` unnamed goals at random in a square yard of ``density`` robots
     per m^2 (10 robots: the fleet bench's 10 m x 10 m yard)."""
-    half = 0.5 * math.sqrt(n / density)
-    return replace(random_yard_scenario(n, seed, half=half), name=f"yard-{n}-s{seed}")
+    return random_yard(n, seed, half=0.5 * math.sqrt(n / density))
 
 
-def stream(n: int, seed: int, mean_gap_s: float) -> list[float]:
+def arrival_times(n: int, seed: int, mean_gap_s: float) -> list[float]:
     """Arrival times [s] of ``n`` tasks: the first at 0, then a Poisson stream."""
     gaps = np.random.default_rng(seed).exponential(mean_gap_s, size=n)
     gaps[0] = 0.0
@@ -410,9 +413,9 @@ __all__ = [
     "ClosedLoopResult",
     "OfflineFleet",
     "Planner",
+    "arrival_times",
     "mirrored",
     "percentile",
     "run_closed_loop",
-    "stream",
     "yard",
 ]

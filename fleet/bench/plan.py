@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 from pydantic import BaseModel
 
-from fleet.bench.closed_loop import mirrored, percentile, run_closed_loop, stream, yard
-from fleet.bench.fleet import FleetBenchRow, FleetScenario, swap_scenario
+from fleet.bench.closed_loop import arrival_times, percentile, run_closed_loop, yard
+from fleet.bench.scenarios import Scenario, swap
 from fleet.core.planner import Plan, PlanningSnapshot, plan
 
 ROBOT_COUNTS: tuple[int, ...] = (10, 20, 50)
@@ -80,7 +80,7 @@ class _Timed:
 def arrivals(n: int, seed: int) -> list[float]:
     """Half the tasks at 0 s, the rest streamed (mean gap ``STREAM_GAP_S``)."""
     first = n // 2
-    rest = stream(n - first + 1, seed, STREAM_GAP_S)[1:]
+    rest = arrival_times(n - first + 1, seed, STREAM_GAP_S)[1:]
     return [0.0] * first + rest
 
 
@@ -123,20 +123,33 @@ def latency(robots: int, seeds: Sequence[int]) -> LatencyRow:
     )
 
 
-def quality_scenarios(quick: bool = False) -> list[FleetScenario]:
+class QualityRow(BaseModel):
+    """One scenario under one policy in the offline fleet."""
+
+    scenario: str
+    robots: int
+    policy: str
+    success_rate: float
+    collisions: int
+    min_separation_m: float
+    makespan_s: float
+    path_ratio: float
+
+
+def quality_scenarios(quick: bool = False) -> list[Scenario]:
     """Swaps of 2..16 in both chiralities and yards of 10 and 20 robots."""
     if quick:
-        return [swap_scenario(2), mirrored(swap_scenario(2))]
-    swaps = [swap_scenario(n) for n in (2, 4, 8, 16)]
+        return [swap(2, "right"), swap(2, "left")]
+    swaps = [swap(n, chirality) for n in (2, 4, 8, 16) for chirality in ("right", "left")]
     yards = [yard(10, seed) for seed in range(1, 7)] + [yard(20, seed) for seed in (1, 2)]
-    return [*swaps, *(mirrored(s) for s in swaps), *yards]
+    return [*swaps, *yards]
 
 
 def quality(
-    scenarios: Sequence[FleetScenario],
+    scenarios: Sequence[Scenario],
     policies: Sequence[str] = POLICIES,
-    progress: Callable[[FleetBenchRow], None] | None = None,
-) -> list[FleetBenchRow]:
+    progress: Callable[[QualityRow], None] | None = None,
+) -> list[QualityRow]:
     rows = []
     for scenario in scenarios:
         for policy in policies:
@@ -146,7 +159,7 @@ def quality(
                 plan if policy == "auto" else None,
                 replan_period_s=REPLAN_PERIOD_S,
             )
-            row = FleetBenchRow(
+            row = QualityRow(
                 scenario=scenario.name,
                 robots=run.robots,
                 policy=policy,
@@ -169,6 +182,7 @@ __all__ = [
     "SEEDS",
     "TARGET_P99_MS",
     "LatencyRow",
+    "QualityRow",
     "arrivals",
     "latency",
     "quality",

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fleet.cli.options import add_json
+
+if TYPE_CHECKING:
+    from fleet.bench.plan import QualityRow
 
 
 def register(commands: Any, bench: Any) -> None:
@@ -32,7 +35,6 @@ def register(commands: Any, bench: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from fleet.bench.plan import ROBOT_COUNTS, TARGET_P99_MS, latency, quality, quality_scenarios
-    from fleet.cli.bench_fleet import _print_row as print_row
 
     sizes = [4] if args.quick else (args.robots or list(ROBOT_COUNTS))
     seeds = list(range(1, 2 if args.quick else args.seeds + 1))
@@ -63,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     if args.quality:
         if not args.json:
             print(
-                f"\n{'scenario':<10} {'N':>3} {'policy':<5} {'success':>8} {'collisions':>10} "
+                f"\n{'scenario':<14} {'N':>3} {'policy':<5} {'success':>8} {'collisions':>10} "
                 f"{'min sep m':>9} {'makespan s':>10} {'path':>6}"
             )
         quality_rows = quality(
@@ -75,3 +77,13 @@ def run(args: argparse.Namespace) -> int:
     else:
         print("wall and CPU time per planner decision (CPU: this process, all threads)")
     return 0
+
+
+def print_row(row: QualityRow) -> None:
+    """One quality row, aligned with the header ``run`` prints."""
+    print(
+        f"{row.scenario:<14} {row.robots:>3} {row.policy:<5} {row.success_rate:>8.0%} "
+        f"{row.collisions:>10} {row.min_separation_m:>9.3f} {row.makespan_s:>10.1f} "
+        f"{row.path_ratio:>6.2f}",
+        flush=True,
+    )

@@ -31,7 +31,7 @@ def test_quick_bench_json_has_the_documented_schema(capsys: pytest.CaptureFixtur
     assert row["success_rate"] == 1.0 and row["collisions"] == 0
     assert row["min_separation_m"] >= 0.5
     assert {(q["scenario"], q["policy"]) for q in report["quality"]} == {
-        (s, p) for s in ("swap-2", "swap-2-mirror") for p in ("auto", "cw", "ccw")
+        (s, p) for s in ("swap-2-right", "swap-2-left") for p in ("auto", "cw", "ccw")
     }
     for q in report["quality"]:
         assert set(q) == QUALITY

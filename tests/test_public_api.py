@@ -18,6 +18,8 @@ EXPORTS = {
         "RobotSnapshot",
         "TaskDecision",
         "TaskSnapshot",
+        "corridor_distance",
+        "left_corridor",
         "plan",
     ],
     "robot_agent": ["Drive", "PoseReading", "RobotAgent"],

@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from fleet.core.params import Gains, Tolerance
 from fleet.core.tasks import Direction, RobotStatus, RobotView, Task, TaskRequest, TaskStatus
 from fleet.core.types import Law
-from fleet.core.wire import Obstacle, Pose, RobotId
+from fleet.core.wire import ErrorLevel, Obstacle, Pose, RobotError, RobotId
 
 Coordinate = Annotated[
     float, Field(allow_inf_nan=False, description="metres, inside the yard (see /healthz)")
@@ -165,6 +165,19 @@ class TaskOut(BaseModel):
         )
 
 
+class RobotErrorOut(BaseModel):
+    """One active fault of a robot."""
+
+    code: str = Field(description="stable code: estop, pose_stale, link_lost, drive_error, ...")
+    level: ErrorLevel
+    message: str
+    since: float = Field(description="when it began, seconds since the epoch (robot clock)")
+
+    @classmethod
+    def of(cls, error: RobotError) -> RobotErrorOut:
+        return cls(code=error.code, level=error.level, message=error.message, since=error.since)
+
+
 class RobotOut(BaseModel):
     """The fleet's latest knowledge of one robot."""
 
@@ -178,6 +191,10 @@ class RobotOut(BaseModel):
     goal: PoseOut | None
     radius: float = Field(description="body radius [m]")
     last_seen: float = Field(description="seconds since the epoch (service clock)")
+    detail: str | None = Field(
+        default=None, description="why it stands still, e.g. 'pose stale' while holding"
+    )
+    errors: list[RobotErrorOut] = Field(default_factory=list, description="active faults")
 
     @classmethod
     def of(cls, robot: RobotView) -> RobotOut:
@@ -192,6 +209,8 @@ class RobotOut(BaseModel):
             goal=None if robot.goal is None else PoseOut.of(robot.goal),
             radius=robot.radius,
             last_seen=robot.last_seen,
+            detail=robot.detail,
+            errors=[RobotErrorOut.of(e) for e in robot.errors],
         )
 
 

@@ -22,6 +22,10 @@ Task protocol (``fleet.core.wire`` module docstring), as a pure state machine
 * own pose stale or link to the fleet network lost -> stop, ``holding``, task kept (still
   active: it resumes when the pose or the link comes back).
 
+Every stop says why (``TickResult.detail``: ``pose stale``, ``link lost``, ``task
+cancelled``, ``start delay``, ``held by the fleet``). An operator's pause or e-stop
+(:mod:`robot_agent.operator`) overrides the whole tick in the agent, before :func:`decide`.
+
 Control of an active task (:func:`decide`): error of Eq. (5), law (17) ``ccw`` or (20)
 ``cw``, plus the repulsion -K_avoid/x_OA of Eq. (27) from every peer within the peer
 influence radius and every static obstacle within its own radius (mode ``avoiding``
@@ -107,14 +111,15 @@ class TickResult:
     right: float = 0.0  # right wheel [rad/s]
     left: float = 0.0  # left wheel [rad/s]
     repulsion: float = 0.0  # Eq. (27) sum added to u before saturation [m/s]
+    detail: str | None = None  # why the robot stands still (RobotState.detail)
 
     @property
     def moving(self) -> bool:
         return self.right != 0.0 or self.left != 0.0
 
 
-def _stopped(mode: RobotMode, task: AgentTask | None) -> TickResult:
-    return TickResult(mode=mode, task=task)
+def _stopped(mode: RobotMode, task: AgentTask | None, detail: str | None = None) -> TickResult:
+    return TickResult(mode=mode, task=task, detail=detail)
 
 
 def within_tolerance(pose: Sequence[float] | FloatArray, assignment: ParkAssignment) -> bool:
@@ -203,18 +208,18 @@ def decide(
     if task.status is AgentTaskStatus.ARRIVED:
         return _stopped(RobotMode.ARRIVED, task)
     if task.status is AgentTaskStatus.CANCELLED:
-        return _stopped(RobotMode.HOLDING, task)
+        return _stopped(RobotMode.HOLDING, task, "task cancelled")
     if not pose_age <= pose_stale_s:  # also catches NaN
-        return _stopped(RobotMode.HOLDING, task)
+        return _stopped(RobotMode.HOLDING, task, "pose stale")
     if not link_ok:  # blind to its peers: stop, keep the task, resume when the link returns
-        return _stopped(RobotMode.HOLDING, task)
+        return _stopped(RobotMode.HOLDING, task, "link lost")
 
     a = task.assignment
     p = np.asarray(pose, dtype=np.float64)
     if within_tolerance(p, a):
         return _stopped(RobotMode.ARRIVED, replace(task, status=AgentTaskStatus.ARRIVED))
     if task.waiting(now):
-        return _stopped(RobotMode.WAITING, task)
+        return _stopped(RobotMode.WAITING, task, "held by the fleet" if a.hold else "start delay")
 
     cw = is_cw(a.law)
     x_e, y_e, theta_e = pose_error(p, a.goal.as_tuple(), cw)

@@ -11,6 +11,8 @@ export const MODE_COLORS = {
   arrived: "#22c55e",
   holding: "#a855f7",
   waiting: "#14b8a6",
+  paused: "#eab308",
+  estop: "#dc2626",
   lost: "#ef4444",
 };
 

@@ -22,6 +22,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.sim",
     "fleet.cli.serve",
     "fleet.cli.demo",
+    "fleet.cli.control",
     "fleet.cli.bench_sim",
     "fleet.cli.bench_zenoh",
     "fleet.cli.bench_api",

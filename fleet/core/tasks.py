@@ -13,7 +13,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from fleet.core.params import Gains, Tolerance
 from fleet.core.types import Law
-from fleet.core.wire import Pose, RobotId, RobotMode
+from fleet.core.wire import Pose, RobotError, RobotId, RobotMode
 
 Direction = Literal["auto", "cw", "ccw"]
 
@@ -47,6 +47,8 @@ class RobotStatus(StrEnum):
     ARRIVED = "arrived"
     HOLDING = "holding"
     WAITING = "waiting"
+    PAUSED = "paused"
+    ESTOP = "estop"
     LOST = "lost"
 
     @classmethod
@@ -117,6 +119,8 @@ class RobotView(BaseModel):
     goal: Pose | None = None
     radius: float = 0.2
     last_seen: float  # [s since epoch], service clock
+    detail: str | None = None  # why it stands still (RobotState.detail)
+    errors: list[RobotError] = Field(default_factory=list)  # active faults, oldest first
 
 
 class RobotEvent(BaseModel):

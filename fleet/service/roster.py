@@ -39,7 +39,11 @@ class Roster:
         entry.last_seen = now
         after = self.view(state.robot_id)
         assert after is not None
-        changed = before is None or (before.status, before.task_id) != (after.status, after.task_id)
+        changed = before is None or (before.status, before.task_id, before.detail) != (
+            after.status,
+            after.task_id,
+            after.detail,
+        )
         return after, changed
 
     def alive(self, robot_id: str, now: float) -> RobotView | None:
@@ -85,6 +89,8 @@ class Roster:
             goal=s.goal,
             radius=s.radius,
             last_seen=entry.last_seen,
+            detail=s.detail,
+            errors=s.errors,
         )
 
     def views(self) -> list[RobotView]:

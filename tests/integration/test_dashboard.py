@@ -160,7 +160,7 @@ def test_page_loads_without_console_errors(page: tuple[Page, Console]) -> None:
     # The table is drawn on animation frames (throttled), after the state holds the robots:
     # wait for the rows rather than reading them once.
     expect(browser_page.locator("#robots-body tr")).to_have_count(2)
-    expect(browser_page.locator("#legend-modes li")).to_have_count(7)  # one per robot status
+    expect(browser_page.locator("#legend-modes li")).to_have_count(9)  # one per robot status
     assert console.errors == []
 
 

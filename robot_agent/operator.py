@@ -1,0 +1,81 @@
+"""Operator control of one robot: pause / resume and the e-stop latch (pure, no I/O).
+
+:class:`OperatorLatch` applies :class:`fleet.core.wire.ControlCommand` messages (rules in the
+``fleet.core.wire`` module docstring, after VDA 5050's ``startPause``/``stopPause`` and its
+emergency stop) and tells the control loop whether to override the task:
+
+* ``estop`` latches until ``release`` -> mode ``estop``; wins over everything;
+* ``pause`` holds until ``resume`` -> mode ``paused``;
+* commands of one issuer apply in ``seq`` order: a repeat, or an older command arriving
+  after a newer one, is ignored. The last ``MAX_ISSUERS`` issuers are remembered.
+
+Not thread-safe: the agent applies commands on its control thread (``RobotAgent.tick``).
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+
+from fleet.core.wire import ControlAction, ControlCommand, RobotMode
+
+#: Issuers whose last sequence number a robot remembers (oldest forgotten first).
+MAX_ISSUERS = 64
+
+
+class OperatorLatch:
+    """The operator's hold on one robot: paused, e-stopped, and why."""
+
+    def __init__(self, robot_id: str) -> None:
+        self.robot_id = robot_id
+        self.paused = False
+        self.estop = False
+        self._why: dict[ControlAction, str] = {}  # pause / estop -> "by <issuer>: <reason>"
+        self._last_seq: OrderedDict[str, int] = OrderedDict()
+        self.applied = 0
+        self.ignored = 0  # repeats, reordered copies, commands for other robots
+
+    def apply(self, command: ControlCommand) -> bool:
+        """Apply ``command`` if it is for this robot and newer than the issuer's last one."""
+        if command.robot_id not in (None, self.robot_id):
+            self.ignored += 1
+            return False
+        last = self._last_seq.get(command.issuer)
+        if last is not None and command.seq <= last:
+            self.ignored += 1
+            return False
+        self._last_seq[command.issuer] = command.seq
+        self._last_seq.move_to_end(command.issuer)
+        while len(self._last_seq) > MAX_ISSUERS:
+            self._last_seq.popitem(last=False)
+        action = command.command
+        why = f"by {command.issuer}" + (f": {command.reason}" if command.reason else "")
+        if action is ControlAction.PAUSE:
+            self.paused = True
+            self._why[ControlAction.PAUSE] = why
+        elif action is ControlAction.RESUME:
+            self.paused = False
+        elif action is ControlAction.ESTOP:
+            self.estop = True
+            self._why[ControlAction.ESTOP] = why
+        else:  # RELEASE
+            self.estop = False
+        self.applied += 1
+        return True
+
+    @property
+    def mode(self) -> RobotMode | None:
+        """The mode that overrides the task (``estop`` or ``paused``), or None."""
+        if self.estop:
+            return RobotMode.ESTOP
+        if self.paused:
+            return RobotMode.PAUSED
+        return None
+
+    @property
+    def detail(self) -> str | None:
+        """Why the operator holds the robot, e.g. ``emergency stop by cli-host: drill``."""
+        if self.estop:
+            return f"emergency stop {self._why[ControlAction.ESTOP]}"
+        if self.paused:
+            return f"paused {self._why[ControlAction.PAUSE]}"
+        return None

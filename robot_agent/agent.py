@@ -262,9 +262,7 @@ class RobotAgent:
                 return
             if isinstance(message, ControlCommand):
                 if self.operator.apply(message):
-                    _log.warning(
-                        "%s: %s by %s", self.robot_id, message.command.value, message.issuer
-                    )
+                    _log.info("%s: %s by %s", self.robot_id, message.command.value, message.issuer)
             else:
                 self._task = apply_assignment(self._task, message, now)
 

@@ -27,6 +27,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.bench_zenoh",
     "fleet.cli.bench_api",
     "fleet.cli.bench_fleet",
+    "fleet.cli.bench_estop",
 )
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import os
 import shlex
 import subprocess
 import sys
@@ -149,14 +150,20 @@ def register(commands: Any, bench: Any) -> None:
     )
     d.add_argument("--robots", type=int, default=4, help="number of simulated robots (default 4)")
     add_time_scale(d)
-    add_spawn(d, default="random")
-    add_server(d, default_data="./var/demo")
+    add_spawn(d, default="grid")
+    add_server(d, default_data="./var/demo", default_site="the example car park")
     d.set_defaults(func=run)
+
+
+#: The example car park (``fleet/io/sites/carpark.toml``) the demo loads unless told otherwise.
+EXAMPLE_SITE = Path(__file__).resolve().parents[1] / "io" / "sites" / "carpark.toml"
 
 
 def run(args: argparse.Namespace) -> int:
     if args.robots < 1:
         raise ValueError("--robots must be at least 1")
+    if args.site is None and not os.environ.get("PARKFLEET_SITE_FILE"):
+        args.site = str(EXAMPLE_SITE)
     settings = server_settings(args)
     if args.data_dir is None and "data_dir" not in settings.model_fields_set:
         settings = settings.model_copy(update={"data_dir": Path("var/demo")})

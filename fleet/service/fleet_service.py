@@ -130,7 +130,8 @@ class FleetService:
         self._deadline: dict[str, float] = {}
         self._cancel_sent: dict[str, float] = {}  # robot id -> last cancel re-sent
         self._paths: OrderedDict[str, deque[PathSample]] = OrderedDict()
-        self._obstacles: list[Obstacle] = []
+        site = settings.site  # the site map's obstacles are the initial ones (PUT replaces)
+        self._obstacles: list[Obstacle] = [] if site is None else list(site.obstacles)
         self._listeners: list[Listener] = []
         self._counters: Counter[str] = Counter()
         self._last_robot_event: dict[str, float] = {}
@@ -733,6 +734,8 @@ class FleetService:
                 self._obstacles,
                 self._occupied(goal, rid),
                 self.settings.avoidance.peer_radius,
+                () if self.settings.site is None else self.settings.site.keep_out,
+                margin=self.settings.profile.radius,
             )
             # Reserve the goal while the task is written (outside the lock, so concurrent
             # submits share one commit): a concurrent submit near it is rejected meanwhile.

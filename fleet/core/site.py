@@ -53,34 +53,9 @@ class _Strict(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
 
-class Yard(_Strict):
-    """The yard rectangle [m]."""
-
-    xmin: Coordinate
-    xmax: Coordinate
-    ymin: Coordinate
-    ymax: Coordinate
-
-    @model_validator(mode="after")
-    def _not_empty(self) -> Self:
-        if not (self.xmin < self.xmax and self.ymin < self.ymax):
-            raise ValueError("the yard needs xmin < xmax and ymin < ymax")
-        return self
-
-    def as_tuple(self) -> tuple[float, float, float, float]:
-        return (self.xmin, self.xmax, self.ymin, self.ymax)
-
-    def contains(self, x: float, y: float) -> bool:
-        return self.xmin <= x <= self.xmax and self.ymin <= y <= self.ymax
-
-
-class Circle(_Strict):
-    x: Coordinate
-    y: Coordinate
-    radius: Annotated[float, Field(gt=0, allow_inf_nan=False)]
-
-
 class Rect(_Strict):
+    """An axis-aligned rectangle [m]."""
+
     xmin: Coordinate
     xmax: Coordinate
     ymin: Coordinate
@@ -91,6 +66,22 @@ class Rect(_Strict):
         if not (self.xmin < self.xmax and self.ymin < self.ymax):
             raise ValueError("a rectangle needs xmin < xmax and ymin < ymax")
         return self
+
+    def as_tuple(self) -> tuple[float, float, float, float]:
+        return (self.xmin, self.xmax, self.ymin, self.ymax)
+
+    def contains(self, x: float, y: float) -> bool:
+        return self.xmin <= x <= self.xmax and self.ymin <= y <= self.ymax
+
+
+class Yard(Rect):
+    """The yard rectangle [m]: every goal lies in it."""
+
+
+class Circle(_Strict):
+    x: Coordinate
+    y: Coordinate
+    radius: Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
 class KeepOutZone(_Strict):

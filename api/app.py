@@ -17,7 +17,8 @@ from fastapi.openapi.utils import get_openapi
 
 from api import errors
 from api.deps import FleetAPI
-from api.routes import dashboard, events, health, obstacles, plots, robots, tasks
+from api.metrics import FleetMetrics
+from api.routes import dashboard, events, health, metrics, obstacles, plots, robots, tasks
 from api.schemas import ValidationErrorOut
 from api.streaming import EventHub
 from fleet.core.wire import Keys
@@ -71,6 +72,8 @@ def create_app(settings: Settings, *, service: FleetAPI | None = None) -> FastAP
                 _log.info("fleet service up; Zenoh router on %s", app.state.zenoh_locators)
             else:
                 app.state.service, app.state.zenoh_locators = service, []
+            app.state.metrics = FleetMetrics(app.state.service)  # a registry per app
+            stack.callback(app.state.metrics.close)
             try:
                 yield
             finally:
@@ -92,6 +95,7 @@ def create_app(settings: Settings, *, service: FleetAPI | None = None) -> FastAP
     for module in (tasks, robots, obstacles, events, health):
         app.include_router(module.router)
     app.include_router(plots.router)
+    app.include_router(metrics.router)
     app.include_router(dashboard.router)
     _document_validation_errors(app)
     return app

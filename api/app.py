@@ -18,7 +18,17 @@ from fastapi.openapi.utils import get_openapi
 from api import errors
 from api.deps import FleetAPI
 from api.metrics import FleetMetrics
-from api.routes import dashboard, events, health, metrics, obstacles, plots, robots, tasks
+from api.routes import (
+    control,
+    dashboard,
+    events,
+    health,
+    metrics,
+    obstacles,
+    plots,
+    robots,
+    tasks,
+)
 from api.schemas import ValidationErrorOut
 from api.streaming import EventHub
 from fleet.core.wire import Keys
@@ -92,7 +102,7 @@ def create_app(settings: Settings, *, service: FleetAPI | None = None) -> FastAP
     app.state.zenoh_locators = []
     app.state.startup_error = None
     errors.install(app)
-    for module in (tasks, robots, obstacles, events, health):
+    for module in (tasks, robots, control, obstacles, events, health):
         app.include_router(module.router)
     app.include_router(plots.router)
     app.include_router(metrics.router)

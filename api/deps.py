@@ -17,8 +17,9 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from api.schemas import ObstacleIn, ObstaclesIn, TaskIn, yard_errors
 from fleet.core.tasks import FleetEvent, RobotView, Task, TaskRequest, TaskStatus
-from fleet.core.wire import Obstacle
+from fleet.core.wire import ControlAction, ControlCommand, Obstacle
 from fleet.io.settings import Settings
+from fleet.service.control_desk import ControlDesk
 
 
 class FleetAPI(Protocol):
@@ -39,6 +40,11 @@ class FleetAPI(Protocol):
     def set_obstacles(self, obstacles: list[Obstacle]) -> None: ...
     def path(self, task_id: str) -> list[tuple[float, float, float, float, float, float]]: ...
     def add_listener(self, listener: Callable[[FleetEvent], None]) -> Callable[[], None]: ...
+    def control(
+        self, action: ControlAction, robot_id: str | None = None, reason: str | None = None
+    ) -> ControlCommand: ...
+    @property
+    def control_desk(self) -> ControlDesk: ...
 
 
 async def get_service(request: Request) -> FleetAPI:

@@ -16,7 +16,15 @@ from pydantic import BaseModel, ConfigDict, Field
 from fleet.core.params import Gains, Tolerance
 from fleet.core.tasks import Direction, RobotStatus, RobotView, Task, TaskRequest, TaskStatus
 from fleet.core.types import Law
-from fleet.core.wire import ErrorLevel, Obstacle, Pose, RobotError, RobotId
+from fleet.core.wire import (
+    ControlAction,
+    ControlCommand,
+    ErrorLevel,
+    Obstacle,
+    Pose,
+    RobotError,
+    RobotId,
+)
 
 Coordinate = Annotated[
     float, Field(allow_inf_nan=False, description="metres, inside the yard (see /healthz)")
@@ -76,6 +84,21 @@ class TaskIn(_In):
             gains=None if self.gains is None else Gains(**self.gains.model_dump()),
             tolerance=Tolerance(**self.tolerance.model_dump()),
         )
+
+
+class ControlIn(_In):
+    """Whom an operator command is for, and why."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        frozen=True,
+        json_schema_extra={"examples": [{"reason": "drill"}, {"robot_id": "robot-2"}]},
+    )
+
+    robot_id: RobotId | None = Field(default=None, description="one robot; omit for the fleet")
+    reason: Annotated[str, Field(max_length=200)] | None = Field(
+        default=None, description="shown in the robots' state (detail) and errors"
+    )
 
 
 class ObstacleIn(_In):
@@ -212,6 +235,42 @@ class RobotOut(BaseModel):
             detail=robot.detail,
             errors=[RobotErrorOut.of(e) for e in robot.errors],
         )
+
+
+class ControlOut(BaseModel):
+    """The command sent to the robots (``ControlCommand`` on the Zenoh control key)."""
+
+    command: ControlAction
+    robot_id: str | None = Field(description="the robot, or null for the whole fleet")
+    issuer: str
+    seq: int
+    stamp: float = Field(description="seconds since the epoch")
+    reason: str | None
+
+    @classmethod
+    def of(cls, message: ControlCommand) -> ControlOut:
+        return cls(
+            command=message.command,
+            robot_id=message.robot_id,
+            issuer=message.issuer,
+            seq=message.seq,
+            stamp=message.stamp,
+            reason=message.reason,
+        )
+
+
+class HoldOut(BaseModel):
+    """What the operator asked of the fleet or of one robot."""
+
+    paused: bool
+    estop: bool
+
+
+class ControlStateOut(BaseModel):
+    """The operator's holds: fleet-wide, and robots with a command of their own since."""
+
+    fleet: HoldOut
+    robots: dict[str, HoldOut]
 
 
 class ObstacleOut(BaseModel):

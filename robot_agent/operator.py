@@ -16,7 +16,12 @@ from __future__ import annotations
 
 from collections import OrderedDict
 
-from fleet.core.wire import ControlAction, ControlCommand, RobotMode
+from fleet.core.wire import ControlAction, ControlCommand, Hold, RobotMode
+
+_MODE_OF: dict[ControlAction | None, RobotMode] = {
+    ControlAction.ESTOP: RobotMode.ESTOP,
+    ControlAction.PAUSE: RobotMode.PAUSED,
+}
 
 #: Issuers whose last sequence number a robot remembers (oldest forgotten first).
 MAX_ISSUERS = 64
@@ -27,8 +32,7 @@ class OperatorLatch:
 
     def __init__(self, robot_id: str) -> None:
         self.robot_id = robot_id
-        self.paused = False
-        self.estop = False
+        self.hold = Hold()
         self._why: dict[ControlAction, str] = {}  # pause / estop -> "by <issuer>: <reason>"
         self._last_seq: OrderedDict[str, int] = OrderedDict()
         self.applied = 0
@@ -48,28 +52,25 @@ class OperatorLatch:
         while len(self._last_seq) > MAX_ISSUERS:
             self._last_seq.popitem(last=False)
         action = command.command
-        why = f"by {command.issuer}" + (f": {command.reason}" if command.reason else "")
-        if action is ControlAction.PAUSE:
-            self.paused = True
-            self._why[ControlAction.PAUSE] = why
-        elif action is ControlAction.RESUME:
-            self.paused = False
-        elif action is ControlAction.ESTOP:
-            self.estop = True
-            self._why[ControlAction.ESTOP] = why
-        else:  # RELEASE
-            self.estop = False
+        if action in (ControlAction.PAUSE, ControlAction.ESTOP):
+            why = f"by {command.issuer}" + (f": {command.reason}" if command.reason else "")
+            self._why[action] = why
+        self.hold = self.hold.apply(action)
         self.applied += 1
         return True
 
     @property
+    def paused(self) -> bool:
+        return self.hold.paused
+
+    @property
+    def estop(self) -> bool:
+        return self.hold.estop
+
+    @property
     def mode(self) -> RobotMode | None:
         """The mode that overrides the task (``estop`` or ``paused``), or None."""
-        if self.estop:
-            return RobotMode.ESTOP
-        if self.paused:
-            return RobotMode.PAUSED
-        return None
+        return _MODE_OF.get(self.hold.restrictive)
 
     @property
     def detail(self) -> str | None:

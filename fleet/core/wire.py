@@ -285,6 +285,33 @@ class ControlCommand(_Message):
     reason: Annotated[str, Field(max_length=200)] | None = None
 
 
+@dataclass(frozen=True)
+class Hold:
+    """The two operator latches of a robot (or the fleet): pause and e-stop, independent;
+    :meth:`apply` is the one rule of how commands change them (module docstring)."""
+
+    paused: bool = False
+    estop: bool = False
+
+    def apply(self, action: ControlAction) -> Hold:
+        if action is ControlAction.PAUSE:
+            return Hold(True, self.estop)
+        if action is ControlAction.RESUME:
+            return Hold(False, self.estop)
+        if action is ControlAction.ESTOP:
+            return Hold(self.paused, True)
+        return Hold(self.paused, False)  # RELEASE
+
+    @property
+    def restrictive(self) -> ControlAction | None:
+        """The command a robot must obey under this hold, if any."""
+        if self.estop:
+            return ControlAction.ESTOP
+        if self.paused:
+            return ControlAction.PAUSE
+        return None
+
+
 def obeys(action: ControlAction, mode: RobotMode) -> bool:
     """Whether a robot reporting ``mode`` shows it has applied ``action`` (a resume leaves an
     e-stopped robot e-stopped, and a pause an e-stopped one too)."""

@@ -1,6 +1,7 @@
 """The fleet service's I/O edge: what it publishes and how robot traffic reaches it.
 
-Outgoing: :meth:`FleetBus.publish_assignment` and :meth:`FleetBus.publish_obstacles`.
+Outgoing: :meth:`FleetBus.publish_assignment`, :meth:`FleetBus.publish_obstacles` and
+:meth:`FleetBus.publish_control` (operator commands).
 Incoming: the bus calls the :class:`FleetSink` given to :meth:`FleetBus.start` --
 ``on_state`` for every decoded ``RobotState``, ``on_robot_alive``/``on_robot_gone`` for
 liveliness tokens appearing/disappearing, and ``obstacles()`` to answer late joiners.
@@ -14,7 +15,14 @@ from __future__ import annotations
 import threading
 from typing import Protocol
 
-from fleet.core.wire import CancelAssignment, Obstacle, ObstacleSet, ParkAssignment, RobotState
+from fleet.core.wire import (
+    CancelAssignment,
+    ControlCommand,
+    Obstacle,
+    ObstacleSet,
+    ParkAssignment,
+    RobotState,
+)
 
 
 class FleetSink(Protocol):
@@ -40,6 +48,8 @@ class FleetBus(Protocol):
 
     def publish_obstacles(self, msg: ObstacleSet) -> None: ...
 
+    def publish_control(self, msg: ControlCommand) -> None: ...
+
     @property
     def counters(self) -> dict[str, int]:
         """Dropped messages, callback errors etc."""
@@ -58,6 +68,7 @@ class MemoryBus:
         self.sink: FleetSink | None = None
         self.assignments: list[ParkAssignment | CancelAssignment] = []
         self.obstacle_sets: list[ObstacleSet] = []
+        self.controls: list[ControlCommand] = []
         self.closed = False
 
     def start(self, sink: FleetSink) -> None:
@@ -71,6 +82,10 @@ class MemoryBus:
     def publish_obstacles(self, msg: ObstacleSet) -> None:
         with self._lock:
             self.obstacle_sets.append(msg)
+
+    def publish_control(self, msg: ControlCommand) -> None:
+        with self._lock:
+            self.controls.append(msg)
 
     @property
     def counters(self) -> dict[str, int]:

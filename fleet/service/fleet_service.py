@@ -66,6 +66,8 @@ from fleet.core.tasks import (
 from fleet.core.types import LAWS, Law
 from fleet.core.wire import (
     CancelAssignment,
+    ControlAction,
+    ControlCommand,
     Obstacle,
     ObstacleSet,
     ParkAssignment,
@@ -75,6 +77,7 @@ from fleet.core.wire import (
 )
 from fleet.io.settings import Settings
 from fleet.service.bus import FleetBus
+from fleet.service.control_desk import ControlDesk
 from fleet.service.roster import Roster
 from fleet.service.store import TaskStore
 
@@ -99,6 +102,14 @@ RATE_WINDOW_S = 2.0
 PathSample = tuple[float, float, float, float, float, float]  # t, x, y, theta, u, omega
 Listener = Callable[[FleetEvent], None]
 _ACTIVE = (TaskStatus.ASSIGNED, TaskStatus.DRIVING)
+#: Robots standing still with no task: their place is taken (goal validation).
+_STANDING = (
+    RobotStatus.ARRIVED,
+    RobotStatus.HOLDING,
+    RobotStatus.LOST,
+    RobotStatus.PAUSED,
+    RobotStatus.ESTOP,
+)
 
 
 class FleetService:
@@ -134,6 +145,7 @@ class FleetService:
         self._obstacles: list[Obstacle] = [] if site is None else list(site.obstacles)
         self._listeners: list[Listener] = []
         self._counters: Counter[str] = Counter()
+        self.control_desk = ControlDesk(bus.publish_control, clock)  # operator pause / e-stop
         self._last_robot_event: dict[str, float] = {}
         self._plan_seconds: float | None = None  # EWMA of planning wall time [s]
         self._rate_anchor: dict[str, tuple[int, float]] = {}  # robot -> (seq, time)
@@ -352,6 +364,7 @@ class FleetService:
                 self._last_robot_event[state.robot_id] = now
                 events.append(RobotEvent(robot=view))
         self._emit(events)
+        self.control_desk.check(state)  # a robot that should be held but is not: re-send
         if events and any(isinstance(e, TaskEvent) for e in events):
             self._wake.set()
 
@@ -446,6 +459,9 @@ class FleetService:
             now = self._clock()
             # Only tasks under way have deadlines and assignments (queued ones wait cheaply).
             for task in list(self._under_way.values()):
+                if self._held(task.robot_id):  # paused or e-stopped: the task waits, no timeout
+                    self._deadline[task.id] = now + self.settings.task_timeout_s
+                    continue
                 deadline = self._deadline.get(task.id)
                 if deadline is not None and now >= deadline:
                     reason = f"timeout: not arrived within {self.settings.task_timeout_s:g} s"
@@ -482,12 +498,21 @@ class FleetService:
             )
         )
 
+    def _held(self, robot_id: str | None) -> bool:
+        """Whether an operator holds the robot still (asked, or it reports so)."""
+        if robot_id is None:
+            return False
+        state = self._roster.state(robot_id)
+        return self.control_desk.held(robot_id, None if state is None else state.mode)
+
     def _free_robots(self) -> list[RobotView]:
         busy = self._robot_task
         return [
             v
             for v in self._roster.views()
-            if v.status != RobotStatus.LOST and v.robot_id not in busy
+            if v.status != RobotStatus.LOST
+            and v.robot_id not in busy
+            and not self._held(v.robot_id)
         ]
 
     def _dispatch(self) -> None:
@@ -670,7 +695,7 @@ class FleetService:
         for v in self._roster.views():
             if v.robot_id == exclude_robot or v.robot_id in busy:
                 continue
-            if v.status in (RobotStatus.ARRIVED, RobotStatus.HOLDING, RobotStatus.LOST):
+            if v.status in _STANDING:
                 out.append(Occupied(v.pose.x, v.pose.y, f"{v.status.value} robot {v.robot_id}"))
         return out
 
@@ -744,6 +769,20 @@ class FleetService:
                 self._keys_in_flight[idempotency_key] = threading.Event()
         return True
 
+    def control(
+        self, action: ControlAction, robot_id: str | None = None, reason: str | None = None
+    ) -> ControlCommand:
+        """Pause, resume, e-stop or release one robot or (``None``) the whole fleet: the
+        command goes to the robots at once; paused and e-stopped robots keep their tasks
+        (no timeout) and take no new ones. Raises :class:`RobotNotFound`."""
+        if robot_id is not None:
+            with self._lock:
+                if not self._roster.known(robot_id):
+                    raise RobotNotFound(f"robot {robot_id} not found")
+        message = self.control_desk.command(action, robot_id, reason)
+        self._wake.set()
+        return message
+
     def cancel(self, task_id: str) -> Task:
         """Cancel a task; :class:`TaskNotFound`, or :class:`TaskConflict` if already final."""
         events: list[FleetEvent] = []
@@ -813,6 +852,10 @@ class FleetService:
     def counters(self) -> dict[str, int]:
         with self._lock:
             out = dict(self._counters)
+        desk = self.control_desk
+        out["estops_requested"] = desk.requested[ControlAction.ESTOP]
+        out["control_requests"] = sum(desk.requested.values())
+        out["control_resent"] = desk.resent
         for key, value in self._bus.counters.items():
             out[f"bus_{key}"] = value
         return out

@@ -29,6 +29,7 @@ import zenoh
 from fleet.core.wire import (
     SERVICE_TOKEN,
     CancelAssignment,
+    ControlCommand,
     Keys,
     ObstacleSet,
     ParkAssignment,
@@ -36,6 +37,7 @@ from fleet.core.wire import (
     encode,
 )
 from fleet.io.decoder import Decoder
+from fleet.io.operator import put_control
 from fleet.service.bus import FleetSink
 
 _log = logging.getLogger(__name__)
@@ -61,6 +63,19 @@ class ZenohFleetBus:
 
     def publish_obstacles(self, msg: ObstacleSet) -> None:
         self._put(self._keys.obstacles, encode(msg), "obstacle_sets_sent")
+
+    def publish_control(self, msg: ControlCommand) -> None:
+        """An operator command, never dropped (``fleet.io.operator.put_control``)."""
+        with self._lock:
+            if self._closed:
+                return
+        try:
+            put_control(self._session, self._keys, msg)
+        except zenoh.ZError:
+            self._count("publish_errors")
+            _log.exception("could not publish control command %s", msg.command.value)
+            return
+        self._count("controls_sent")
 
     def _put(self, key: str, payload: bytes, counter: str) -> None:
         with self._lock:

@@ -188,6 +188,35 @@ class TaskOut(BaseModel):
         )
 
 
+class TaskEventOut(BaseModel):
+    """One stored transition of a task."""
+
+    at: float = Field(description="seconds since the epoch (service clock)")
+    event: str = Field(
+        description="created, assigned, acknowledged, replanned, requeued, succeeded, failed, "
+        "cancelled, ..."
+    )
+    status: TaskStatus
+    robot_id: str | None
+    law: Law | None = Field(description="cw = (20), ccw = (17)")
+    revision: int = Field(description="re-plans of the law while under way")
+    attempts: int = Field(description="times the task was assigned (requeues and recoveries)")
+    reason: str | None
+
+    @classmethod
+    def of(cls, at: float, event: str, task: Task) -> TaskEventOut:
+        return cls(
+            at=at,
+            event=event,
+            status=task.status,
+            robot_id=task.robot_id,
+            law=task.law,
+            revision=task.revision,
+            attempts=task.attempts,
+            reason=task.reason,
+        )
+
+
 class RobotErrorOut(BaseModel):
     """One active fault of a robot."""
 

@@ -12,7 +12,7 @@ from typing import Annotated
 from fastapi import APIRouter, Path, Query, status
 
 from api.deps import Authorized, IdempotencyKey, ServiceDep, TaskBody
-from api.schemas import ErrorOut, PathPointOut, TaskOut
+from api.schemas import ErrorOut, PathPointOut, TaskEventOut, TaskOut
 from fleet.core.tasks import TaskStatus
 
 router = APIRouter(prefix="/tasks", tags=["tasks"])
@@ -67,6 +67,18 @@ def get_task(task_id: TaskId, service: ServiceDep) -> TaskOut:
 )
 def cancel_task(task_id: TaskId, service: ServiceDep) -> TaskOut:
     return TaskOut.of(service.cancel(task_id))
+
+
+#: Most transitions returned by ``/tasks/{id}/events`` (the newest).
+HISTORY_MAX = 1000
+
+
+@router.get("/{task_id}/events", responses={404: {"model": ErrorOut}})
+def task_events(task_id: TaskId, service: ServiceDep) -> list[TaskEventOut]:
+    """Every transition of the task, oldest first (at most the newest 1000): time, event,
+    status, robot, law, revision, attempts, reason."""
+    rows = service.history(task_id)[-HISTORY_MAX:]
+    return [TaskEventOut.of(at, event, task) for at, event, task in rows]
 
 
 @router.get("/{task_id}/path", responses={404: {"model": ErrorOut}})

@@ -810,6 +810,14 @@ class FleetService:
             raise TaskNotFound(f"task {task_id} not found")
         return stored
 
+    def history(self, task_id: str) -> list[tuple[float, str, Task]]:
+        """Every stored transition of a task, oldest first: (time [s since epoch], event
+        such as ``assigned`` or ``replanned``, the task as stored then)."""
+        rows = self._store.history(task_id)
+        if not rows and self._store.get(task_id) is None:
+            raise TaskNotFound(f"task {task_id} not found")
+        return rows
+
     def tasks(self, status: TaskStatus | None = None, robot_id: str | None = None) -> list[Task]:
         """Tasks in creation order, optionally filtered (read from the store)."""
         return self._store.list(status=status, robot_id=robot_id)

@@ -19,6 +19,7 @@ from api import errors
 from api.deps import FleetAPI
 from api.metrics import FleetMetrics
 from api.routes import (
+    bays,
     control,
     dashboard,
     events,
@@ -102,7 +103,7 @@ def create_app(settings: Settings, *, service: FleetAPI | None = None) -> FastAP
     app.state.zenoh_locators = []
     app.state.startup_error = None
     errors.install(app)
-    for module in (tasks, robots, control, obstacles, events, health):
+    for module in (tasks, robots, control, bays, obstacles, events, health):
         app.include_router(module.router)
     app.include_router(plots.router)
     app.include_router(metrics.router)

@@ -17,8 +17,9 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from api.schemas import ObstacleIn, ObstaclesIn, TaskIn, yard_errors
 from fleet.core.tasks import FleetEvent, RobotView, Task, TaskRequest, TaskStatus
-from fleet.core.wire import ControlAction, ControlCommand, Obstacle
+from fleet.core.wire import ControlAction, ControlCommand, Obstacle, Pose
 from fleet.io.settings import Settings
+from fleet.service.bays import BayState
 from fleet.service.control_desk import ControlDesk
 
 
@@ -32,6 +33,14 @@ class FleetAPI(Protocol):
     def cancel(self, task_id: str) -> Task: ...
     def task(self, task_id: str) -> Task: ...
     def history(self, task_id: str) -> list[tuple[float, str, Task]]: ...
+    def submit_to_bay(
+        self,
+        bay: str | None,
+        group: str | None,
+        make: Callable[[Pose, str], TaskRequest],
+        idempotency_key: str | None = None,
+    ) -> Task: ...
+    def bays(self) -> list[BayState]: ...
     def tasks(
         self, status: TaskStatus | None = None, robot_id: str | None = None
     ) -> list[Task]: ...
@@ -90,6 +99,8 @@ Authorized = Depends(require_token)
 
 async def checked_task(body: Annotated[TaskIn, Body()], settings: SettingsDep) -> TaskIn:
     """The task body, with its goal checked against the configured yard (422 otherwise)."""
+    if body.goal is None:
+        return body
     errors = yard_errors([(("body", "goal"), body.goal.x, body.goal.y)], settings.yard)
     if errors:
         raise RequestValidationError(errors)

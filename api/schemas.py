@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from fleet.core.params import Gains, Tolerance
 from fleet.core.tasks import Direction, RobotStatus, RobotView, Task, TaskRequest, TaskStatus
@@ -25,6 +25,7 @@ from fleet.core.wire import (
     RobotError,
     RobotId,
 )
+from fleet.service.bays import BayState
 
 Coordinate = Annotated[
     float, Field(allow_inf_nan=False, description="metres, inside the yard (see /healthz)")
@@ -65,10 +66,30 @@ class ToleranceIn(_In):
     heading: Annotated[float, Field(ge=0.001, le=math.pi, allow_inf_nan=False)] = 0.1
 
 
-class TaskIn(_In):
-    """Park a robot (the named one, or any) at ``goal``."""
+BayName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")]
 
-    goal: PoseIn
+
+class TaskIn(_In):
+    """Park a robot (the named one, or any) at ``goal``, in the named ``bay``, or in any
+    free bay of ``bay_group``: exactly one of the three."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        frozen=True,
+        json_schema_extra={
+            "examples": [
+                {"goal": {"x": 3.0, "y": 2.0, "theta": 1.57}},
+                {"bay": "A3"},
+                {"bay_group": "charging", "robot_id": "robot-2"},
+            ]
+        },
+    )
+
+    goal: PoseIn | None = Field(default=None, description="a parking posture")
+    bay: BayName | None = Field(default=None, description="a bay of the site map (GET /bays)")
+    bay_group: BayName | None = Field(
+        default=None, description="any free bay of this group, e.g. charging"
+    )
     robot_id: RobotId | None = Field(default=None, description="a specific robot; omit for any")
     direction: Direction = Field(
         default="auto", description="auto: the fleet picks cw/ccw; cw = law (20), ccw = law (17)"
@@ -76,13 +97,25 @@ class TaskIn(_In):
     gains: GainsIn | None = Field(default=None, description="omit for the law's default gains")
     tolerance: ToleranceIn = ToleranceIn()
 
-    def to_request(self) -> TaskRequest:
+    @model_validator(mode="after")
+    def _one_target(self) -> TaskIn:
+        given = [n for n in ("goal", "bay", "bay_group") if getattr(self, n) is not None]
+        if len(given) != 1:
+            raise ValueError(f"give exactly one of goal, bay, bay_group (got {len(given)})")
+        return self
+
+    def to_request(self, goal: Pose | None = None, bay: str | None = None) -> TaskRequest:
+        """The request, at ``goal`` (a bay's pose) or else at the body's goal."""
+        if goal is None:
+            assert self.goal is not None
+            goal = Pose(x=self.goal.x, y=self.goal.y, theta=self.goal.theta)
         return TaskRequest(
-            goal=Pose(x=self.goal.x, y=self.goal.y, theta=self.goal.theta),
+            goal=goal,
             robot_id=self.robot_id,
             direction=self.direction,
             gains=None if self.gains is None else Gains(**self.gains.model_dump()),
             tolerance=Tolerance(**self.tolerance.model_dump()),
+            bay=bay,
         )
 
 
@@ -159,6 +192,7 @@ class TaskOut(BaseModel):
     gains: Gains | None
     tolerance: Tolerance
     reason: str | None = Field(description="why it failed or was cancelled")
+    bay: str | None = Field(default=None, description="the bay the task parks in (reserved)")
     attempts: int
     revision: int = Field(
         description="re-plans of the law while under way (0 as first sent); each one is "
@@ -181,6 +215,7 @@ class TaskOut(BaseModel):
             gains=req.gains,
             tolerance=req.tolerance,
             reason=task.reason,
+            bay=req.bay,
             attempts=task.attempts,
             revision=task.revision,
             created_at=task.created_at,
@@ -285,6 +320,31 @@ class ControlOut(BaseModel):
             seq=message.seq,
             stamp=message.stamp,
             reason=message.reason,
+        )
+
+
+class BayOut(BaseModel):
+    """A bay of the site map and its state."""
+
+    name: str
+    group: str | None
+    pose: PoseOut
+    status: Literal["free", "reserved", "occupied"] = Field(
+        description="reserved: by an active task; occupied: a robot parked in it"
+    )
+    task_id: str | None = Field(description="the task that reserves it")
+    robot_id: str | None = Field(description="the robot driving there or parked in it")
+
+    @classmethod
+    def of(cls, state: BayState) -> BayOut:
+        bay = state.bay
+        return cls(
+            name=bay.name,
+            group=bay.group,
+            pose=PoseOut.of(bay.pose),
+            status=state.status,
+            task_id=state.task_id,
+            robot_id=state.robot_id,
         )
 
 

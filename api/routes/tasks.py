@@ -26,15 +26,23 @@ TaskId = Annotated[str, Path(min_length=1, max_length=200)]
     dependencies=[Authorized],
     responses={
         401: {"model": ErrorOut, "description": "missing or wrong bearer token"},
-        404: {"model": ErrorOut, "description": "unknown robot"},
-        409: {"model": ErrorOut, "description": "goal rejected (obstacle zone, near a goal)"},
+        404: {"model": ErrorOut, "description": "unknown robot, bay or bay group"},
+        409: {
+            "model": ErrorOut,
+            "description": "goal rejected (obstacle or keep-out zone, near a goal), bay taken",
+        },
     },
 )
 def submit_task(
     body: TaskBody, service: ServiceDep, idempotency_key: IdempotencyKey = None
 ) -> TaskOut:
-    """Create a parking task; it is stored before the 201 is sent."""
-    return TaskOut.of(service.submit(body.to_request(), idempotency_key))
+    """Create a parking task at a goal, in a bay, or in any free bay of a group; it is
+    stored before the 201 is sent."""
+    if body.goal is not None:
+        return TaskOut.of(service.submit(body.to_request(), idempotency_key))
+    return TaskOut.of(
+        service.submit_to_bay(body.bay, body.bay_group, body.to_request, idempotency_key)
+    )
 
 
 @router.get("")

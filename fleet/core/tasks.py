@@ -76,6 +76,8 @@ class TaskRequest(BaseModel):
     #: Gains per law, used when ``gains`` is None (e.g. ``auto`` with the paper's per-law
     #: gains of Table 8); a law missing here falls back to DEFAULT_GAINS.
     law_gains: dict[Law, Gains] | None = None
+    #: The site's bay whose pose is ``goal`` (reserved by this task while it is active).
+    bay: str | None = None
 
     def gains_for(self, law: Law) -> Gains:
         """The gains the robot uses with ``law``: gains, else law_gains[law], else default."""
@@ -160,6 +162,14 @@ class RobotNotFound(FleetError):
 
 class GoalRejected(FleetError):
     """The goal is outside the yard, inside an obstacle's zone, or too near another goal."""
+
+
+class BayNotFound(FleetError):
+    """No such bay or bay group in the site map."""
+
+
+class BayTaken(FleetError):
+    """The bay is reserved by another active task (or every bay of the group is taken)."""
 
 
 class TaskConflict(FleetError):

@@ -51,7 +51,9 @@ from fleet.core.assignment import TaskSpec, optimal_assignment, predicted_times
 from fleet.core.direction import Mover, Scene, choose_directions
 from fleet.core.goals import GoalIndex, Occupied, validate_goal
 from fleet.core.tasks import (
+    BayTaken,
     FleetEvent,
+    GoalRejected,
     RobotEvent,
     RobotNotFound,
     RobotStatus,
@@ -76,6 +78,7 @@ from fleet.core.wire import (
     RobotState,
 )
 from fleet.io.settings import Settings
+from fleet.service.bays import BayBook, BayState
 from fleet.service.bus import FleetBus
 from fleet.service.control_desk import ControlDesk
 from fleet.service.roster import Roster
@@ -146,6 +149,7 @@ class FleetService:
         self._listeners: list[Listener] = []
         self._counters: Counter[str] = Counter()
         self.control_desk = ControlDesk(bus.publish_control, clock)  # operator pause / e-stop
+        self._bays = BayBook(settings.site)  # bay -> the active task that reserves it
         self._last_robot_event: dict[str, float] = {}
         self._plan_seconds: float | None = None  # EWMA of planning wall time [s]
         self._rate_anchor: dict[str, tuple[int, float]] = {}  # robot -> (seq, time)
@@ -269,6 +273,7 @@ class FleetService:
             self._unindex(old)
         goal = task.request.goal
         self._goals.add(task.id, Occupied(goal.x, goal.y, f"the goal of task {task.id}"))
+        self._bays.hold(task)
         self._active[task.id] = task
         if task.status == TaskStatus.QUEUED:
             self._queued[task.id] = task
@@ -295,6 +300,7 @@ class FleetService:
         old = self._active.pop(task_id, None)
         if old is not None:
             self._unindex(old)
+            self._bays.release(old)
         self._goals.remove(task_id)
         self._deadline.pop(task_id, None)
         self._last_sent.pop(task_id, None)
@@ -726,6 +732,7 @@ class FleetService:
         except BaseException:
             with self._lock:
                 self._goals.remove(task.id)
+                self._bays.release(task)
             raise
         finally:
             if idempotency_key is not None:
@@ -735,6 +742,7 @@ class FleetService:
         with self._lock:
             if stored.id != task.id:  # a concurrent request with the same key won
                 self._goals.remove(task.id)
+                self._bays.release(task)
                 return stored
             self._put(stored)  # stored: now the tick thread may dispatch it
             events.append(TaskEvent(task=stored))
@@ -753,6 +761,7 @@ class FleetService:
             rid = request.robot_id
             if rid is not None and not self._roster.known(rid):
                 raise RobotNotFound(f"robot {rid} not found")
+            self._bays.check(task)
             validate_goal(
                 goal,
                 self.settings.yard,
@@ -765,9 +774,38 @@ class FleetService:
             # Reserve the goal while the task is written (outside the lock, so concurrent
             # submits share one commit): a concurrent submit near it is rejected meanwhile.
             self._goals.add(task.id, Occupied(goal.x, goal.y, f"the goal of task {task.id}"))
+            self._bays.hold(task)
             if idempotency_key is not None:
                 self._keys_in_flight[idempotency_key] = threading.Event()
         return True
+
+    def submit_to_bay(
+        self,
+        bay: str | None,
+        group: str | None,
+        make: Callable[[Pose, str], TaskRequest],
+        idempotency_key: str | None = None,
+    ) -> Task:
+        """Submit a task whose goal is a named bay, or any free bay of ``group``
+        (``make(pose, bay)`` builds the request). The bay is reserved by the task while it
+        is active. Raises :class:`BayNotFound` (404) or :class:`BayTaken` / GoalRejected
+        (409, e.g. a robot parked there)."""
+        with self._lock:
+            candidates = self._bays.candidates(bay, group)
+        refused: list[str] = []
+        for choice in candidates:
+            try:
+                return self.submit(make(choice.pose, choice.name), idempotency_key)
+            except (BayTaken, GoalRejected) as exc:
+                if bay is not None:
+                    raise
+                refused.append(f"{choice.name}: {exc}")
+        raise BayTaken(f"no free bay in group {group}: " + "; ".join(refused))
+
+    def bays(self) -> list[BayState]:
+        """Every bay of the site map with its state (free, reserved, occupied)."""
+        with self._lock:
+            return self._bays.states(dict(self._active), self._roster.views())
 
     def control(
         self, action: ControlAction, robot_id: str | None = None, reason: str | None = None

@@ -282,6 +282,7 @@ class RobotOut(BaseModel):
         default=None, description="why it stands still, e.g. 'pose stale' while holding"
     )
     errors: list[RobotErrorOut] = Field(default_factory=list, description="active faults")
+    in_service: bool = Field(default=True, description="false: decommissioned, gets no task")
 
     @classmethod
     def of(cls, robot: RobotView) -> RobotOut:
@@ -298,6 +299,7 @@ class RobotOut(BaseModel):
             last_seen=robot.last_seen,
             detail=robot.detail,
             errors=[RobotErrorOut.of(e) for e in robot.errors],
+            in_service=robot.in_service,
         )
 
 

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Path
 
-from api.deps import ServiceDep
+from api.deps import Authorized, ServiceDep
 from api.schemas import ErrorOut, RobotOut
 
 router = APIRouter(prefix="/robots", tags=["robots"])
@@ -18,8 +18,26 @@ def list_robots(service: ServiceDep) -> list[RobotOut]:
     return [RobotOut.of(robot) for robot in sorted(service.robots(), key=lambda r: r.robot_id)]
 
 
+RobotId = Annotated[str, Path(min_length=1, max_length=200)]
+_MUTATING: dict[int | str, dict[str, Any]] = {
+    401: {"model": ErrorOut},
+    404: {"model": ErrorOut, "description": "unknown robot"},
+}
+
+
 @router.get("/{robot_id}", responses={404: {"model": ErrorOut}})
-def get_robot(
-    robot_id: Annotated[str, Path(min_length=1, max_length=200)], service: ServiceDep
-) -> RobotOut:
+def get_robot(robot_id: RobotId, service: ServiceDep) -> RobotOut:
     return RobotOut.of(service.robot(robot_id))
+
+
+@router.post("/{robot_id}/decommission", dependencies=[Authorized], responses=_MUTATING)
+def decommission_robot(robot_id: RobotId, service: ServiceDep) -> RobotOut:
+    """Take the robot out of service: no new task, its task under way is requeued, and
+    once lost it no longer counts as an obstacle."""
+    return RobotOut.of(service.decommission(robot_id))
+
+
+@router.post("/{robot_id}/commission", dependencies=[Authorized], responses=_MUTATING)
+def commission_robot(robot_id: RobotId, service: ServiceDep) -> RobotOut:
+    """Put a decommissioned robot back in service."""
+    return RobotOut.of(service.commission(robot_id))

@@ -122,6 +122,7 @@ class RobotView(BaseModel):
     radius: float = 0.2
     last_seen: float  # [s since epoch], service clock
     detail: str | None = None  # why it stands still (RobotState.detail)
+    in_service: bool = True  # False: decommissioned by an operator (gets no task)
     errors: list[RobotError] = Field(default_factory=list)  # active faults, oldest first
 
 

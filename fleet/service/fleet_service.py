@@ -150,6 +150,7 @@ class FleetService:
         self._counters: Counter[str] = Counter()
         self.control_desk = ControlDesk(bus.publish_control, clock)  # operator pause / e-stop
         self._bays = BayBook(settings.site)  # bay -> the active task that reserves it
+        self._decommissioned: set[str] = set()  # robots out of service (no tasks)
         self._last_robot_event: dict[str, float] = {}
         self._plan_seconds: float | None = None  # EWMA of planning wall time [s]
         self._rate_anchor: dict[str, tuple[int, float]] = {}  # robot -> (seq, time)
@@ -440,21 +441,53 @@ class FleetService:
             if task is not None:
                 reason = f"robot {robot_id} lost (liveliness token gone)"
                 if self.settings.on_robot_lost == "requeue":
-                    requeued = self._update(
-                        task,
-                        now,
-                        status=TaskStatus.QUEUED,
-                        robot_id=task.request.robot_id,
-                        law=None,
-                        reason=reason + "; requeued",
-                    )
-                    self._deadline.pop(task.id, None)
-                    self._last_sent.pop(task.id, None)
-                    self._transition(requeued, "requeued", events)
+                    self._requeue(task, now, reason + "; requeued", events)
                 else:
                     self._finish(task, TaskStatus.FAILED, reason, now, events, False)
         self._emit(events)
         self._wake.set()
+
+    def _requeue(self, task: Task, now: float, reason: str, events: list[FleetEvent]) -> None:
+        """Put a task under way back in the queue (its robot keeps a named task)."""
+        requeued = self._update(
+            task, now, status=TaskStatus.QUEUED, robot_id=task.request.robot_id, law=None,
+            reason=reason,
+        )  # fmt: skip
+        self._deadline.pop(task.id, None)
+        self._last_sent.pop(task.id, None)
+        self._transition(requeued, "requeued", events)
+
+    def decommission(self, robot_id: str) -> RobotView:
+        """Take a robot out of service: it gets no task, its task under way is requeued (and
+        the robot told to stop it), and once lost it no longer counts as an obstacle for
+        planning and goal validation. Raises :class:`RobotNotFound`."""
+        events: list[FleetEvent] = []
+        with self._lock:
+            if not self._roster.known(robot_id):
+                raise RobotNotFound(f"robot {robot_id} not found")
+            self._decommissioned.add(robot_id)
+            task = self._task_of_robot(robot_id)
+            if task is not None:
+                now = self._clock()
+                self._requeue(task, now, f"robot {robot_id} decommissioned; requeued", events)
+                self._cancel_sent[robot_id] = now
+                self._bus.publish_assignment(CancelAssignment(robot_id=robot_id, task_id=task.id))
+        self._emit(events)
+        self._wake.set()
+        return self.robot(robot_id)
+
+    def commission(self, robot_id: str) -> RobotView:
+        """Put a decommissioned robot back in service. Raises :class:`RobotNotFound`."""
+        with self._lock:
+            if not self._roster.known(robot_id):
+                raise RobotNotFound(f"robot {robot_id} not found")
+            self._decommissioned.discard(robot_id)
+        self._wake.set()
+        return self.robot(robot_id)
+
+    def _ignored(self, view: RobotView) -> bool:
+        """A lost, decommissioned robot: no obstacle any more (it was taken away)."""
+        return view.status is RobotStatus.LOST and view.robot_id in self._decommissioned
 
     # -- background work -----------------------------------------------------------------
 
@@ -519,6 +552,7 @@ class FleetService:
             if v.status != RobotStatus.LOST
             and v.robot_id not in busy
             and not self._held(v.robot_id)
+            and v.robot_id not in self._decommissioned
         ]
 
     def _dispatch(self) -> None:
@@ -667,7 +701,11 @@ class FleetService:
                 )
             )
             moving_ids.add(v.robot_id)
-        standing = [(v.pose.x, v.pose.y) for rid, v in views.items() if rid not in moving_ids]
+        standing = [
+            (v.pose.x, v.pose.y)
+            for rid, v in views.items()
+            if rid not in moving_ids and not self._ignored(v)
+        ]
         scene = Scene(
             movers=scene_movers,
             standing=standing,
@@ -699,7 +737,7 @@ class FleetService:
         out = list(self._goals.near(goal.x, goal.y, self.settings.avoidance.peer_radius))
         busy = self._claims
         for v in self._roster.views():
-            if v.robot_id == exclude_robot or v.robot_id in busy:
+            if v.robot_id == exclude_robot or v.robot_id in busy or self._ignored(v):
                 continue
             if v.status in _STANDING:
                 out.append(Occupied(v.pose.x, v.pose.y, f"{v.status.value} robot {v.robot_id}"))
@@ -761,6 +799,8 @@ class FleetService:
             rid = request.robot_id
             if rid is not None and not self._roster.known(rid):
                 raise RobotNotFound(f"robot {rid} not found")
+            if rid is not None and rid in self._decommissioned:
+                raise TaskConflict(f"robot {rid} is decommissioned: commission it first")
             self._bays.check(task)
             validate_goal(
                 goal,
@@ -860,13 +900,20 @@ class FleetService:
         """Tasks in creation order, optionally filtered (read from the store)."""
         return self._store.list(status=status, robot_id=robot_id)
 
+    def _in_service(self, view: RobotView) -> RobotView:
+        if view.robot_id in self._decommissioned:
+            return view.model_copy(update={"in_service": False})
+        return view
+
     def robots(self) -> list[RobotView]:
         with self._lock:
-            return self._roster.views()
+            return [self._in_service(v) for v in self._roster.views()]
 
     def robot(self, robot_id: str) -> RobotView:
         with self._lock:
             view = self._roster.view(robot_id)
+            if view is not None:
+                view = self._in_service(view)
         if view is None:
             raise RobotNotFound(f"robot {robot_id} not found")
         return view

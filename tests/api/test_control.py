@@ -52,3 +52,22 @@ async def test_control_needs_the_token_when_one_is_set(
     ok = await auth_client.post("/control/estop", headers={"Authorization": f"Bearer {TOKEN}"})
     assert ok.status_code == 200
     assert (await auth_client.get("/control")).status_code == 200  # reads stay open
+
+
+async def test_decommission_and_commission_over_rest(
+    auth_client: httpx.AsyncClient, bus: MemoryBus
+) -> None:
+    add_robot(bus, "r1")
+    headers = {"Authorization": f"Bearer {TOKEN}"}
+    assert (await auth_client.post("/robots/r1/decommission")).status_code == 401
+    out = await auth_client.post("/robots/r1/decommission", headers=headers)
+    assert out.status_code == 200 and out.json()["in_service"] is False
+    assert (await auth_client.get("/robots/r1")).json()["in_service"] is False
+    named = await auth_client.post(
+        "/tasks", json={"goal": {"x": 2, "y": 2}, "robot_id": "r1"}, headers=headers
+    )
+    assert named.status_code == 409 and "decommissioned" in named.json()["detail"]
+    back = await auth_client.post("/robots/r1/commission", headers=headers)
+    assert back.status_code == 200 and back.json()["in_service"] is True
+    missing = await auth_client.post("/robots/ghost/decommission", headers=headers)
+    assert missing.status_code == 404

@@ -6,7 +6,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from fleet.core.tasks import RobotNotFound, TaskStatus
+from fleet.core.tasks import GoalRejected, RobotNotFound, TaskConflict, TaskStatus
 from fleet.core.wire import ControlAction, ControlCommand, Hold, Pose, RobotMode, RobotState
 from fleet.service.control_desk import RESEND_S, ControlDesk
 from tests.fleet.service.test_service import Fleet, req
@@ -95,3 +95,34 @@ def test_control_of_an_unknown_robot_is_refused(fleet: Fleet) -> None:
     with pytest.raises(RobotNotFound, match="robot ghost not found"):
         fleet.service.control(ControlAction.PAUSE, "ghost")
     assert fleet.bus.controls == []
+
+
+def test_a_decommissioned_robot_gets_no_task_and_its_task_is_requeued(fleet: Fleet) -> None:
+    fleet.join("r1", 0.0, 0.0)
+    task = fleet.service.submit(req(3.0, 0.0))
+    fleet.service.tick()
+    assert fleet.service.task(task.id).robot_id == "r1"
+    view = fleet.service.decommission("r1")
+    assert view.in_service is False
+    requeued = fleet.service.task(task.id)
+    assert requeued.status is TaskStatus.QUEUED and requeued.robot_id is None
+    assert requeued.reason == "robot r1 decommissioned; requeued"
+    assert fleet.cancels("r1")[-1].task_id == task.id  # told to stop
+    fleet.robot("r1", 0.2, 0.0, mode=RobotMode.HOLDING, task_id=task.id)
+    fleet.service.tick()
+    assert fleet.service.task(task.id).status is TaskStatus.QUEUED  # nobody takes it
+    with pytest.raises(TaskConflict, match="robot r1 is decommissioned"):
+        fleet.service.submit(req(-3.0, 0.0, robot="r1"))
+    fleet.service.commission("r1")
+    fleet.robot("r1", 0.2, 0.0, mode=RobotMode.IDLE)
+    fleet.service.tick()
+    assert fleet.service.task(task.id).status is TaskStatus.ASSIGNED
+
+
+def test_a_lost_decommissioned_robot_no_longer_blocks_goals(fleet: Fleet) -> None:
+    fleet.join("r1", 0.0, 0.0)
+    fleet.bus.robot_gone("r1")
+    with pytest.raises(GoalRejected, match="lost robot r1"):
+        fleet.service.submit(req(0.5, 0.0))
+    fleet.service.decommission("r1")
+    assert fleet.service.submit(req(0.5, 0.0)).status is TaskStatus.QUEUED

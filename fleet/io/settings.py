@@ -88,6 +88,9 @@ class Settings(BaseSettings):
     task_timeout_s: Annotated[float, Field(gt=0)] = 120.0
     on_robot_lost: Literal["fail", "requeue"] = "fail"
     safety_separation_m: Annotated[float, Field(gt=0)] = 0.5
+    # A task whose robot makes no progress towards the goal this long is stuck: recovered
+    # (flip, wait, requeue to another robot), then failed (fleet/service/stuck.py).
+    stuck_after_s: Annotated[float, Field(gt=0)] = 30.0
     # Site map (fleet/core/site.py: yard, obstacles, keep-out zones, bays), TOML or JSON;
     # its yard replaces ``yard``. Loaded and checked when the settings are.
     site_file: Path | None = None

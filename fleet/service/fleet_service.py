@@ -83,6 +83,7 @@ from fleet.service.bus import FleetBus
 from fleet.service.control_desk import ControlDesk
 from fleet.service.roster import Roster
 from fleet.service.store import TaskStore
+from fleet.service.stuck import RECOVERIES, StuckWatch, stuck_cause
 
 _log = logging.getLogger(__name__)
 
@@ -99,6 +100,8 @@ PATHS_KEPT = 256
 ROBOT_EVENT_INTERVAL_S = 0.1
 #: Bound of the planning lead time [s, robot time] (see the module docstring).
 LEAD_TIME_MAX_S = 10.0
+#: Added to the predicted time [s] of giving a stuck task back to the robot it left.
+AVOID_COST_S = 1e6
 #: Window over which a robot's control rate is measured [s, service clock].
 RATE_WINDOW_S = 2.0
 
@@ -151,6 +154,8 @@ class FleetService:
         self.control_desk = ControlDesk(bus.publish_control, clock)  # operator pause / e-stop
         self._bays = BayBook(settings.site)  # bay -> the active task that reserves it
         self._decommissioned: set[str] = set()  # robots out of service (no tasks)
+        self._stuck = StuckWatch(settings.stuck_after_s)  # progress of the tasks under way
+        self._avoid: dict[str, str] = {}  # task -> robot it was taken from (stuck)
         self._last_robot_event: dict[str, float] = {}
         self._plan_seconds: float | None = None  # EWMA of planning wall time [s]
         self._rate_anchor: dict[str, tuple[int, float]] = {}  # robot -> (seq, time)
@@ -303,6 +308,8 @@ class FleetService:
             self._unindex(old)
             self._bays.release(old)
         self._goals.remove(task_id)
+        self._stuck.forget(task_id)
+        self._avoid.pop(task_id, None)
         self._deadline.pop(task_id, None)
         self._last_sent.pop(task_id, None)
 
@@ -351,6 +358,8 @@ class FleetService:
             self._measure_rate(state, now)
             task = self._task_of_robot(state.robot_id)
             if task is not None and state.task_id == task.id:
+                waiting = state.mode in (RobotMode.WAITING, RobotMode.PAUSED, RobotMode.ESTOP)
+                self._stuck.observe(task.id, state.pose, task.request.goal, now, waiting)
                 path = self._paths.get(task.id)
                 if path is not None:
                     p = state.pose
@@ -447,7 +456,14 @@ class FleetService:
         self._emit(events)
         self._wake.set()
 
-    def _requeue(self, task: Task, now: float, reason: str, events: list[FleetEvent]) -> None:
+    def _requeue(
+        self,
+        task: Task,
+        now: float,
+        reason: str,
+        events: list[FleetEvent],
+        event: str = "requeued",
+    ) -> None:
         """Put a task under way back in the queue (its robot keeps a named task)."""
         requeued = self._update(
             task, now, status=TaskStatus.QUEUED, robot_id=task.request.robot_id, law=None,
@@ -455,7 +471,7 @@ class FleetService:
         )  # fmt: skip
         self._deadline.pop(task.id, None)
         self._last_sent.pop(task.id, None)
-        self._transition(requeued, "requeued", events)
+        self._transition(requeued, event, events)
 
     def decommission(self, robot_id: str) -> RobotView:
         """Take a robot out of service: it gets no task, its task under way is requeued (and
@@ -505,6 +521,7 @@ class FleetService:
                 if deadline is not None and now >= deadline:
                     reason = f"timeout: not arrived within {self.settings.task_timeout_s:g} s"
                     self._finish(task, TaskStatus.FAILED, reason, now, events, True)
+            self._recover_stuck(now, events)
             for task in self._under_way.values():
                 if task.robot_id is None:
                     continue
@@ -520,7 +537,48 @@ class FleetService:
         self._emit(events)
         self._dispatch()
 
-    def _send(self, task: Task, now: float) -> None:
+    def _recover_stuck(self, now: float, events: list[FleetEvent]) -> None:
+        """Tasks driving with no progress for ``stuck_after_s``: the next recovery
+        (``fleet.service.stuck``), stored with the cause and counted; then failure."""
+        for task in list(self._under_way.values()):
+            if task.status != TaskStatus.DRIVING or self._held(task.robot_id):
+                continue
+            if not self._stuck.stuck(task.id, now):
+                continue
+            assert task.robot_id is not None and task.law is not None
+            cause = stuck_cause(
+                self._roster.view(task.robot_id),
+                self._stuck.silent(task.id, now),
+                self._roster.views(),
+                self._obstacles,
+                self.settings.avoidance.peer_radius,
+                self.settings.stuck_after_s,
+            )
+            self._counters["stuck"] += 1
+            step = self._stuck.next_recovery(task.id, now)
+            if step is None:
+                reason = f"stuck: {cause}; {len(RECOVERIES)} recoveries did not help"
+                self._finish(task, TaskStatus.FAILED, reason, now, events, True)
+                continue
+            self._counters["recoveries"] += 1
+            reason = f"stuck: {cause}; recovery {self._stuck.attempts(task.id)}: {step}"
+            if step == "requeue":  # to another robot (dispatch avoids this one)
+                self._avoid[task.id] = task.robot_id
+                self._requeue(task, now, reason, events, "recovery")
+                self._cancel_sent[task.robot_id] = now
+                self._bus.publish_assignment(
+                    CancelAssignment(robot_id=task.robot_id, task_id=task.id)
+                )
+                continue
+            law = task.law
+            if step == "flip" and task.request.direction == "auto":
+                law = "cw" if task.law == "ccw" else "ccw"
+            revised = self._update(task, now, law=law, revision=task.revision + 1, reason=reason)
+            self._transition(revised, "recovery", events)
+            delay = 0.0 if law != task.law else self.settings.stuck_after_s / 3  # wait
+            self._send(revised, now, start_delay_s=delay)
+
+    def _send(self, task: Task, now: float, start_delay_s: float = 0.0) -> None:
         assert task.robot_id is not None and task.law is not None
         request = task.request
         self._last_sent[task.id] = now
@@ -534,6 +592,7 @@ class FleetService:
                 gains=request.gains_for(task.law),
                 tolerance=request.tolerance,
                 avoidance=self.settings.avoidance,
+                start_delay_s=start_delay_s,
             )
         )
 
@@ -604,6 +663,7 @@ class FleetService:
                         attempts=current.attempts + 1,
                     )
                     self._transition(assigned, "assigned", events)
+                    self._stuck.start(task.id, now)
                     self._deadline[task.id] = now + self.settings.task_timeout_s
                     self._paths[task.id] = deque(maxlen=PATH_SAMPLES)
                     while len(self._paths) > PATHS_KEPT:
@@ -664,6 +724,11 @@ class FleetService:
                 obstacles,
                 self.settings.avoidance,
             )
+            for j, t in enumerate(unnamed):  # a stuck task goes to another robot if any
+                avoid = self._avoid.get(t.id)
+                for i, r in enumerate(robots):
+                    if r.robot_id == avoid:
+                        cost[i, j] += AVOID_COST_S
             for i, j in optimal_assignment(cost):
                 pairs.append((unnamed[j], robots[i]))
         if not pairs:

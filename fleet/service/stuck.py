@@ -108,6 +108,8 @@ def stuck_cause(
     """What the service sees around a stuck robot (see the module docstring)."""
     if robot is None or silent:
         return f"no pose: nothing heard from the robot for {window_s:g} s"
+    if robot.detail == "pose stale":
+        return "no pose: the robot's own pose is stale"
     p = robot.pose
     near = [
         (math.hypot(o.pose.x - p.x, o.pose.y - p.y), o.robot_id)

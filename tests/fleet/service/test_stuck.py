@@ -47,6 +47,10 @@ def test_the_cause_is_what_the_service_can_see() -> None:
         stuck_cause(me, True, [me], [], 1.0, 30) == "no pose: nothing heard from the robot for 30 s"
     )
     assert stuck_cause(me, False, [me], [], 1.0, 30).startswith("no progress for 30 s")
+    stale = me.model_copy(update={"status": RobotStatus.HOLDING, "detail": "pose stale"})
+    assert (
+        stuck_cause(stale, False, [stale], [], 1.0, 30) == "no pose: the robot's own pose is stale"
+    )
 
 
 def test_a_stuck_task_is_flipped_then_delayed_then_requeued_to_another_robot_then_failed(

@@ -49,14 +49,19 @@ def sim_command(endpoint: str, options: DemoOptions) -> list[str]:
     )
 
 
-def curl_examples(url: str, token: bool) -> list[str]:
+def curl_examples(url: str, token: bool, site: bool = False, zenoh: str = "") -> list[str]:
     auth = " -H 'Authorization: Bearer $PARKFLEET_API_TOKEN'" if token else ""
     body = json.dumps({"goal": {"x": 3.0, "y": 2.0, "theta": 1.57}})
+    post = f"curl -s -X POST {url}/tasks -H 'Content-Type: application/json'{auth}"
+    bays = [f"{post} -d '{json.dumps({'bay_group': 'charging'})}'   # a free charging bay"]
+    stop = [f"parkfleet estop --connect {zenoh}   # stop every robot (--release to undo)"]
     return [
-        f"curl -s -X POST {url}/tasks -H 'Content-Type: application/json'{auth} -d '{body}'",
+        f"{post} -d '{body}'",
+        *(bays if site else []),
         f"curl -s {url}/tasks/<id>        # watch it reach succeeded",
         f"curl -s {url}/robots",
         f"curl -sN {url}/events           # live robot states and task changes",
+        *(stop if zenoh else []),
     ]
 
 
@@ -119,7 +124,12 @@ async def serve_demo(settings: Settings, options: DemoOptions) -> int:
             f"                Zenoh router on {', '.join(running.zenoh)}",
             f"                data in {Path(settings.data_dir) / 'parkfleet.db'}",
             "Submit a parking task and watch it:",
-            *(f"  {line}" for line in curl_examples(running.url, settings.api_token is not None)),
+            *(
+                f"  {line}"
+                for line in curl_examples(
+                    running.url, settings.api_token is not None, settings.site is not None, endpoint
+                )
+            ),
             "Ctrl-C stops the demo.",
             "",
         ]

@@ -3,7 +3,9 @@
 Two sources, both through the small :class:`MetricsSource` interface (a subset of
 :class:`api.deps.FleetAPI`, so the service can grow richer numbers behind it):
 
-* **events** (``add_listener``, on the service's threads): task durations (histogram,
+* **events** (``add_listener``, on the service's threads, so a task's events may arrive out
+  of order: the newest ``updated_at`` wins, and late events of a finished task are ignored):
+  task durations (histogram,
   submission -> final state, by final status), tasks finished by status, robots entering
   e-stop, and the smallest separation seen between two robot centres
   (:class:`fleet.core.separation.SeparationTracker`, closer than ``SEPARATION_CUTOFF_M``);
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections import OrderedDict
 from collections.abc import Callable, Iterable, Iterator
 from typing import Protocol
 
@@ -39,6 +42,8 @@ from fleet.core.tasks import (
 
 #: Robots farther apart than this [m] do not move the smallest separation.
 SEPARATION_CUTOFF_M = 5.0
+#: Finished task ids remembered to ignore their late events.
+FINISHED_KEPT = 10_000
 #: Buckets of the task duration histogram [s].
 DURATION_BUCKETS = (1.0, 2.0, 5.0, 10.0, 20.0, 30.0, 60.0, 120.0, 300.0, 600.0, 1800.0)
 _ACTIVE = tuple(s for s in TaskStatus if not s.final)
@@ -66,7 +71,8 @@ class FleetMetrics(Collector):
         self.source = source
         self.registry = CollectorRegistry(auto_describe=True)
         self._lock = threading.Lock()
-        self._active: dict[str, TaskStatus] = {}  # task id -> status, non-final tasks
+        self._active: dict[str, tuple[float, TaskStatus]] = {}  # id -> (updated_at, status)
+        self._finished: OrderedDict[str, None] = OrderedDict()  # recent final task ids
         self._robot_status: dict[str, RobotStatus] = {}
         self._separation = SeparationTracker(SEPARATION_CUTOFF_M)
         self.durations = Histogram(
@@ -94,7 +100,7 @@ class FleetMetrics(Collector):
         self._unsubscribe = source.add_listener(self.on_event)
         for status in _ACTIVE:  # tasks recovered before we listened
             for task in source.tasks(status=status):
-                self._active.setdefault(task.id, task.status)
+                self._active.setdefault(task.id, (task.updated_at, task.status))
 
     def close(self) -> None:
         self._unsubscribe()
@@ -111,13 +117,20 @@ class FleetMetrics(Collector):
             if task.status.final:  # announced once, after it is stored
                 with self._lock:
                     self._active.pop(task.id, None)
+                    self._finished[task.id] = None
+                    while len(self._finished) > FINISHED_KEPT:
+                        self._finished.popitem(last=False)
                 self.finished.labels(task.status.value).inc()
                 self.durations.labels(task.status.value).observe(
                     max(0.0, task.updated_at - task.created_at)
                 )
             else:
                 with self._lock:
-                    self._active[task.id] = task.status
+                    known = self._active.get(task.id)
+                    if task.id not in self._finished and (
+                        known is None or known[0] <= task.updated_at
+                    ):
+                        self._active[task.id] = (task.updated_at, task.status)
         elif isinstance(event, RobotEvent):
             robot = event.robot
             with self._lock:
@@ -135,7 +148,7 @@ class FleetMetrics(Collector):
 
     def collect(self) -> Iterator[Metric]:
         with self._lock:
-            active = list(self._active.values())
+            active = [status for _, status in self._active.values()]
             separation = self._separation.minimum
         tasks = GaugeMetricFamily("parkfleet_tasks", "Active tasks by status", labels=["status"])
         for status in _ACTIVE:

@@ -11,7 +11,16 @@ import pytest
 from prometheus_client.parser import text_string_to_metric_families
 
 from api.metrics import FleetMetrics
-from fleet.core.tasks import FleetEvent, RobotEvent, RobotStatus, RobotView, Task, TaskStatus
+from fleet.core.tasks import (
+    FleetEvent,
+    RobotEvent,
+    RobotStatus,
+    RobotView,
+    Task,
+    TaskEvent,
+    TaskRequest,
+    TaskStatus,
+)
 from fleet.core.wire import Pose, RobotMode, RobotState
 from fleet.service.bus import MemoryBus
 from tests.api.conftest import add_robot
@@ -98,3 +107,27 @@ def test_service_counters_become_labelled_counters() -> None:
     source.listeners[0](RobotEvent(robot=view))  # a lost robot's stale pose is not tracked
     metrics.close()
     assert source.listeners == []
+
+
+def test_task_events_out_of_order_keep_the_newest_status() -> None:
+    """Events come from several service threads: an older one may arrive last."""
+    source = FakeSource()
+    metrics = FleetMetrics(source)
+    request = TaskRequest(goal=Pose(x=1, y=1))
+    base = Task(id="t", request=request, created_at=0.0, updated_at=1.0)
+    driving = base.model_copy(update={"status": TaskStatus.DRIVING, "updated_at": 2.0})
+    assigned = base.model_copy(update={"status": TaskStatus.ASSIGNED, "updated_at": 1.5})
+    done = base.model_copy(update={"status": TaskStatus.SUCCEEDED, "updated_at": 3.0})
+    for task in (driving, assigned):
+        source.listeners[0](TaskEvent(task=task))
+    got = samples(metrics.exposition().decode())
+    assert got[("parkfleet_tasks", (("status", "driving"),))] == 1
+    assert got[("parkfleet_tasks", (("status", "assigned"),))] == 0
+    for task in (done, assigned):  # a late copy after the end does not bring it back
+        source.listeners[0](TaskEvent(task=task))
+    got = samples(metrics.exposition().decode())
+    assert (
+        sum(got[("parkfleet_tasks", (("status", s.value),))] for s in TaskStatus if not s.final)
+        == 0
+    )
+    assert got[("parkfleet_task_duration_seconds_sum", (("status", "succeeded"),))] == 3.0

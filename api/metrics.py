@@ -10,9 +10,10 @@ Two sources, both through the small :class:`MetricsSource` interface (a subset o
   e-stop, and the smallest separation seen between two robot centres
   (:class:`fleet.core.separation.SeparationTracker`, closer than ``SEPARATION_CUTOFF_M``);
 * **a scrape-time read** of the service: active tasks by status (kept from the events,
-  seeded from the service at start), robots by mode, the service's counters -- planning
-  count and wall time, dropped and malformed messages by reason, recoveries, e-stops
-  requested, and every other counter as ``parkfleet_service_events_total{event}``.
+  seeded from the service at start), robots by mode, the planning latency over the last
+  plans (p50, p99: ``planner_stats``), the service's counters -- planning count and time,
+  dropped and malformed messages by reason, recoveries, e-stops requested, and every other
+  counter as ``parkfleet_service_events_total{event}``.
 
 Names follow Prometheus conventions: ``_total`` counters, ``_seconds`` / ``_meters`` units.
 """
@@ -39,6 +40,7 @@ from fleet.core.tasks import (
     TaskEvent,
     TaskStatus,
 )
+from fleet.service.stats import PlannerStats
 
 #: Robots farther apart than this [m] do not move the smallest separation.
 SEPARATION_CUTOFF_M = 5.0
@@ -62,6 +64,8 @@ class MetricsSource(Protocol):
     ) -> list[Task]: ...
 
     def add_listener(self, listener: Callable[[FleetEvent], None]) -> Callable[[], None]: ...
+
+    def planner_stats(self) -> PlannerStats: ...
 
 
 class FleetMetrics(Collector):
@@ -165,6 +169,15 @@ class FleetMetrics(Collector):
             f"{SEPARATION_CUTOFF_M:g} m)",
             value=separation if math.isfinite(separation) else math.inf,
         )
+        stats = self.source.planner_stats()
+        latency = GaugeMetricFamily(
+            "parkfleet_planning_latency_seconds",
+            f"Planning time over the last {stats.window} plans, by quantile",
+            labels=["quantile"],
+        )
+        for quantile, ms in (("0.5", stats.p50_ms), ("0.99", stats.p99_ms)):
+            latency.add_metric([quantile], math.nan if ms is None else ms / 1e3)
+        yield latency
         yield from self._counters(dict(self.source.counters))
 
     def _counters(self, counters: dict[str, int]) -> Iterator[Metric]:
@@ -174,7 +187,7 @@ class FleetMetrics(Collector):
         planning = CounterMetricFamily(
             "parkfleet_planning_seconds", "Wall time spent planning (divide by plans: mean)"
         )
-        planning.add_metric([], counters.pop("plan_wall_ms", 0) / 1e3)
+        planning.add_metric([], counters.pop("plan_us", 0) / 1e6)
         yield planning
         dropped = CounterMetricFamily(
             "parkfleet_messages_dropped",

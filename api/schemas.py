@@ -9,6 +9,7 @@ The domain models (``fleet.core.tasks``) stay the service's business; these are 
 from __future__ import annotations
 
 import math
+from dataclasses import asdict
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -26,6 +27,7 @@ from fleet.core.wire import (
     RobotId,
 )
 from fleet.service.bays import BayState
+from fleet.service.stats import PlannerStats
 
 Coordinate = Annotated[
     float, Field(allow_inf_nan=False, description="metres, inside the yard (see /healthz)")
@@ -385,6 +387,27 @@ class PathPointOut(BaseModel):
     omega: float
 
 
+class PlannerOut(BaseModel):
+    """How planning goes: latency over the last plans, fallbacks, what was dropped."""
+
+    plans: int = Field(description="plans made since the service started")
+    window: int = Field(description="plans the latency percentiles are taken over (the latest)")
+    p50_ms: float | None = Field(description="median planning time [ms]; null before a plan")
+    p99_ms: float | None = Field(description="99th percentile planning time [ms]")
+    fallbacks: int = Field(description="robots held (task waiting) for want of a safe option")
+    rebased: int = Field(description="plans on a stale snapshot applied in part")
+    stale_dropped: int = Field(description="plans on a stale snapshot dropped whole")
+    decisions_stale_dropped: int = Field(description="decisions on tasks changed meanwhile")
+    unsafe_dropped: int = Field(
+        description="decisions that would have started a robot in a plan predicted unsafe "
+        "(never sent; 0 unless the planner has a bug)"
+    )
+
+    @classmethod
+    def of(cls, stats: PlannerStats) -> PlannerOut:
+        return cls(**asdict(stats))
+
+
 class HealthOut(BaseModel):
     status: Literal["ok"] = "ok"
     robots: int
@@ -392,6 +415,11 @@ class HealthOut(BaseModel):
     zenoh: list[str] = Field(description="endpoints the fleet's Zenoh router listens on")
     auth: bool = Field(description="mutating endpoints need a bearer token")
     counters: dict[str, int]
+    planner: PlannerOut
+    sizes: dict[str, int] = Field(
+        description="entries held by the service's bounded structures (robots, active tasks, "
+        "recorded path samples, queued effects ...)"
+    )
 
 
 class ErrorOut(BaseModel):

@@ -46,9 +46,9 @@ def control(
 @router.get("")
 def control_state(service: ServiceDep) -> ControlStateOut:
     """What the operator asked: the fleet-wide hold, and robots with a command of their own."""
-    desk = service.control_desk
-    fleet = desk.fleet
+    state = service.control_state()
+    fleet = state.fleet
     return ControlStateOut(
         fleet=HoldOut(paused=fleet.paused, estop=fleet.estop),
-        robots={rid: HoldOut(paused=h.paused, estop=h.estop) for rid, h in desk.robots().items()},
+        robots={rid: HoldOut(paused=h.paused, estop=h.estop) for rid, h in state.robots.items()},
     )

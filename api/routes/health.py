@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 
 from api.deps import ServiceDep, SettingsDep
-from api.schemas import HealthOut
+from api.schemas import HealthOut, PlannerOut
 
 router = APIRouter(tags=["health"])
 
@@ -19,4 +19,6 @@ async def healthz(request: Request, service: ServiceDep, settings: SettingsDep) 
         zenoh=list(getattr(request.app.state, "zenoh_locators", [])),
         auth=settings.api_token is not None,
         counters=dict(service.counters),
+        planner=PlannerOut.of(service.planner_stats()),
+        sizes=service.sizes(),
     )

@@ -43,7 +43,10 @@ def parse_pose(text: str) -> tuple[float, float, float]:
 
 
 #: Drives known by a short name (``--drive NAME``); any other drive is ``module:factory``.
-DRIVES = {"sim": "sim_agent.drive:make_drive"}
+DRIVES = {
+    "sim": "sim_agent.drive:make_drive",
+    "ros2": "robot_agent.drives.ros2:make_drive",
+}
 
 
 def load_drive(spec: str | None, settings: Settings) -> Drive:
@@ -92,14 +95,25 @@ def run(args: argparse.Namespace) -> int:
     )
     drive = load_drive(settings.drive, settings)
     assert settings.robot_id is not None
-    with stop_on_signals() as stop, open_session(settings, "client") as session:
-        agent = RobotAgent(settings.robot_id, drive, session, settings)
-        try:
-            agent.open()
-            print(
-                f"agent {settings.robot_id} running at {settings.control_rate_hz:g} Hz", flush=True
-            )
-            agent.run(stop)
-        finally:
-            agent.close()
+    try:
+        with stop_on_signals() as stop, open_session(settings, "client") as session:
+            agent = RobotAgent(settings.robot_id, drive, session, settings)
+            try:
+                agent.open()
+                print(
+                    f"agent {settings.robot_id} running at {settings.control_rate_hz:g} Hz",
+                    flush=True,
+                )
+                agent.run(stop)
+            finally:
+                agent.close()
+    finally:
+        close_drive(drive)
     return 0
+
+
+def close_drive(drive: Drive) -> None:
+    """Release a drive that holds resources (an optional ``close()``, e.g. its own session)."""
+    close = getattr(drive, "close", None)
+    if callable(close):
+        close()

@@ -28,6 +28,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.bench_api",
     "fleet.cli.bench_fleet",
     "fleet.cli.bench_estop",
+    "fleet.cli.bench_on_state",
 )
 
 

@@ -37,6 +37,11 @@ class TaskStatus(StrEnum):
     def final(self) -> bool:
         return self in (TaskStatus.SUCCEEDED, TaskStatus.FAILED, TaskStatus.CANCELLED)
 
+    @property
+    def under_way(self) -> bool:
+        """The task has a robot: assigned, driving or waiting."""
+        return self in (TaskStatus.ASSIGNED, TaskStatus.DRIVING, TaskStatus.WAITING)
+
 
 class RobotStatus(StrEnum):
     """Fleet view of a robot: what it reports, or ``lost`` when its liveliness token is gone."""
@@ -98,12 +103,16 @@ class Task(BaseModel):
     status: TaskStatus = TaskStatus.QUEUED
     robot_id: str | None = None
     law: Law | None = None
-    reason: str | None = None  # why it failed or was cancelled
+    reason: str | None = None  # why it failed, was cancelled, or waits
     created_at: float  # [s since epoch]
     updated_at: float
     attempts: Annotated[int, Field(ge=0)] = 0
     #: Re-plans of the law while under way (``ParkAssignment.revision``); 0 as first sent.
     revision: Annotated[int, Field(ge=0)] = 0
+    #: What the robot was last told besides the law (``ParkAssignment``): stand still this
+    #: long [s, robot time] before driving, or hold until a later revision (``waiting``).
+    start_delay_s: Annotated[float, Field(ge=0.0, allow_inf_nan=False)] = 0.0
+    hold: bool = False
 
 
 class RobotView(BaseModel):
@@ -175,3 +184,7 @@ class BayTaken(FleetError):
 
 class TaskConflict(FleetError):
     """The request conflicts with the task's state (e.g. cancelling a finished task)."""
+
+
+class RobotConflict(FleetError):
+    """The request conflicts with the robot's state (e.g. removing a robot still alive)."""

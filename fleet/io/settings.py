@@ -11,7 +11,15 @@ import os
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, PrivateAttr, SecretStr, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    SecretStr,
+    field_validator,
+    model_validator,
+)
 from pydantic_settings import (
     BaseSettings,
     PydanticBaseSettingsSource,
@@ -25,6 +33,56 @@ from fleet.core.wire import validate_id
 from fleet.io.site_file import load_site
 
 DEFAULT_ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"
+
+_ROS_TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"
+#: A ROS 2 topic name, relative (``cmd_vel``) or absolute (``/tb4_1/cmd_vel``); no ``~``/``{}``.
+RosTopicName = Annotated[str, Field(pattern=rf"^/?{_ROS_TOKEN}(/{_ROS_TOKEN})*$")]
+#: A ROS 2 namespace: ``""`` or ``"/"`` (the root) or ``/a/b``.
+RosNamespace = Annotated[str, Field(pattern=rf"^(/|(/{_ROS_TOKEN})+)?$")]
+#: A TF frame id (as in a message header): printable, no whitespace.
+FrameId = Annotated[str, Field(pattern=r"^[A-Za-z0-9_./-]{1,256}$")]
+
+
+class Ros2Settings(BaseModel):
+    """The ``ros2`` drive (``robot_agent/drives``): a ROS 2 robot over rmw_zenoh or the
+    zenoh-bridge-ros2dds key mapping. TOML table ``[ros2]``, env ``PARKFLEET_ROS2__*``;
+    README "Driving a ROS 2 robot" explains every field."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    # How ROS names map to Zenoh keys: rmw_zenoh (``<domain>/<topic>/<type>/<hash>`` plus
+    # liveliness tokens) or the bridge (``<namespace>/<topic>``, namespace always prefixed).
+    key_mapping: Literal["rmw_zenoh", "bridge"] = "rmw_zenoh"
+    # ROS 2 distribution of the robot: jazzy (and later: RIHS01 type hashes in keys) or humble.
+    distro: Literal["jazzy", "humble"] = "jazzy"
+    domain_id: Annotated[int, Field(ge=0, le=232)] = 0  # ROS_DOMAIN_ID of the robot
+    namespace: RosNamespace = ""  # the robot's namespace, e.g. "/tb4_1"; relative topics join it
+    node_name: Annotated[str, Field(pattern=rf"^{_ROS_TOKEN}$")] | None = None  # parkfleet_<id>
+    cmd_vel_topic: RosTopicName = "cmd_vel"
+    cmd_vel_type: Literal["geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped"] = (
+        "geometry_msgs/msg/Twist"
+    )
+    base_frame_id: FrameId = "base_link"  # header.frame_id of a TwistStamped command
+    # "odometry": the pose is nav_msgs/Odometry on odom_topic (frame odom_frame_id);
+    # "localiser": a localiser's PoseWithCovarianceStamped on localiser_topic (frame
+    # localiser_frame_id), carried forward between its updates by the odometry.
+    pose_source: Literal["odometry", "localiser"] = "odometry"
+    odom_topic: RosTopicName = "odom"
+    odom_frame_id: FrameId = "odom"
+    localiser_topic: RosTopicName = "amcl_pose"
+    localiser_frame_id: FrameId = "map"
+    # Pose of the pose frame (odom or map) in the fleet's world frame: x [m], y [m], theta [rad].
+    origin: tuple[
+        Annotated[float, Field(allow_inf_nan=False)],
+        Annotated[float, Field(allow_inf_nan=False)],
+        Annotated[float, Field(allow_inf_nan=False)],
+    ] = (0.0, 0.0, 0.0)
+    # The robot's Zenoh router; [] = the agent's own endpoints and security settings.
+    connect: list[str] = Field(default_factory=list)
+    # A message stamped more than this [s] ahead of this computer's clock is dropped.
+    max_future_s: Annotated[float, Field(ge=0, le=10)] = 0.1
+    # parkfleet agent waits this long [s] for the first usable pose, then exits with a reason.
+    first_pose_timeout_s: Annotated[float, Field(gt=0)] = 30.0
 
 
 class Settings(BaseSettings):
@@ -77,6 +135,7 @@ class Settings(BaseSettings):
     # simulated drive's start posture (x [m], y [m], theta [rad]).
     drive: str | None = None
     sim_start: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    ros2: Ros2Settings = Ros2Settings()  # the ``ros2`` drive (README "Driving a ROS 2 robot")
 
     # Fleet service / API
     data_dir: Path = Path("var")
@@ -95,6 +154,17 @@ class Settings(BaseSettings):
     # its yard replaces ``yard``. Loaded and checked when the settings are.
     site_file: Path | None = None
     _site: Site | None = PrivateAttr(default=None)
+    # Receding horizon: the planner runs again every replan_period_s [s], when a robot is
+    # farther than replan_corridor_m [m] from its predicted path at the same robot time, and
+    # when two robots (one moving) come closer than safety_separation_m + this margin [m].
+    replan_period_s: Annotated[float, Field(gt=0)] = 2.0
+    replan_corridor_m: Annotated[float, Field(gt=0)] = 0.3
+    replan_separation_margin_m: Annotated[float, Field(ge=0)] = 0.2
+    # Retention: a robot lost this long [s] is forgotten (an operator may remove it sooner,
+    # DELETE /robots/{id}); finished tasks are deleted from the store this long [s] after
+    # they ended (default 30 days).
+    lost_robot_retention_s: Annotated[float, Field(gt=0)] = 3600.0
+    finished_task_retention_s: Annotated[float, Field(gt=0)] = 30 * 86400.0
 
     @field_validator("fleet_name")
     @classmethod

@@ -1,7 +1,15 @@
-"""The fleet service: roster, task life cycle, dispatch and planning around a bus and a store.
+"""The fleet service: roster, task ledger, planning and dispatch around a bus and a store.
 
-- :mod:`~fleet.service.fleet_service`: :class:`FleetService`, the service shell.
-- :mod:`~fleet.service.roster`: robots seen (liveliness + state stream).
+- :mod:`~fleet.service.fleet_service`: :class:`FleetService`, the thin shell (one lock, threads).
+- :mod:`~fleet.service.ledger`: the task ledger (pure): indexes, transitions returning effects.
+- :mod:`~fleet.service.effects`: effects as data; :mod:`~fleet.service.outbox` applies them
+  outside the lock, stored before announced.
+- :mod:`~fleet.service.planner_worker`: plans on its own thread; :mod:`~fleet.service.snapshot`
+  builds its input; :mod:`~fleet.service.horizon` holds the re-plan triggers.
+- :mod:`~fleet.service.roster`: robots seen (liveliness + state stream), retention.
+- :mod:`~fleet.service.paths`: recorded task paths, bounded.
+- :mod:`~fleet.service.clock`: the one clock (monotonic deadlines, wall stamps).
+- :mod:`~fleet.service.stats`: counters and the planning-latency window.
 - :mod:`~fleet.service.store`: the task store (SQLite, and an in-memory twin).
 - :mod:`~fleet.service.bus`: the bus interface (and an in-memory twin for tests).
 - :mod:`~fleet.service.zenoh_bus`: the bus on Zenoh.

@@ -6,13 +6,15 @@ task is accepted until it is final; a second task for the same bay is refused
 shows: ``reserved`` (by an active task), ``occupied`` (a robot with no active task stands
 within ``OCCUPIED_RADIUS_M`` of its pose) or ``free``.
 
-Not thread-safe: the fleet service calls it under its lock.
+Pure and not thread-safe: the task ledger (:mod:`fleet.service.ledger`) keeps it with its
+indexes -- a bay is held when a task is reserved or becomes active, released when the task
+becomes final (or its reservation is given back) -- and the service calls it under its lock.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Literal
 
@@ -39,6 +41,7 @@ class BayBook:
     def __init__(self, site: Site | None) -> None:
         self.site = site
         self._holder: dict[str, str] = {}  # bay -> task id
+        self._bay_of: dict[str, str] = {}  # task id -> bay
 
     def _site(self) -> Site:
         if self.site is None:
@@ -74,15 +77,26 @@ class BayBook:
             raise BayTaken(f"bay {bay} is taken by task {holder}")
 
     def hold(self, task: Task) -> None:
-        if task.request.bay is not None:
-            self._holder[task.request.bay] = task.id
-
-    def release(self, task: Task) -> None:
+        """Reserve ``task``'s bay (if it names one) for it."""
         bay = task.request.bay
-        if bay is not None and self._holder.get(bay) == task.id:
+        if bay is not None:
+            self._holder[bay] = task.id
+            self._bay_of[task.id] = bay
+
+    def release(self, task_id: str) -> None:
+        """Give back the bay ``task_id`` holds, if any."""
+        bay = self._bay_of.pop(task_id, None)
+        if bay is not None and self._holder.get(bay) == task_id:
             del self._holder[bay]
 
-    def states(self, active: dict[str, Task], robots: Iterable[RobotView]) -> list[BayState]:
+    def __len__(self) -> int:
+        return len(self._holder)
+
+    def holder(self, bay: str) -> str | None:
+        """The task that reserves ``bay``, if any."""
+        return self._holder.get(bay)
+
+    def states(self, active: Mapping[str, Task], robots: Iterable[RobotView]) -> list[BayState]:
         """Every bay with its state; ``active`` non-final tasks by id, ``robots`` the roster."""
         if self.site is None:
             return []

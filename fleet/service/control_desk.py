@@ -1,4 +1,4 @@
-"""The fleet service's side of operator control: what was asked, and holding to it.
+"""The fleet service's side of operator control: what was asked, and holding to it (pure).
 
 :class:`ControlDesk` issues ``ControlCommand``s for the service (issuer ``fleet-service``,
 ``seq`` increasing from the wall clock in microseconds, so a restarted service still sends
@@ -7,112 +7,109 @@ per robot (a fleet-wide command clears the per-robot ones, as it applies to ever
 
 It re-asserts only the *restrictive* states: when a robot that should be e-stopped (or
 paused) reports a mode that does not obey (it restarted, joined later, or lost the message),
-the command is sent again to that robot, at most every ``RESEND_S``. It never re-sends a
-release or a resume on its own: an e-stop that another tool (``parkfleet estop``) latched
-stays latched until someone releases it.
+:meth:`ControlDesk.check` returns the command again for that robot, at most every
+``RESEND_S``. It never re-sends a release or a resume on its own: an e-stop that another
+tool (``parkfleet estop``) latched stays latched until someone releases it.
 
-Pure apart from the injected ``publish`` and clock; thread-safe (one lock, never held while
-publishing).
+Pure and not thread-safe: the service calls it under its lock with the time as arguments
+(``now`` [s, monotonic], ``wall`` [s since epoch]) and publishes the commands it returns
+through its outbox, after releasing the lock. :meth:`ControlDesk.check` is on the service's
+hot path (every robot state): two dict lookups when nothing is asked.
 """
 
 from __future__ import annotations
 
-import threading
-import time
-from collections.abc import Callable
+from dataclasses import dataclass
 
-from fleet.core.wire import ControlAction, ControlCommand, Hold, RobotMode, RobotState, obeys
+from fleet.core.wire import ControlAction, ControlCommand, Hold, RobotState, obeys
 
 ISSUER = "fleet-service"
 #: Seconds between re-sends of a restrictive command to a robot that does not obey it.
 RESEND_S = 0.5
+_NEVER = float("-inf")
+
+
+@dataclass(frozen=True)
+class ControlState:
+    """What the operator asked: the fleet-wide hold, and robots with a command of their own
+    since the last fleet-wide one."""
+
+    fleet: Hold
+    robots: dict[str, Hold]
 
 
 class ControlDesk:
     """Issues operator commands for the service and holds the robots to them."""
 
-    def __init__(
-        self,
-        publish: Callable[[ControlCommand], None],
-        clock: Callable[[], float] = time.time,
-        monotonic: Callable[[], float] = time.monotonic,
-    ) -> None:
-        self._publish = publish
-        self._clock = clock
-        self._monotonic = monotonic
-        self._lock = threading.Lock()
+    def __init__(self) -> None:
         self._fleet = Hold()
         self._robots: dict[str, Hold] = {}
+        self._reasons: dict[str | None, str | None] = {}  # robot (None: fleet) -> reason
+        self._resent_at: dict[str, float] = {}  # robot -> last re-send [s, monotonic]
         self._last_seq = 0
-        self._reasons: dict[str | None, str | None] = {}
-        self._resent: dict[str, float] = {}
-        self.requested: dict[ControlAction, int] = dict.fromkeys(ControlAction, 0)
-        self.resent = 0
+
+    def _message(
+        self, action: ControlAction, robot_id: str | None, reason: str | None, wall: float
+    ) -> ControlCommand:
+        self._last_seq = max(self._last_seq + 1, int(wall * 1e6))
+        return ControlCommand(
+            command=action,
+            robot_id=robot_id,
+            issuer=ISSUER,
+            seq=self._last_seq,
+            stamp=wall,
+            reason=reason,
+        )
 
     def command(
-        self, action: ControlAction, robot_id: str | None = None, reason: str | None = None
+        self, action: ControlAction, robot_id: str | None, reason: str | None, wall: float
     ) -> ControlCommand:
-        """Record and publish ``action`` for one robot or (``None``) the whole fleet."""
-        with self._lock:
-            now = self._clock()
-            self._last_seq = max(self._last_seq + 1, int(now * 1e6))
-            message = ControlCommand(
-                command=action,
-                robot_id=robot_id,
-                issuer=ISSUER,
-                seq=self._last_seq,
-                stamp=now,
-                reason=reason,
-            )
-            if robot_id is None:
-                self._fleet = self._fleet.apply(action)
-                self._robots.clear()
-                self._reasons = {None: reason}
-            else:
-                self._robots[robot_id] = self.hold(robot_id).apply(action)
-                self._reasons[robot_id] = reason
-            self.requested[action] += 1
-        self._publish(message)
-        return message
+        """Record ``action`` for one robot or (``None``) the whole fleet; returns the
+        command to publish."""
+        if robot_id is None:
+            self._fleet = self._fleet.apply(action)
+            self._robots.clear()
+            self._reasons = {None: reason}
+        else:
+            self._robots[robot_id] = self.hold(robot_id).apply(action)
+            self._reasons[robot_id] = reason
+        return self._message(action, robot_id, reason, wall)
 
     def hold(self, robot_id: str) -> Hold:
         """What the operator asked of ``robot_id`` (its own command, else the fleet's)."""
         return self._robots.get(robot_id, self._fleet)
 
+    def reason(self, robot_id: str) -> str | None:
+        """The reason given with the command that holds ``robot_id``."""
+        return self._reasons.get(robot_id, self._reasons.get(None))
+
     @property
     def fleet(self) -> Hold:
         return self._fleet
 
-    def robots(self) -> dict[str, Hold]:
-        """Robots with a command of their own since the last fleet-wide one."""
-        with self._lock:
-            return dict(self._robots)
+    def state(self) -> ControlState:
+        return ControlState(self._fleet, dict(self._robots))
 
-    def held(self, robot_id: str, mode: RobotMode | None = None) -> bool:
-        """Whether the robot must stand still: asked to, or reporting paused / e-stopped."""
-        if mode in (RobotMode.PAUSED, RobotMode.ESTOP):
-            return True
-        with self._lock:
-            return self.hold(robot_id).restrictive is not None
+    def restore(self, state: ControlState) -> None:
+        """Take up the holds a previous run of the service asked for (no command sent:
+        :meth:`check` re-sends them to robots that do not obey)."""
+        self._fleet = state.fleet
+        self._robots = dict(state.robots)
 
-    def check(self, state: RobotState) -> None:
-        """Re-send the restrictive command a robot reporting ``state`` does not obey."""
-        with self._lock:
-            action = self.hold(state.robot_id).restrictive
-            if action is None or obeys(action, state.mode):
-                return
-            now = self._monotonic()
-            if now - self._resent.get(state.robot_id, float("-inf")) < RESEND_S:
-                return
-            self._resent[state.robot_id] = now
-            self._last_seq = max(self._last_seq + 1, int(self._clock() * 1e6))
-            message = ControlCommand(
-                command=action,
-                robot_id=state.robot_id,
-                issuer=ISSUER,
-                seq=self._last_seq,
-                stamp=self._clock(),
-                reason=self._reasons.get(state.robot_id, self._reasons.get(None)),
-            )
-            self.resent += 1
-        self._publish(message)
+    def check(self, state: RobotState, now: float, wall: float) -> ControlCommand | None:
+        """The restrictive command a robot reporting ``state`` does not obey, to send again
+        (None: it obeys, nothing is asked, or it was re-sent less than ``RESEND_S`` ago)."""
+        rid = state.robot_id
+        action = self._robots.get(rid, self._fleet).restrictive
+        if action is None or obeys(action, state.mode):
+            return None
+        if now - self._resent_at.get(rid, _NEVER) < RESEND_S:
+            return None
+        self._resent_at[rid] = now
+        return self._message(action, rid, self.reason(rid), wall)
+
+    def forget(self, robot_id: str) -> None:
+        """The robot was removed from the fleet: what is kept for it goes (bounded)."""
+        self._robots.pop(robot_id, None)
+        self._reasons.pop(robot_id, None)
+        self._resent_at.pop(robot_id, None)

@@ -1,121 +1,126 @@
-"""The fleet service: roster, task life cycle, assignment and direction choice.
+"""The fleet service shell: API calls and bus callbacks around the ledger, roster and planner.
 
-Task life cycle::
+:class:`FleetService` owns one lock (``_lock``) around the in-memory state only -- the
+roster (:mod:`~fleet.service.roster`), the task ledger (:mod:`~fleet.service.ledger`), the
+obstacles -- and never writes the store or publishes while holding it: transitions return
+effects, which are queued in the outbox under the lock (keeping their order) and applied
+after it is released, stored before announced (:mod:`~fleet.service.outbox`).
 
-    queued -> assigned (assignment published) -> driving (robot's state carries the task id)
-           -> succeeded (robot reports ``arrived`` with the task id)
-            | failed (timeout after ``Settings.task_timeout_s`` from assignment; robot lost
-                      with ``Settings.on_robot_lost == "fail"``)
-            | cancelled
-    assigned/driving -> queued again when the robot is lost and ``on_robot_lost == "requeue"``
+Threads (``start()``):
 
-Re-planning under way: each dispatch rolls out the robots already driving an ``auto`` task
-together with the new ones (``fleet.core.direction``). When flipping some of them is strictly
-safer than keeping their laws, their tasks get the new law and ``revision + 1`` (stored,
-then announced: event ``replanned``) and the robots get a ``ParkAssignment`` with that
-revision, re-sent until a state reports it. The rollouts start from the poses the robots
-are predicted to have when the plan reaches them (``Scene.lead_time``: the last planning
-time, converted to robot time by the robots' observed control rate, at most
-``LEAD_TIME_MAX_S``).
+* bus callbacks (:meth:`~FleetService.on_state` at the robots' 50 Hz,
+  :meth:`~FleetService.on_robot_alive`, :meth:`~FleetService.on_robot_gone`) and API calls;
+* ``fleet-tick`` every ``TICK_INTERVAL_S``: timeouts, re-sends, the proximity trigger of the
+  planner, the periodic sweeps (lost robots, finished tasks);
+* ``fleet-planner`` (:mod:`~fleet.service.planner_worker`): snapshot -> plan -> apply, with
+  no lock held while it plans: the tick never waits for it;
+* ``fleet-effects`` (the outbox): store writes, then publishes, then listener calls.
 
-Every transition is saved in the :class:`~fleet.service.store.TaskStore` before it is announced.
+``start(background=False)`` starts none of them: the caller drives :meth:`tick`, which then
+also plans when asked to and applies effects on the calling thread (unit tests, with a
+:class:`~fleet.service.clock.FakeClock`).
 
-Threads: bus callbacks (``on_state``, ``on_robot_alive``, ``on_robot_gone``), API calls and
-the tick thread all share one lock (``_lock``) around the in-memory state; the store has
-its own. Listeners are called *after* the lock is released, on the calling thread, so they
-may call back into the service. Dispatch (optimal assignment + direction rollouts, which
-take a while) runs under a separate ``_dispatch_lock`` and releases ``_lock`` while it
-computes: it snapshots, plans, then re-checks and applies.
+Time: one injected :class:`~fleet.service.clock.Clock`; every deadline (timeouts, re-sends,
+event throttling, rate measurement, retention of lost robots, pacing) runs on its monotonic
+reading, wall time only stamps stored tasks, robot views and path samples.
 
-Dispatch is asynchronous: :meth:`FleetService.submit` stores the task (``queued``) and
-wakes the tick thread, which assigns it. ``submit`` validates the goal and reserves it
-(``GoalIndex``, a grid of the active goals) under ``_lock``, then writes the task *without*
-the lock, so concurrent submits share one commit of the store (group commit), and adds it
-to the in-memory state (where dispatch sees it) only once it is stored. The in-memory
-state keeps indexes of the active tasks (queued, under way, task of each robot), so a
-submit, a state message or a tick costs O(robots + tasks under way), not O(all tasks).
-Unit tests drive :meth:`FleetService.tick` with a fake clock instead of starting the thread.
+Dispatch is asynchronous: :meth:`submit` validates the goal and reserves it under the lock,
+writes the task *without* the lock -- so concurrent submits share one commit of the store
+(group commit) and the answer is sent only after it -- and adds it to the ledger (where the
+planner sees it) only once it is stored. Planning re-runs as the yard changes (see
+:mod:`~fleet.service.planner_worker`): tasks arrive or finish, robots join, are lost or are
+removed, a robot leaves its predicted corridor by more than ``replan_corridor_m``, two robots
+come closer than ``safety_separation_m + replan_separation_margin_m``, and every
+``replan_period_s``. Only decisions that change something are stored and sent.
+
+Operators (README "Operating the fleet"): :meth:`~FleetService.control` pauses, resumes,
+e-stops or releases robots -- the command is published through the outbox in a batch of
+its own (never delayed by a store write), the :class:`~fleet.service.control_desk.ControlDesk`
+remembers it and :meth:`~FleetService.on_state` re-sends it to a robot that does not obey;
+a robot held still (as asked, or as it reports) is an operator hold in the ledger (no
+timeout, not stuck, standing for the planner, no new task). :meth:`~FleetService.decommission`
+takes a robot out of service (roster state: no task, its task requeued, once lost no
+obstacle). :meth:`~FleetService.submit_to_bay` submits to a named bay of the site map
+(reserved under the lock, released by the ledger when the task ends). Stuck robots are
+found and recovered on the tick (:meth:`~fleet.service.ledger.TaskLedger.recover_stuck`),
+with the cause the roster shows (:func:`~fleet.service.stuck.stuck_cause`).
+
+Bounded by design: recorded paths (:mod:`~fleet.service.paths`); lost robots are removed
+``lost_robot_retention_s`` after they were lost, or by an operator (:meth:`remove_robot`),
+and everything kept per robot goes with them (:class:`~fleet.service.roster.RobotRecord`);
+finished tasks are deleted from the store ``finished_task_retention_s`` after they ended.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-import time
 import uuid
-from collections import Counter, OrderedDict, deque
+from collections import Counter
 from collections.abc import Callable
 from types import TracebackType
 
-from fleet.core.assignment import TaskSpec, optimal_assignment, predicted_times
-from fleet.core.direction import Mover, Scene, choose_directions
-from fleet.core.goals import GoalIndex, Occupied, validate_goal
+from fleet.core.goals import Occupied, validate_goal
+from fleet.core.planner import Plan, plan
 from fleet.core.tasks import (
     BayTaken,
-    FleetEvent,
     GoalRejected,
+    RobotConflict,
     RobotEvent,
     RobotNotFound,
-    RobotStatus,
     RobotView,
     Task,
     TaskConflict,
-    TaskEvent,
     TaskNotFound,
     TaskRequest,
     TaskStatus,
 )
-from fleet.core.types import LAWS, Law
 from fleet.core.wire import (
     CancelAssignment,
     ControlAction,
     ControlCommand,
     Obstacle,
     ObstacleSet,
-    ParkAssignment,
     Pose,
     RobotMode,
     RobotState,
 )
 from fleet.io.settings import Settings
-from fleet.service.bays import BayBook, BayState
+from fleet.service.bays import BayState
 from fleet.service.bus import FleetBus
-from fleet.service.control_desk import ControlDesk
-from fleet.service.roster import Roster
+from fleet.service.clock import Clock, SystemClock
+from fleet.service.control_desk import ControlDesk, ControlState
+from fleet.service.effects import Effects, Publish, PurgeFinished
+from fleet.service.horizon import close_pairs
+from fleet.service.ledger import LedgerConfig, Outcome, TaskLedger
+from fleet.service.outbox import Batch, Listener, Outbox
+from fleet.service.paths import PathSample
+from fleet.service.planner_worker import PlanFunction, PlannerWorker
+from fleet.service.roster import OPERATOR_HELD, RobotRecord, Roster
+from fleet.service.snapshot import PlanInput, RobotFacts, planning_input, worth_planning
+from fleet.service.stats import Counters, PlannerStats
 from fleet.service.store import TaskStore
-from fleet.service.stuck import RECOVERIES, StuckWatch, stuck_cause
+from fleet.service.stuck import stuck_cause
 
 _log = logging.getLogger(__name__)
 
 #: Seconds between re-sends of an unacknowledged assignment (and of a cancel).
 RESEND_INTERVAL_S = 0.2
-#: A burst of submissions is planned together once none came for this long [s, wall]
-#: (at most DISPATCH_SETTLE_MAX_S of delay).
-DISPATCH_SETTLE_S = 0.05
-DISPATCH_SETTLE_MAX_S = 0.5
-#: Samples kept per task path, and number of task paths kept.
-PATH_SAMPLES = 20_000
-PATHS_KEPT = 256
+#: Period of the tick thread [s].
+TICK_INTERVAL_S = RESEND_INTERVAL_S / 2
 #: Minimum interval of pose-only robot events per robot [s] (status changes are immediate).
 ROBOT_EVENT_INTERVAL_S = 0.1
-#: Bound of the planning lead time [s, robot time] (see the module docstring).
+#: Bound of the planning lead time [s, robot time] (see :meth:`FleetService._lead_time`).
 LEAD_TIME_MAX_S = 10.0
-#: Added to the predicted time [s] of giving a stuck task back to the robot it left.
-AVOID_COST_S = 1e6
-#: Window over which a robot's control rate is measured [s, service clock].
+#: Window over which a robot's control rate is measured [s, monotonic].
 RATE_WINDOW_S = 2.0
+#: How often lost robots are checked for retention, and finished tasks purged [s].
+ROBOT_SWEEP_INTERVAL_S = 1.0
+TASK_SWEEP_INTERVAL_S = 60.0
+#: Finished tasks deleted per purge (one bounded transaction each).
+TASK_PURGE_BATCH = 1000
 
-PathSample = tuple[float, float, float, float, float, float]  # t, x, y, theta, u, omega
-Listener = Callable[[FleetEvent], None]
-_ACTIVE = (TaskStatus.ASSIGNED, TaskStatus.DRIVING)
-#: Robots standing still with no task: their place is taken (goal validation).
-_STANDING = (
-    RobotStatus.ARRIVED,
-    RobotStatus.HOLDING,
-    RobotStatus.LOST,
-    RobotStatus.PAUSED,
-    RobotStatus.ESTOP,
-)
+_MOVING = frozenset({RobotMode.DRIVING, RobotMode.AVOIDING})
 
 
 class FleetService:
@@ -126,87 +131,99 @@ class FleetService:
         settings: Settings,
         bus: FleetBus,
         store: TaskStore,
-        clock: Callable[[], float] = time.time,
+        clock: Clock | None = None,
+        planner: PlanFunction | None = None,
     ) -> None:
         self.settings = settings
         self._bus = bus
         self._store = store
-        self._clock = clock
+        self._clock: Clock = clock if clock is not None else SystemClock()
         self._lock = threading.RLock()
-        self._dispatch_lock = threading.Lock()
-        self._roster = Roster()
-        self._active: dict[str, Task] = {}  # every non-final task, by id
-        # Indexes of _active, kept by _put/_drop so no hot path walks every task:
-        self._queued: dict[str, Task] = {}  # status queued
-        self._under_way: dict[str, Task] = {}  # status assigned/driving (with a robot)
-        self._robot_task: dict[str, str] = {}  # robot -> its assigned/driving task
-        self._claims: Counter[str] = Counter()  # robot -> active tasks naming or holding it
-        self._goals = GoalIndex(max(settings.avoidance.peer_radius, 0.1))  # + pending submits
-        self._keys_in_flight: dict[str, threading.Event] = {}  # idempotency keys being stored
-        self._last_sent: dict[str, float] = {}
-        self._deadline: dict[str, float] = {}
-        self._cancel_sent: dict[str, float] = {}  # robot id -> last cancel re-sent
-        self._paths: OrderedDict[str, deque[PathSample]] = OrderedDict()
+        self._counters = Counters()
+        peer_radius = max(settings.avoidance.peer_radius, 0.1)
+        self._roster = Roster(parked_cell=peer_radius)
+        self._ledger = TaskLedger(
+            LedgerConfig(
+                task_timeout_s=settings.task_timeout_s,
+                resend_interval_s=RESEND_INTERVAL_S,
+                on_robot_lost=settings.on_robot_lost,
+                avoidance=settings.avoidance,
+                goal_cell=peer_radius,
+                corridor_m=settings.replan_corridor_m,
+                control_hz=settings.control_rate_hz,
+                stuck_after_s=settings.stuck_after_s,
+            ),
+            site=settings.site,
+        )
+        self._outbox = Outbox(store, bus, self._counters, self._holds_lock)
+        self._planner = PlannerWorker(
+            self._take_snapshot,
+            planner if planner is not None else plan,
+            self._apply_plan,
+            self._clock,
+            self._counters,
+            period_s=settings.replan_period_s,
+        )
         site = settings.site  # the site map's obstacles are the initial ones (PUT replaces)
         self._obstacles: list[Obstacle] = [] if site is None else list(site.obstacles)
-        self._listeners: list[Listener] = []
-        self._counters: Counter[str] = Counter()
-        self.control_desk = ControlDesk(bus.publish_control, clock)  # operator pause / e-stop
-        self._bays = BayBook(settings.site)  # bay -> the active task that reserves it
-        self._decommissioned: set[str] = set()  # robots out of service (no tasks)
-        self._stuck = StuckWatch(settings.stuck_after_s)  # progress of the tasks under way
-        self._avoid: dict[str, str] = {}  # task -> robot it was taken from (stuck)
-        self._last_robot_event: dict[str, float] = {}
-        self._plan_seconds: float | None = None  # EWMA of planning wall time [s]
-        self._rate_anchor: dict[str, tuple[int, float]] = {}  # robot -> (seq, time)
+        self._desk = ControlDesk()  # what the operator asked (pause, e-stop), held to
+        self._keys_in_flight: dict[str, threading.Event] = {}  # idempotency keys being stored
+        self._version = 0  # bumped by every change a plan depends on (not by poses)
         self._time_scale: float | None = None  # robot seconds per service second
+        self._close_pairs: set[tuple[str, str]] = set()
+        self._next_robot_sweep = -float("inf")  # [s, monotonic]
+        self._next_task_sweep = -float("inf")
         self.lead_time_max = LEAD_TIME_MAX_S
-        self._wake = threading.Event()
-        self._last_submit = float("-inf")  # time.monotonic() of the last submit (pacing only)
+        self._inline = True  # no threads: effects and plans run on the calling thread
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._started = False
         self._closed = False
 
+    def _holds_lock(self) -> bool:
+        """Whether the calling thread holds the service lock (the outbox asserts it does not)."""
+        return bool(self._lock._is_owned())  # type: ignore[attr-defined]
+
     # -- life --------------------------------------------------------------------------
 
     def start(self, background: bool = True) -> None:
-        """Recover unfinished tasks from the store, start the bus and the tick thread.
+        """Recover unfinished tasks from the store, start the bus and the threads.
 
-        ``background=False`` skips the thread: the caller drives :meth:`tick` (unit tests).
-
-        Recovered ``assigned``/``driving`` tasks keep their robot and law; their assignment
-        is re-sent until acknowledged (a robot still running it acknowledges at once) and
-        their timeout restarts now. Recovered ``queued`` tasks are dispatched as usual.
+        ``background=False`` starts no thread: the caller drives :meth:`tick` (unit tests).
+        Recovered ``assigned``/``driving``/``waiting`` tasks keep their robot and law; their
+        assignment is re-sent until acknowledged and their timeout restarts now. Recovered
+        ``queued`` tasks are planned as usual.
         """
+        unfinished = self._store.unfinished()
         with self._lock:
             if self._started:
                 return
             self._started = True
-            self._recover(self._clock())
+            self._inline = not background
+            n = self._ledger.recover(unfinished, self._clock.monotonic())
+            self._version += 1
+        self._counters.add("tasks_recovered", n)
         self._bus.start(self)
         if background:
+            self._outbox.start()
+            self._planner.start()
             self._thread = threading.Thread(target=self._run, name="fleet-tick", daemon=True)
             self._thread.start()
-
-    def _recover(self, now: float) -> None:
-        for task in self._store.unfinished():
-            self._put(task)
-            if task.status in _ACTIVE:
-                self._deadline[task.id] = now + self.settings.task_timeout_s
-                self._last_sent[task.id] = float("-inf")
-            self._counters["tasks_recovered"] += 1
+        if n:
+            self._planner.request("recovered")
 
     def close(self) -> None:
-        """Stop the tick thread and the bus; idempotent."""
+        """Stop the threads and the bus, after applying the effects already queued;
+        idempotent."""
         with self._lock:
             if self._closed:
                 return
             self._closed = True
         self._stop.set()
-        self._wake.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=10.0)
+        self._planner.close()
+        self._outbox.close()
         self._bus.close()
 
     def __enter__(self) -> FleetService:
@@ -222,590 +239,488 @@ class FleetService:
         self.close()
 
     def _run(self) -> None:
-        while not self._stop.is_set():
-            # Let a burst of submissions settle so its tasks are planned together (the
-            # direction rollouts then see every robot about to move, not one at a time).
-            settle_until = time.monotonic() + DISPATCH_SETTLE_MAX_S
-            while (
-                time.monotonic() - self._last_submit < DISPATCH_SETTLE_S
-                and time.monotonic() < settle_until
-                and not self._stop.is_set()
-            ):
-                time.sleep(DISPATCH_SETTLE_S / 2)
+        while not self._stop.wait(TICK_INTERVAL_S):
             try:
                 self.tick()
             except Exception:
-                self._counters["tick_errors"] += 1
+                self._counters.add("tick_errors")
                 _log.exception("fleet service tick failed")
-            self._wake.wait(RESEND_INTERVAL_S / 2)
-            self._wake.clear()
 
-    # -- listeners -----------------------------------------------------------------------
+    # -- effects -----------------------------------------------------------------------
+
+    def _queue(self, effects: Effects, now: float) -> Batch | None:
+        """Queue a transition's effects (call with the lock held: keeps their order)."""
+        if not effects:
+            return None
+        self._version += 1
+        for e in effects:  # remember cancels, so a robot driving on is told again later
+            if isinstance(e, Publish) and isinstance(e.message, CancelAssignment):
+                rec = self._roster.record(e.message.robot_id)
+                if rec is not None:
+                    rec.cancel_at = now
+        return self._outbox.enqueue(effects)
+
+    def _settle(self, batch: Batch | None = None, wait: bool = False) -> None:
+        """After releasing the lock: apply queued effects here (no threads), or wait until
+        ``batch`` is applied (``wait``: the caller answers only once it is stored)."""
+        if self._inline:
+            self._outbox.run_pending()
+        elif wait:
+            self._outbox.wait(batch)
 
     def add_listener(self, listener: Listener) -> Callable[[], None]:
         """Call ``listener`` on every event (from service threads, without the lock held).
 
         Returns a function that unsubscribes it.
         """
-        with self._lock:
-            self._listeners.append(listener)
-
-        def unsubscribe() -> None:
-            with self._lock:
-                if listener in self._listeners:
-                    self._listeners.remove(listener)
-
-        return unsubscribe
-
-    def _emit(self, events: list[FleetEvent]) -> None:
-        if not events:
-            return
-        with self._lock:
-            listeners = list(self._listeners)
-        for event in events:
-            for listener in listeners:
-                try:
-                    listener(event)
-                except Exception:
-                    self._counters["listener_errors"] += 1
-                    _log.exception("fleet event listener failed")
-
-    # -- transitions (call with _lock held) ----------------------------------------------
-
-    def _put(self, task: Task) -> None:
-        """Insert or replace a non-final task in ``_active`` and its indexes."""
-        old = self._active.get(task.id)
-        if old is not None:
-            self._unindex(old)
-        goal = task.request.goal
-        self._goals.add(task.id, Occupied(goal.x, goal.y, f"the goal of task {task.id}"))
-        self._bays.hold(task)
-        self._active[task.id] = task
-        if task.status == TaskStatus.QUEUED:
-            self._queued[task.id] = task
-        elif task.status in _ACTIVE and task.robot_id is not None:
-            self._under_way[task.id] = task
-            self._robot_task[task.robot_id] = task.id
-        for rid in {task.robot_id, task.request.robot_id}:
-            if rid is not None:
-                self._claims[rid] += 1
-
-    def _unindex(self, task: Task) -> None:
-        self._queued.pop(task.id, None)
-        self._under_way.pop(task.id, None)
-        if task.robot_id is not None and self._robot_task.get(task.robot_id) == task.id:
-            del self._robot_task[task.robot_id]
-        for rid in {task.robot_id, task.request.robot_id}:
-            if rid is not None:
-                self._claims[rid] -= 1
-                if self._claims[rid] <= 0:
-                    del self._claims[rid]
-
-    def _drop(self, task_id: str) -> None:
-        """Remove a task that became final from ``_active`` and its indexes."""
-        old = self._active.pop(task_id, None)
-        if old is not None:
-            self._unindex(old)
-            self._bays.release(old)
-        self._goals.remove(task_id)
-        self._stuck.forget(task_id)
-        self._avoid.pop(task_id, None)
-        self._deadline.pop(task_id, None)
-        self._last_sent.pop(task_id, None)
-
-    def _transition(self, task: Task, event: str, events: list[FleetEvent]) -> None:
-        """Store ``task`` (durably), update the in-memory view, queue the event."""
-        self._store.save(task, event)
-        if task.status.final:
-            self._drop(task.id)
-        else:
-            self._put(task)
-        events.append(TaskEvent(task=task))
-
-    def _update(self, task: Task, now: float, **changes: object) -> Task:
-        return task.model_copy(update={**changes, "updated_at": now})
-
-    def _finish(
-        self,
-        task: Task,
-        status: TaskStatus,
-        reason: str | None,
-        now: float,
-        events: list[FleetEvent],
-        stop_robot: bool,
-    ) -> Task:
-        done = self._update(task, now, status=status, reason=reason)
-        self._transition(done, status.value, events)
-        if stop_robot and task.robot_id is not None and task.status in _ACTIVE:
-            self._cancel_sent[task.robot_id] = now
-            self._bus.publish_assignment(CancelAssignment(robot_id=task.robot_id, task_id=task.id))
-        return done
-
-    def _task_of_robot(self, robot_id: str) -> Task | None:
-        task_id = self._robot_task.get(robot_id)
-        return None if task_id is None else self._under_way.get(task_id)
+        return self._outbox.add_listener(listener)
 
     # -- bus callbacks -------------------------------------------------------------------
 
     def on_state(self, state: RobotState) -> None:
-        """A robot's state: roster, acknowledgement, arrival, path recording."""
-        events: list[FleetEvent] = []
+        """A robot's state: roster, operator commands it does not obey (re-sent),
+        acknowledgement, arrival, path, progress, corridor, operator holds (hot path: O(1)
+        under the lock; a robot event at most every ``ROBOT_EVENT_INTERVAL_S``)."""
+        clock = self._clock
+        now, wall = clock.monotonic(), clock.wall()
+        view: RobotView | None = None
+        batch: Batch | None = None
+        ask_store = released = False
         with self._lock:
             if self._closed:
                 return
-            now = self._clock()
-            view, changed = self._roster.update(state, now)
-            self._measure_rate(state, now)
-            task = self._task_of_robot(state.robot_id)
-            if task is not None and state.task_id == task.id:
-                waiting = state.mode in (RobotMode.WAITING, RobotMode.PAUSED, RobotMode.ESTOP)
-                self._stuck.observe(task.id, state.pose, task.request.goal, now, waiting)
-                path = self._paths.get(task.id)
-                if path is not None:
-                    p = state.pose
-                    path.append((now, p.x, p.y, p.theta, state.u, state.omega))
-                if state.mode == RobotMode.ARRIVED:
-                    self._finish(task, TaskStatus.SUCCEEDED, None, now, events, False)
-                elif task.status == TaskStatus.ASSIGNED:
-                    self._transition(
-                        self._update(task, now, status=TaskStatus.DRIVING), "acknowledged", events
-                    )
-            elif state.task_id is not None and state.mode in (
-                RobotMode.DRIVING,
-                RobotMode.AVOIDING,
-            ):
-                self._stop_stray(state, now)
-            last = self._last_robot_event.get(state.robot_id, float("-inf"))
-            if changed or now - last >= ROBOT_EVENT_INTERVAL_S:
-                self._last_robot_event[state.robot_id] = now
-                events.append(RobotEvent(robot=view))
-        self._emit(events)
-        self.control_desk.check(state)  # a robot that should be held but is not: re-send
-        if events and any(isinstance(e, TaskEvent) for e in events):
-            self._wake.set()
+            resend = self._desk.check(state, now, wall)
+            if resend is not None:  # first: an e-stop waits for no store write
+                batch = self._outbox.enqueue([Publish(resend)])
+            known = self._roster.record(state.robot_id)
+            joined = known is None or known.state is None
+            rec, changed = self._roster.update(state, now, wall)
+            if now - rec.rate_at >= RATE_WINDOW_S or state.seq < rec.rate_seq:
+                self._measure_rate(rec, state, now)
+            seen = self._ledger.observe(state, now, wall)
+            if seen.effects:
+                batch = self._queue(seen.effects, now)
+            elif changed:
+                self._version += 1
+            if changed:  # its mode changed: maybe paused or e-stopped, or no more
+                hold_effects, released = self._sync_hold(rec, now, wall)
+                batch = self._queue(hold_effects, now) or batch
+            if seen.stray and now - rec.cancel_at >= RESEND_INTERVAL_S:
+                rec.cancel_at = now  # at most one cancel (or store read) per interval
+                stop = self._stop_stray(rec, state)
+                ask_store = stop is None
+                batch = stop or batch
+            if changed or now - rec.event_at >= ROBOT_EVENT_INTERVAL_S:
+                rec.event_at = now
+                view = Roster.view_of(rec)
+        if view is not None:
+            self._outbox.emit([RobotEvent(robot=view)])
+        if batch is not None:
+            self._settle()
+        if ask_store:
+            self._stop_stray_stored(state)
+        if resend is not None:
+            self._counters.add("control_resent")
+        if released:
+            self._planner.request("resumed")
+        if seen.finished:
+            self._planner.request("task_finished")
+        elif seen.off_corridor:
+            self._planner.request("corridor")
+        elif joined:
+            self._planner.request("robot_joined")
 
-    def _measure_rate(self, state: RobotState, now: float) -> None:
+    def _measure_rate(self, rec: RobotRecord, state: RobotState, now: float) -> None:
         """Robot seconds per service second, from state sequence numbers (a time-scaled
-        simulation runs faster than the wall clock; a real robot at 1)."""
-        anchor = self._rate_anchor.get(state.robot_id)
-        if anchor is None or state.seq < anchor[0]:
-            self._rate_anchor[state.robot_id] = (state.seq, now)
+        simulation runs faster than the service clock; a real robot at 1)."""
+        if rec.rate_seq < 0 or state.seq < rec.rate_seq:  # first state, or a restart
+            rec.rate_seq, rec.rate_at = state.seq, now
             return
-        seq0, t0 = anchor
-        if now - t0 >= RATE_WINDOW_S:
-            scale = (state.seq - seq0) / self.settings.control_rate_hz / (now - t0)
-            self._time_scale = scale if self._time_scale is None else max(self._time_scale, scale)
-            self._rate_anchor[state.robot_id] = (state.seq, now)
+        scale = (state.seq - rec.rate_seq) / self.settings.control_rate_hz / (now - rec.rate_at)
+        self._time_scale = scale if self._time_scale is None else max(self._time_scale, scale)
+        rec.rate_seq, rec.rate_at = state.seq, now
 
-    def _lead_time(self) -> float:
-        """Expected delay [s, robot time] until a plan reaches the robots."""
-        if self._plan_seconds is None:
-            return 0.0
-        scale = self._time_scale if self._time_scale is not None else 1.0
-        return min(self.lead_time_max, self._plan_seconds * scale)
-
-    def _stop_stray(self, state: RobotState, now: float) -> None:
-        """The robot drives a task that is not its active one: cancel it if it is finished.
-
-        This is how a cancel (or a timeout's stop) is re-sent until the robot obeys, and how
-        a robot that picked up a late duplicate of a cancelled assignment is stopped.
-        """
+    def _stop_stray(self, rec: RobotRecord, state: RobotState) -> Batch | None:
+        """The robot drives a task that is not active: cancel it if it is known finished
+        (a cancel or a timeout's stop re-sent until obeyed, or a late duplicate of a
+        cancelled assignment). Unknown here: :meth:`_stop_stray_stored` asks the store."""
         assert state.task_id is not None
-        if now - self._cancel_sent.get(state.robot_id, float("-inf")) < RESEND_INTERVAL_S:
-            return
-        if state.task_id in self._active:
-            return  # active but not this robot's (e.g. requeued elsewhere): leave it be
+        if self._ledger.finished_status(state.task_id) is None:
+            return None
+        self._counters.add("cancels_resent")
+        cancel = CancelAssignment(robot_id=rec.robot_id, task_id=state.task_id)
+        return self._outbox.enqueue([Publish(cancel)])
+
+    def _stop_stray_stored(self, state: RobotState) -> None:
+        """Same as :meth:`_stop_stray` for a task finished long ago (or before a restart):
+        one store read, outside the lock, at most once per re-send interval per robot."""
+        assert state.task_id is not None
         stored = self._store.get(state.task_id)
         if stored is not None and stored.status.final:
-            self._cancel_sent[state.robot_id] = now
-            self._counters["cancels_resent"] += 1
-            self._bus.publish_assignment(
-                CancelAssignment(robot_id=state.robot_id, task_id=state.task_id)
-            )
+            self._counters.add("cancels_resent")
+            cancel = CancelAssignment(robot_id=state.robot_id, task_id=state.task_id)
+            self._outbox.enqueue([Publish(cancel)])
+            self._settle()
 
     def on_robot_alive(self, robot_id: str) -> None:
         """A robot's liveliness token appeared."""
-        events: list[FleetEvent] = []
         with self._lock:
             if self._closed:
                 return
-            view = self._roster.alive(robot_id, self._clock())
-            if view is not None:
-                events.append(RobotEvent(robot=view))
-        self._emit(events)
-        self._wake.set()
+            rec = self._roster.alive(robot_id, self._clock.wall())
+            self._version += 1
+            view = Roster.view_of(rec)
+        if view is not None:
+            self._outbox.emit([RobotEvent(robot=view)])
+        self._planner.request("robot_joined")
 
     def on_robot_gone(self, robot_id: str) -> None:
         """A robot's token disappeared: it is lost; its task fails or is requeued."""
-        events: list[FleetEvent] = []
+        clock = self._clock
+        now, wall = clock.monotonic(), clock.wall()
         with self._lock:
             if self._closed:
                 return
-            now = self._clock()
-            view = self._roster.gone(robot_id, now)
-            self._counters["robots_lost"] += 1
-            if view is not None:
-                events.append(RobotEvent(robot=view))
-            task = self._task_of_robot(robot_id)
-            if task is not None:
-                reason = f"robot {robot_id} lost (liveliness token gone)"
-                if self.settings.on_robot_lost == "requeue":
-                    self._requeue(task, now, reason + "; requeued", events)
-                else:
-                    self._finish(task, TaskStatus.FAILED, reason, now, events, False)
-        self._emit(events)
-        self._wake.set()
+            rec = self._roster.gone(robot_id, now)
+            self._version += 1
+            view = Roster.view_of(rec)
+            batch = self._queue(self._ledger.robot_lost(robot_id, now, wall), now)
+        self._counters.add("robots_lost")
+        if view is not None:
+            self._outbox.emit([RobotEvent(robot=view)])
+        self._settle(batch)
+        self._planner.request("robot_lost")
 
-    def _requeue(
-        self,
-        task: Task,
-        now: float,
-        reason: str,
-        events: list[FleetEvent],
-        event: str = "requeued",
-    ) -> None:
-        """Put a task under way back in the queue (its robot keeps a named task)."""
-        requeued = self._update(
-            task, now, status=TaskStatus.QUEUED, robot_id=task.request.robot_id, law=None,
-            reason=reason,
-        )  # fmt: skip
-        self._deadline.pop(task.id, None)
-        self._last_sent.pop(task.id, None)
-        self._transition(requeued, event, events)
+    # -- operators -----------------------------------------------------------------------
+
+    def _hold_reason(self, rec: RobotRecord) -> str | None:
+        """Why an operator holds the robot still (as it reports, or as asked), or None."""
+        state = rec.state
+        if rec.status in OPERATOR_HELD and state is not None:
+            return state.detail or state.mode.value
+        hold = self._desk.hold(rec.robot_id)
+        if hold.restrictive is None:
+            return None
+        why = "emergency stop" if hold.estop else "paused"
+        given = self._desk.reason(rec.robot_id)
+        return f"{why} by the operator" + (f": {given}" if given else "")
+
+    def _sync_hold(self, rec: RobotRecord, now: float, wall: float) -> tuple[Effects, bool]:
+        """Make the ledger's operator hold of the robot match what is asked and what it
+        reports (call with the lock held); returns the effects and whether it was released."""
+        why = self._hold_reason(rec)
+        held = rec.robot_id in self._ledger.held
+        if why is not None and not held:
+            self._version += 1
+            return self._ledger.hold_robot(rec.robot_id, why, now, wall), False
+        if why is None and held:
+            self._version += 1
+            return self._ledger.release_robot(rec.robot_id, now, wall), True
+        return [], False
+
+    def control(
+        self, action: ControlAction, robot_id: str | None = None, reason: str | None = None
+    ) -> ControlCommand:
+        """Pause, resume, e-stop or release one robot or (``None``) the whole fleet.
+
+        The command is published first, in a batch of its own (answered once it is sent);
+        paused and e-stopped robots keep their tasks (no timeout, not stuck) and take no new
+        ones; on resume the planner plans them again. Raises :class:`RobotNotFound`.
+        """
+        clock = self._clock
+        now, wall = clock.monotonic(), clock.wall()
+        released = False
+        with self._lock:
+            if robot_id is not None and not self._roster.known(robot_id):
+                raise RobotNotFound(f"robot {robot_id} not found")
+            message = self._desk.command(action, robot_id, reason, wall)
+            sent = self._outbox.enqueue([Publish(message)])
+            effects: Effects = []
+            one = self._roster.record(robot_id) if robot_id is not None else None
+            for rec in [one] if one is not None else list(self._roster.records()):
+                more, freed = self._sync_hold(rec, now, wall)
+                effects += more
+                released |= freed
+            self._queue(effects, now)
+        self._counters.add("control_requests")
+        if action is ControlAction.ESTOP:
+            self._counters.add("estops_requested")
+        self._settle(sent, wait=True)
+        if released:
+            self._planner.request("resumed")
+        return message
+
+    def control_state(self) -> ControlState:
+        """What the operator asked: the fleet-wide hold, robots with a command of their own."""
+        with self._lock:
+            return self._desk.state()
+
+    def _set_in_service(self, robot_id: str, in_service: bool) -> RobotView:
+        clock = self._clock
+        now, wall = clock.monotonic(), clock.wall()
+        with self._lock:
+            rec = self._roster.record(robot_id)
+            view = None if rec is None else Roster.view_of(rec)
+            if rec is None or view is None:  # no pose yet: nothing to show or plan
+                raise RobotNotFound(f"robot {robot_id} not found")
+            self._roster.set_in_service(robot_id, in_service)
+            effects = [] if in_service else self._ledger.robot_decommissioned(robot_id, wall)
+            batch = self._queue(effects, now)
+            self._version += 1
+            view = Roster.view_of(rec)
+        assert view is not None
+        self._outbox.emit([RobotEvent(robot=view)])
+        self._settle(batch, wait=True)
+        self._planner.request("commissioned" if in_service else "decommissioned")
+        return view
 
     def decommission(self, robot_id: str) -> RobotView:
         """Take a robot out of service: it gets no task, its task under way is requeued (and
         the robot told to stop it), and once lost it no longer counts as an obstacle for
         planning and goal validation. Raises :class:`RobotNotFound`."""
-        events: list[FleetEvent] = []
-        with self._lock:
-            if not self._roster.known(robot_id):
-                raise RobotNotFound(f"robot {robot_id} not found")
-            self._decommissioned.add(robot_id)
-            task = self._task_of_robot(robot_id)
-            if task is not None:
-                now = self._clock()
-                self._requeue(task, now, f"robot {robot_id} decommissioned; requeued", events)
-                self._cancel_sent[robot_id] = now
-                self._bus.publish_assignment(CancelAssignment(robot_id=robot_id, task_id=task.id))
-        self._emit(events)
-        self._wake.set()
-        return self.robot(robot_id)
+        return self._set_in_service(robot_id, False)
 
     def commission(self, robot_id: str) -> RobotView:
         """Put a decommissioned robot back in service. Raises :class:`RobotNotFound`."""
-        with self._lock:
-            if not self._roster.known(robot_id):
-                raise RobotNotFound(f"robot {robot_id} not found")
-            self._decommissioned.discard(robot_id)
-        self._wake.set()
-        return self.robot(robot_id)
-
-    def _ignored(self, view: RobotView) -> bool:
-        """A lost, decommissioned robot: no obstacle any more (it was taken away)."""
-        return view.status is RobotStatus.LOST and view.robot_id in self._decommissioned
+        return self._set_in_service(robot_id, True)
 
     # -- background work -----------------------------------------------------------------
 
     def tick(self) -> None:
-        """One step: timeouts, re-sends of unacknowledged assignments, dispatch."""
-        events: list[FleetEvent] = []
+        """One step: timeouts, re-sends of unacknowledged assignments, the proximity
+        trigger, the periodic sweeps; without threads also planning, when due."""
+        clock = self._clock
+        now, wall = clock.monotonic(), clock.wall()
         with self._lock:
-            now = self._clock()
-            # Only tasks under way have deadlines and assignments (queued ones wait cheaply).
-            for task in list(self._under_way.values()):
-                if self._held(task.robot_id):  # paused or e-stopped: the task waits, no timeout
-                    self._deadline[task.id] = now + self.settings.task_timeout_s
-                    continue
-                deadline = self._deadline.get(task.id)
-                if deadline is not None and now >= deadline:
-                    reason = f"timeout: not arrived within {self.settings.task_timeout_s:g} s"
-                    self._finish(task, TaskStatus.FAILED, reason, now, events, True)
-            self._recover_stuck(now, events)
-            for task in self._under_way.values():
-                if task.robot_id is None:
-                    continue
-                state = self._roster.state(task.robot_id)
-                acked = (
-                    state is not None
-                    and state.task_id == task.id
-                    and state.revision >= task.revision
-                )
-                if not acked and now - self._last_sent.get(task.id, now) >= RESEND_INTERVAL_S:
-                    self._send(task, now)
-                    self._counters["assignments_resent"] += 1
-        self._emit(events)
-        self._dispatch()
+            if self._closed:
+                return
+            timeouts = self._ledger.timeouts(now, wall)
+            self._queue(timeouts, now)
+            stuck, recovered = self._recover_stuck(now, wall)
+            resends = self._ledger.resends(now)
+            self._outbox.enqueue(resends)
+            points = self._positions()
+            removed = self._sweep_robots(now, wall) if now >= self._next_robot_sweep else []
+            purge = now >= self._next_task_sweep
+            if purge:
+                self._next_task_sweep = now + TASK_SWEEP_INTERVAL_S
+                before = wall - self.settings.finished_task_retention_s
+                self._outbox.enqueue([PurgeFinished(before, TASK_PURGE_BATCH)])
+        if resends:
+            self._counters.add("assignments_resent", len(resends))
+        if removed:
+            self._counters.add("robots_expired", len(removed))
+            _log.info("removed robots lost for too long: %s", ", ".join(removed))
+        self._settle()
+        if timeouts:
+            self._planner.request("task_finished")
+        if stuck:
+            self._counters.add("stuck", stuck)
+            self._counters.add("recoveries", recovered)
+            self._planner.request("stuck")
+        if removed:
+            self._planner.request("robot_removed")
+        self._check_separation(points)
+        if self._inline:
+            self._planner.period_due()
+            self._planner.step()
+            self._settle()
 
-    def _recover_stuck(self, now: float, events: list[FleetEvent]) -> None:
-        """Tasks driving with no progress for ``stuck_after_s``: the next recovery
-        (``fleet.service.stuck``), stored with the cause and counted; then failure."""
-        for task in list(self._under_way.values()):
-            if task.status != TaskStatus.DRIVING or self._held(task.robot_id):
-                continue
-            if not self._stuck.stuck(task.id, now):
-                continue
-            assert task.robot_id is not None and task.law is not None
-            cause = stuck_cause(
-                self._roster.view(task.robot_id),
-                self._stuck.silent(task.id, now),
-                self._roster.views(),
-                self._obstacles,
-                self.settings.avoidance.peer_radius,
-                self.settings.stuck_after_s,
-            )
-            self._counters["stuck"] += 1
-            step = self._stuck.next_recovery(task.id, now)
-            if step is None:
-                reason = f"stuck: {cause}; {len(RECOVERIES)} recoveries did not help"
-                self._finish(task, TaskStatus.FAILED, reason, now, events, True)
-                continue
-            self._counters["recoveries"] += 1
-            reason = f"stuck: {cause}; recovery {self._stuck.attempts(task.id)}: {step}"
-            if step == "requeue":  # to another robot (dispatch avoids this one)
-                self._avoid[task.id] = task.robot_id
-                self._requeue(task, now, reason, events, "recovery")
-                self._cancel_sent[task.robot_id] = now
-                self._bus.publish_assignment(
-                    CancelAssignment(robot_id=task.robot_id, task_id=task.id)
-                )
-                continue
-            law = task.law
-            if step == "flip" and task.request.direction == "auto":
-                law = "cw" if task.law == "ccw" else "ccw"
-            revised = self._update(task, now, law=law, revision=task.revision + 1, reason=reason)
-            self._transition(revised, "recovery", events)
-            delay = 0.0 if law != task.law else self.settings.stuck_after_s / 3  # wait
-            self._send(revised, now, start_delay_s=delay)
+    def _recover_stuck(self, now: float, wall: float) -> tuple[int, int]:
+        """The next recovery of every stuck task, with the cause the roster shows (call
+        with the lock held); returns (stuck tasks, recoveries tried: the others failed)."""
+        stuck = self._ledger.stuck(now)
+        recovered = 0
+        for task in stuck:
+            cause = self._stuck_cause(task, now)
+            self._queue(self._ledger.recover_stuck(task.id, cause, now, wall), now)
+            recovered += task.id in self._ledger.active
+        return len(stuck), recovered
 
-    def _send(self, task: Task, now: float, start_delay_s: float = 0.0) -> None:
-        assert task.robot_id is not None and task.law is not None
-        request = task.request
-        self._last_sent[task.id] = now
-        self._bus.publish_assignment(
-            ParkAssignment(
-                robot_id=task.robot_id,
-                task_id=task.id,
-                revision=task.revision,
-                goal=request.goal,
-                law=task.law,
-                gains=request.gains_for(task.law),
-                tolerance=request.tolerance,
-                avoidance=self.settings.avoidance,
-                start_delay_s=start_delay_s,
-            )
+    def _stuck_cause(self, task: Task, now: float) -> str:
+        """What the service sees around a stuck task's robot: the peers near it (robots
+        taken out of the yard excepted), the obstacles, whether it is heard."""
+        assert task.robot_id is not None
+        rec = self._roster.record(task.robot_id)
+        robot = None if rec is None else Roster.view_of(rec)
+        radius = self.settings.avoidance.peer_radius
+        peers = []
+        if robot is not None:
+            x, y = robot.pose.x, robot.pose.y
+            for other in self._roster.records():
+                s = other.state
+                if (
+                    s is not None
+                    and not other.gone_for_good
+                    and abs(s.pose.x - x) <= radius
+                    and abs(s.pose.y - y) <= radius
+                ):
+                    view = Roster.view_of(other)
+                    if view is not None:
+                        peers.append(view)
+        return stuck_cause(
+            robot,
+            self._ledger.silent(task.id, now),
+            peers,
+            self._obstacles,
+            radius,
+            self.settings.stuck_after_s,
         )
 
-    def _held(self, robot_id: str | None) -> bool:
-        """Whether an operator holds the robot still (asked, or it reports so)."""
-        if robot_id is None:
-            return False
-        state = self._roster.state(robot_id)
-        return self.control_desk.held(robot_id, None if state is None else state.mode)
+    def _positions(self) -> list[tuple[str, float, float, bool]]:
+        """(id, x, y, moving) of every robot with a pose when some robot is moving (else
+        none: the proximity trigger only watches robots under way)."""
+        if not self._ledger.under_way:
+            return []
+        out = []
+        for rec in self._roster.records():
+            s = rec.state
+            if s is not None:
+                out.append((rec.robot_id, s.pose.x, s.pose.y, s.mode in _MOVING))
+        return out
 
-    def _free_robots(self) -> list[RobotView]:
-        busy = self._robot_task
-        return [
-            v
-            for v in self._roster.views()
-            if v.status != RobotStatus.LOST
-            and v.robot_id not in busy
-            and not self._held(v.robot_id)
-            and v.robot_id not in self._decommissioned
-        ]
+    def _check_separation(self, points: list[tuple[str, float, float, bool]]) -> None:
+        """Re-plan when a pair of robots (one moving) comes closer than the separation plus
+        the margin; once per pair while it stays that close."""
+        near = self.settings.safety_separation_m + self.settings.replan_separation_margin_m
+        pairs = close_pairs(points, near) if points else set()
+        new = pairs - self._close_pairs
+        self._close_pairs = pairs
+        if new:
+            self._counters.add("close_pairs_seen", len(new))
+            self._planner.request("separation")
 
-    def _dispatch(self) -> None:
-        """Assign queued tasks to free robots and choose their laws (see module docstring)."""
-        with self._dispatch_lock:
-            with self._lock:
-                if self._closed:
-                    return
-                if not self._queued:
-                    return
-                free = self._free_robots()
-                if not free:
-                    return
-                # Oldest first (a requeued task keeps its place), as named tasks are served
-                # first come, first served; O(queued) only when some robot is free.
-                queued = sorted(self._queued.values(), key=lambda t: t.created_at)
-                views = {v.robot_id: v for v in self._roster.views()}
-                movers = [t for t in self._under_way.values() if t.robot_id in views]
-                obstacles = list(self._obstacles)
-                lead_time = self._lead_time()
-            began, cpu = time.monotonic(), time.thread_time()
-            plan, flips = self._plan(queued, free, movers, views, obstacles, lead_time)
-            took, cpu = time.monotonic() - began, time.thread_time() - cpu
-            _log.info("planned %d task(s): %.2f s wall, %.2f s CPU", len(plan), took, cpu)
-            events: list[FleetEvent] = []
-            with self._lock:
-                self._counters["plans"] += 1
-                self._counters["plan_cpu_ms"] += round(1e3 * cpu)
-                self._counters["plan_wall_ms"] += round(1e3 * took)
-                last = self._plan_seconds
-                self._plan_seconds = took if last is None else 0.5 * (last + took)
-                now = self._clock()
-                for task, law in flips:
-                    self._replan(task, law, now, events)
-                free_now = {v.robot_id for v in self._free_robots()}
-                for task, robot_id, law in plan:
-                    current = self._active.get(task.id)
-                    if current is None or current.status != TaskStatus.QUEUED:
-                        continue
-                    if robot_id not in free_now:
-                        continue
-                    free_now.discard(robot_id)
-                    assigned = self._update(
-                        current,
-                        now,
-                        status=TaskStatus.ASSIGNED,
-                        robot_id=robot_id,
-                        law=law,
-                        attempts=current.attempts + 1,
-                    )
-                    self._transition(assigned, "assigned", events)
-                    self._stuck.start(task.id, now)
-                    self._deadline[task.id] = now + self.settings.task_timeout_s
-                    self._paths[task.id] = deque(maxlen=PATH_SAMPLES)
-                    while len(self._paths) > PATHS_KEPT:
-                        self._paths.popitem(last=False)
-                    self._send(assigned, now)
-            self._emit(events)
+    def _sweep_robots(self, now: float, wall: float) -> list[str]:
+        """Remove robots lost for ``lost_robot_retention_s`` (call with the lock held)."""
+        self._next_robot_sweep = now + ROBOT_SWEEP_INTERVAL_S
+        removed = []
+        for rid in self._roster.expired(now, self.settings.lost_robot_retention_s):
+            if rid in self._ledger.robot_task:
+                continue  # a silent robot still holding a task: its timeout comes first
+            self._queue(self._ledger.robot_removed(rid, wall), now)
+            self._roster.remove(rid)
+            self._desk.forget(rid)
+            self._version += 1
+            removed.append(rid)
+        return removed
 
-    def _replan(self, planned: Task, law: Law, now: float, events: list[FleetEvent]) -> None:
-        """Give a task under way a new law as ``revision + 1`` (stored, then sent), unless
-        it changed since the snapshot the plan was made on."""
-        current = self._active.get(planned.id)
-        if (
-            current is None
-            or current.status not in _ACTIVE
-            or current.robot_id != planned.robot_id
-            or current.law != planned.law
-            or current.revision != planned.revision
-        ):
-            return
-        revised = self._update(current, now, law=law, revision=current.revision + 1)
-        self._transition(revised, "replanned", events)
-        self._counters["replans"] += 1
-        self._send(revised, now)
+    # -- planning ----------------------------------------------------------------------
 
-    def _plan(
-        self,
-        queued: list[Task],
-        free: list[RobotView],
-        movers: list[Task],
-        views: dict[str, RobotView],
-        obstacles: list[Obstacle],
-        lead_time: float = 0.0,
-    ) -> tuple[list[tuple[Task, str, Law]], list[tuple[Task, Law]]]:
-        """Pure planning on a snapshot: who takes which task, and with which law; and
-        which tasks under way should switch law (strictly safer, see the module docstring)."""
-        pairs: list[tuple[Task, RobotView]] = []
-        available = {v.robot_id: v for v in free}
-        for task in queued:  # named tasks first come, first served
-            rid = task.request.robot_id
-            if rid is not None and rid in available:
-                pairs.append((task, available.pop(rid)))
-        unnamed = [t for t in queued if t.request.robot_id is None][: len(available)]
-        if unnamed and available:
-            robots = list(available.values())
-            specs = [
-                TaskSpec(
-                    goal=t.request.goal.as_tuple(),
-                    laws=LAWS if t.request.direction == "auto" else (t.request.direction,),
-                    gains={law: t.request.gains_for(law) for law in LAWS},
-                    tolerance=t.request.tolerance,
-                )
-                for t in unnamed
+    def _available(self, rec: RobotRecord | None) -> bool:
+        """Whether the robot may take a new task: known pose, not lost, in service, not held
+        still by an operator, no task under way."""
+        return (
+            rec is not None
+            and rec.state is not None
+            and rec.token is not False
+            and rec.in_service
+            and rec.robot_id not in self._ledger.robot_task
+            and rec.robot_id not in self._ledger.held
+        )
+
+    def _lead_time(self) -> float:
+        """Expected delay [s, robot time] until a plan reaches the robots: the smoothed
+        planning time, converted to robot time by the robots' observed control rate."""
+        took = self._planner.plan_seconds
+        if took is None:
+            return 0.0
+        scale = self._time_scale if self._time_scale is not None else 1.0
+        return min(self.lead_time_max, took * scale)
+
+    def _take_snapshot(self) -> PlanInput | None:
+        """What a plan depends on, copied under the lock (references and small tuples);
+        the snapshot objects are built after the lock is released."""
+        now = self._clock.monotonic()
+        with self._lock:
+            if self._closed:
+                return None
+            robots = [
+                RobotFacts(rec.state, rec.status, now - rec.seen, self._available(rec))
+                for rec in self._roster.records()
+                if rec.state is not None and rec.status is not None and not rec.gone_for_good
             ]
-            cost = predicted_times(
-                [r.pose.as_tuple() for r in robots],
-                specs,
-                self.settings.profile,
-                obstacles,
-                self.settings.avoidance,
-            )
-            for j, t in enumerate(unnamed):  # a stuck task goes to another robot if any
-                avoid = self._avoid.get(t.id)
-                for i, r in enumerate(robots):
-                    if r.robot_id == avoid:
-                        cost[i, j] += AVOID_COST_S
-            for i, j in optimal_assignment(cost):
-                pairs.append((unnamed[j], robots[i]))
-        if not pairs:
-            return [], []
-
-        scene_movers: list[Mover] = []
-        moving_ids: set[str] = set()
-        for t in movers:  # under way: an auto task may be flipped (revision) if strictly safer
-            assert t.robot_id is not None and t.law is not None
-            v = views[t.robot_id]
-            scene_movers.append(
-                Mover(
-                    robot_id=t.robot_id,
-                    pose=v.pose.as_tuple(),
-                    goal=t.request.goal.as_tuple(),
-                    gains={law: t.request.gains_for(law) for law in LAWS},
-                    tolerance=t.request.tolerance,
-                    law=t.law,
-                    auto=t.request.direction == "auto",
-                )
-            )
-            moving_ids.add(t.robot_id)
-        first_new = len(scene_movers)
-        for task, v in pairs:
-            direction = task.request.direction
-            scene_movers.append(
-                Mover(
-                    robot_id=v.robot_id,
-                    pose=v.pose.as_tuple(),
-                    goal=task.request.goal.as_tuple(),
-                    gains={law: task.request.gains_for(law) for law in LAWS},
-                    tolerance=task.request.tolerance,
-                    law=None if direction == "auto" else direction,
-                    auto=direction == "auto",
-                )
-            )
-            moving_ids.add(v.robot_id)
-        standing = [
-            (v.pose.x, v.pose.y)
-            for rid, v in views.items()
-            if rid not in moving_ids and not self._ignored(v)
-        ]
-        scene = Scene(
-            movers=scene_movers,
-            standing=standing,
-            obstacles=obstacles,
-            avoidance=self.settings.avoidance,
-            profile=self.settings.profile,
-            lead_time=lead_time,
+            tasks = list(self._ledger.active.values())
+            held = set(self._ledger.held)
+            avoided = self._ledger.avoided()
+            obstacles = list(self._obstacles)
+            version = self._version
+            lead_time = self._lead_time()
+            scale = self._time_scale if self._time_scale is not None else 1.0
+        if not worth_planning(robots, tasks):
+            return None
+        return planning_input(
+            version, robots, tasks, obstacles, self.settings, lead_time, scale, held, avoided
         )
-        if any(m.auto for m in scene_movers):
-            decision = choose_directions(
-                scene,
-                self.settings.safety_separation_m,
-                dt=1.0 / self.settings.control_rate_hz,  # the agents' Euler step
+
+    def _apply_plan(self, plan: Plan, work: PlanInput) -> None:
+        """Apply a plan's decisions through the ledger; those on tasks that changed since
+        the snapshot are dropped (a stale plan is rebased, or dropped whole)."""
+        clock = self._clock
+        now, wall = clock.monotonic(), clock.wall()
+        outcomes: Counter[Outcome] = Counter()
+        held = revised = 0
+        with self._lock:
+            if self._closed:
+                return
+            stale = plan.snapshot_version != self._version
+            for d in plan.decisions:
+                outcome, effects = self._ledger.apply(
+                    d,
+                    robot_available=self._available(self._roster.record(d.robot_id)),
+                    plan_safe=plan.safe,
+                    origin_seq=work.origin_seqs.get(d.robot_id),
+                    now=now,
+                    wall=wall,
+                )
+                outcomes[outcome] += 1
+                if outcome is Outcome.APPLIED:
+                    self._queue(effects, now)
+                    held += d.hold
+                    revised += d.action == "revise"
+        applied = outcomes[Outcome.APPLIED] + outcomes[Outcome.UNCHANGED]
+        if stale and plan.decisions:
+            self._counters.add("plans_rebased" if applied else "plans_stale_dropped")
+        self._counters.add("decisions_stale_dropped", outcomes[Outcome.STALE])
+        self._counters.add("plan_fallbacks", held)
+        self._counters.add("replans", revised)
+        if outcomes[Outcome.UNSAFE]:
+            # The planner holds robots it cannot move safely; this is a planner bug.
+            self._counters.add("plans_unsafe_dropped", outcomes[Outcome.UNSAFE])
+            _log.error(
+                "dropped %d decision(s) that would start a robot in a plan predicted unsafe "
+                "(min separation %.2f m)",
+                outcomes[Outcome.UNSAFE],
+                plan.min_separation_m,
             )
-            laws = decision.best.laws
-            self._counters["direction_choices"] += 1
-        else:
-            laws = tuple(m.law or "ccw" for m in scene_movers)
-        flips = [
-            (t, laws[k]) for k, t in enumerate(movers) if laws[k] != t.law
-        ]  # movers come first in scene_movers
-        return [(task, v.robot_id, laws[first_new + k]) for k, (task, v) in enumerate(pairs)], flips
+        self._settle()
+
+    def planner_stats(self) -> PlannerStats:
+        """Planning latency p50/p99 [ms] over the last plans, fallbacks and drops."""
+        window, count = self._planner.latency, self._counters.snapshot()
+        p50, p99 = window.percentile(50), window.percentile(99)
+        return PlannerStats(
+            plans=count.get("plans", 0),
+            window=len(window),
+            p50_ms=None if p50 is None else 1e3 * p50,
+            p99_ms=None if p99 is None else 1e3 * p99,
+            fallbacks=count.get("plan_fallbacks", 0),
+            rebased=count.get("plans_rebased", 0),
+            stale_dropped=count.get("plans_stale_dropped", 0),
+            decisions_stale_dropped=count.get("decisions_stale_dropped", 0),
+            unsafe_dropped=count.get("plans_unsafe_dropped", 0),
+        )
 
     # -- API -----------------------------------------------------------------------------
 
     def _occupied(self, goal: Pose, exclude_robot: str | None) -> list[Occupied]:
-        """Active (and pending) goals within the peer radius of ``goal``, nearest first,
-        and parked robots (arrived, holding or lost, with no active task)."""
-        out = list(self._goals.near(goal.x, goal.y, self.settings.avoidance.peer_radius))
-        busy = self._claims
-        for v in self._roster.views():
-            if v.robot_id == exclude_robot or v.robot_id in busy or self._ignored(v):
-                continue
-            if v.status in _STANDING:
-                out.append(Occupied(v.pose.x, v.pose.y, f"{v.status.value} robot {v.robot_id}"))
+        """Active (and pending) goals within the peer radius of ``goal``, and parked robots
+        (arrived, holding or lost) near it that no active task names or holds."""
+        radius = self.settings.avoidance.peer_radius
+        out = list(self._ledger.goals.near(goal.x, goal.y, radius))
+        claims = self._ledger.claims
+        for parked in self._roster.parked_near(goal.x, goal.y, radius):
+            if parked.robot_id != exclude_robot and parked.robot_id not in claims:
+                out.append(parked)
         return out
 
     def submit(self, request: TaskRequest, idempotency_key: str | None = None) -> Task:
@@ -826,32 +741,28 @@ class FleetService:
             if writing is None:
                 break
             writing.wait(10.0)
-        now = self._clock()
-        task = Task(id=uuid.uuid4().hex, request=request, created_at=now, updated_at=now)
+        wall = self._clock.wall()
+        task = Task(id=uuid.uuid4().hex, request=request, created_at=wall, updated_at=wall)
         if not self._reserve(task, idempotency_key):
             return self.submit(request, idempotency_key)  # lost a race: wait as above
         try:
             stored = self._store.save_new(task, idempotency_key)
         except BaseException:
             with self._lock:
-                self._goals.remove(task.id)
-                self._bays.release(task)
+                self._ledger.release(task.id)
             raise
         finally:
             if idempotency_key is not None:
                 with self._lock:
                     self._keys_in_flight.pop(idempotency_key).set()
-        events: list[FleetEvent] = []
         with self._lock:
             if stored.id != task.id:  # a concurrent request with the same key won
-                self._goals.remove(task.id)
-                self._bays.release(task)
+                self._ledger.release(task.id)
                 return stored
-            self._put(stored)  # stored: now the tick thread may dispatch it
-            events.append(TaskEvent(task=stored))
-        self._emit(events)
-        self._last_submit = time.monotonic()
-        self._wake.set()
+            # stored: now the planner may see it
+            self._queue(self._ledger.add(stored), self._clock.monotonic())
+        self._settle()
+        self._planner.request("task_submitted", burst=True)
         return stored
 
     def _reserve(self, task: Task, idempotency_key: str | None) -> bool:
@@ -862,24 +773,26 @@ class FleetService:
             if idempotency_key is not None and idempotency_key in self._keys_in_flight:
                 return False
             rid = request.robot_id
-            if rid is not None and not self._roster.known(rid):
+            named = None if rid is None else self._roster.record(rid)
+            if rid is not None and named is None:
                 raise RobotNotFound(f"robot {rid} not found")
-            if rid is not None and rid in self._decommissioned:
+            if named is not None and not named.in_service:
                 raise TaskConflict(f"robot {rid} is decommissioned: commission it first")
-            self._bays.check(task)
+            self._ledger.bays.check(task)
+            site = self.settings.site
             validate_goal(
                 goal,
                 self.settings.yard,
                 self._obstacles,
                 self._occupied(goal, rid),
                 self.settings.avoidance.peer_radius,
-                () if self.settings.site is None else self.settings.site.keep_out,
+                () if site is None else site.keep_out,
                 margin=self.settings.profile.radius,
             )
-            # Reserve the goal while the task is written (outside the lock, so concurrent
-            # submits share one commit): a concurrent submit near it is rejected meanwhile.
-            self._goals.add(task.id, Occupied(goal.x, goal.y, f"the goal of task {task.id}"))
-            self._bays.hold(task)
+            # Reserve the goal and bay while the task is written (outside the lock, so
+            # concurrent submits share one commit): a concurrent submit near it (or for the
+            # same bay) is rejected meanwhile.
+            self._ledger.reserve(task)
             if idempotency_key is not None:
                 self._keys_in_flight[idempotency_key] = threading.Event()
         return True
@@ -896,7 +809,7 @@ class FleetService:
         is active. Raises :class:`BayNotFound` (404) or :class:`BayTaken` / GoalRejected
         (409, e.g. a robot parked there)."""
         with self._lock:
-            candidates = self._bays.candidates(bay, group)
+            candidates = self._ledger.bays.candidates(bay, group)
         refused: list[str] = []
         for choice in candidates:
             try:
@@ -910,42 +823,30 @@ class FleetService:
     def bays(self) -> list[BayState]:
         """Every bay of the site map with its state (free, reserved, occupied)."""
         with self._lock:
-            return self._bays.states(dict(self._active), self._roster.views())
-
-    def control(
-        self, action: ControlAction, robot_id: str | None = None, reason: str | None = None
-    ) -> ControlCommand:
-        """Pause, resume, e-stop or release one robot or (``None``) the whole fleet: the
-        command goes to the robots at once; paused and e-stopped robots keep their tasks
-        (no timeout) and take no new ones. Raises :class:`RobotNotFound`."""
-        if robot_id is not None:
-            with self._lock:
-                if not self._roster.known(robot_id):
-                    raise RobotNotFound(f"robot {robot_id} not found")
-        message = self.control_desk.command(action, robot_id, reason)
-        self._wake.set()
-        return message
+            return self._ledger.bays.states(self._ledger.active, self._roster.views())
 
     def cancel(self, task_id: str) -> Task:
-        """Cancel a task; :class:`TaskNotFound`, or :class:`TaskConflict` if already final."""
-        events: list[FleetEvent] = []
+        """Cancel a task (answered once the cancel is stored); :class:`TaskNotFound`, or
+        :class:`TaskConflict` if already final."""
+        clock = self._clock
+        now, wall = clock.monotonic(), clock.wall()
         with self._lock:
-            task = self._active.get(task_id)
-            if task is None:
-                stored = self._store.get(task_id)
-                if stored is None:
-                    raise TaskNotFound(f"task {task_id} not found")
-                raise TaskConflict(f"task {task_id} is already {stored.status.value}")
-            done = self._finish(
-                task, TaskStatus.CANCELLED, "cancelled by request", self._clock(), events, True
-            )
-        self._emit(events)
-        self._wake.set()
+            done = None
+            if task_id in self._ledger.active:
+                done, effects = self._ledger.cancel(task_id, wall)
+                batch = self._queue(effects, now)
+        if done is None:
+            stored = self._store.get(task_id)
+            if stored is None:
+                raise TaskNotFound(f"task {task_id} not found")
+            raise TaskConflict(f"task {task_id} is already {stored.status.value}")
+        self._settle(batch, wait=True)
+        self._planner.request("task_finished")
         return done
 
     def task(self, task_id: str) -> Task:
         with self._lock:
-            active = self._active.get(task_id)
+            active = self._ledger.get(task_id)
         if active is not None:
             return active
         stored = self._store.get(task_id)
@@ -955,7 +856,8 @@ class FleetService:
 
     def history(self, task_id: str) -> list[tuple[float, str, Task]]:
         """Every stored transition of a task, oldest first: (time [s since epoch], event
-        such as ``assigned`` or ``replanned``, the task as stored then)."""
+        such as ``assigned`` or ``recovery``, the task as stored then); read from the store,
+        so a transition shows once it is stored."""
         rows = self._store.history(task_id)
         if not rows and self._store.get(task_id) is None:
             raise TaskNotFound(f"task {task_id} not found")
@@ -965,23 +867,44 @@ class FleetService:
         """Tasks in creation order, optionally filtered (read from the store)."""
         return self._store.list(status=status, robot_id=robot_id)
 
-    def _in_service(self, view: RobotView) -> RobotView:
-        if view.robot_id in self._decommissioned:
-            return view.model_copy(update={"in_service": False})
-        return view
-
     def robots(self) -> list[RobotView]:
         with self._lock:
-            return [self._in_service(v) for v in self._roster.views()]
+            return self._roster.views()
 
     def robot(self, robot_id: str) -> RobotView:
         with self._lock:
             view = self._roster.view(robot_id)
-            if view is not None:
-                view = self._in_service(view)
         if view is None:
             raise RobotNotFound(f"robot {robot_id} not found")
         return view
+
+    def remove_robot(self, robot_id: str) -> None:
+        """Forget a lost robot (an operator took it out of the yard): it stops being an
+        obstacle, queued tasks naming it fail. :class:`RobotNotFound`, or
+        :class:`RobotConflict` while its liveliness token is present or it has a task."""
+        clock = self._clock
+        now, wall = clock.monotonic(), clock.wall()
+        with self._lock:
+            rec = self._roster.record(robot_id)
+            if rec is None:
+                raise RobotNotFound(f"robot {robot_id} not found")
+            if rec.token is True:
+                raise RobotConflict(
+                    f"robot {robot_id} is connected (its liveliness token is present); "
+                    "only a lost robot can be removed"
+                )
+            task = self._ledger.task_of_robot(robot_id)
+            if task is not None:
+                raise RobotConflict(
+                    f"robot {robot_id} still has task {task.id} ({task.status.value})"
+                )
+            batch = self._queue(self._ledger.robot_removed(robot_id, wall), now)
+            self._roster.remove(robot_id)
+            self._desk.forget(robot_id)
+            self._version += 1
+        self._counters.add("robots_removed")
+        self._settle(batch, wait=True)
+        self._planner.request("robot_removed")
 
     def obstacles(self) -> list[Obstacle]:
         with self._lock:
@@ -992,28 +915,34 @@ class FleetService:
         msg = ObstacleSet(obstacles=list(obstacles))
         with self._lock:
             self._obstacles = list(msg.obstacles)
-            self._bus.publish_obstacles(msg)
+            batch = self._queue([Publish(msg)], self._clock.monotonic())
+        self._settle(batch, wait=True)
+        self._planner.request("obstacles")
 
     def path(self, task_id: str) -> list[PathSample]:
-        """Recorded (t [s], x [m], y [m], theta [rad], u [m/s], omega [rad/s]) of the task's
-        robot while it ran the task (the last ``PATH_SAMPLES``; empty once evicted)."""
+        """Recorded (t [s since epoch], x [m], y [m], theta [rad], u [m/s], omega [rad/s])
+        of the task's robot while it ran the task (downsampled when long; empty once
+        evicted)."""
         with self._lock:
-            path = self._paths.get(task_id)
-            if path is not None:
-                return list(path)
-            known = task_id in self._active
+            path = self._ledger.paths.get(task_id)
+            known = task_id in self._ledger.active
+        if path is not None:
+            return path
         if not known and self._store.get(task_id) is None:
             raise TaskNotFound(f"task {task_id} not found")
         return []
 
     @property
     def counters(self) -> dict[str, int]:
-        with self._lock:
-            out = dict(self._counters)
-        desk = self.control_desk
-        out["estops_requested"] = desk.requested[ControlAction.ESTOP]
-        out["control_requests"] = sum(desk.requested.values())
-        out["control_resent"] = desk.resent
+        out = self._counters.snapshot()
         for key, value in self._bus.counters.items():
             out[f"bus_{key}"] = value
+        return out
+
+    def sizes(self) -> dict[str, int]:
+        """Entries held by each bounded structure (robots, tasks, paths, queued effects)."""
+        with self._lock:
+            out = self._roster.sizes() | self._ledger.sizes()
+            out["close_pairs"] = len(self._close_pairs)
+        out["effects_pending"] = self._outbox.pending
         return out

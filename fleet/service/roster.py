@@ -1,86 +1,233 @@
 """The fleet's roster: which robots exist, where they are and what they do.
 
 Pure and not thread-safe (the service guards it with its lock); times come in as
-arguments [s, service clock].
+arguments: ``now`` [s, monotonic] for every interval, ``wall`` [s since epoch] for display.
 
-* A robot enters the roster with its first ``RobotState`` (its pose is unknown before).
+* A robot enters the roster with its first ``RobotState`` or liveliness news.
 * Its liveliness token appearing marks it alive; the token disappearing marks it ``lost``.
   A lost robot keeps its last pose and stays an obstacle; a state that arrives after the
   token went away (reordered or late) updates the pose but not the status, and only a new
   token brings the robot back.
+* Everything the service keeps per robot lives in its :class:`RobotRecord` (throttling of
+  robot events, rate measurement, cancel re-sends), so removing a robot forgets all of it.
+  A robot lost (or silent without any token) for longer than the retention time is
+  :meth:`Roster.expired`; the service removes it (:meth:`Roster.remove`), as does an operator.
+* Parked robots (arrived, holding, paused, e-stopped or lost) are kept in a grid
+  (:class:`GoalIndex`), so the goal check of a new task looks at the few robots near the
+  goal, not at the whole fleet.
+* An operator takes a robot out of service (:meth:`Roster.set_in_service`): it gets no
+  task, and once lost it is no obstacle any more (it was taken away): it leaves the grid.
+
+:meth:`Roster.update` is the hot path (every state of every robot, 50 Hz each): it stores
+the state, keeps the cached status and reports whether status or task changed, building no
+model; :meth:`Roster.view` builds the ``RobotView`` only when an event or a reader needs it.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
+from fleet.core.goals import GoalIndex, Occupied
 from fleet.core.tasks import RobotStatus, RobotView
-from fleet.core.wire import RobotState
+from fleet.core.wire import RobotMode, RobotState
+
+_STATUS_OF_MODE: dict[RobotMode, RobotStatus] = {m: RobotStatus(m.value) for m in RobotMode}
+#: Statuses of a robot that stands where it is for good (it blocks goals near it).
+PARKED = frozenset(
+    {
+        RobotStatus.ARRIVED,
+        RobotStatus.HOLDING,
+        RobotStatus.PAUSED,
+        RobotStatus.ESTOP,
+        RobotStatus.LOST,
+    }
+)
+#: Statuses of a robot that an operator holds still (pause, e-stop), as it reports them.
+OPERATOR_HELD = frozenset({RobotStatus.PAUSED, RobotStatus.ESTOP})
+#: A parked robot that moved this far is moved in the grid [m].
+_PARKED_MOVE_M = 0.05
+_NEVER = -math.inf
 
 
-@dataclass
-class _Entry:
+@dataclass(frozen=True)
+class ParkedRobot(Occupied):
+    """A parked robot in the grid: where it stands, and which robot it is."""
+
+    robot_id: str
+
+
+@dataclass(slots=True)
+class RobotRecord:
+    """Everything the service knows and keeps about one robot."""
+
+    robot_id: str
     state: RobotState | None = None
     token: bool | None = None  # None: no liveliness news yet; True: token present
-    last_seen: float = 0.0
+    status: RobotStatus | None = None  # None until the pose is known
+    seen: float = _NEVER  # its last state arrived at [s, monotonic]
+    seen_wall: float = 0.0  # last state or liveliness news [s since epoch] (display)
+    lost_since: float | None = None  # token gone at [s, monotonic]
+    event_at: float = _NEVER  # last robot event announced [s, monotonic]
+    rate_seq: int = -1  # anchor of the control-rate measurement: state seq ...
+    rate_at: float = _NEVER  # ... and when it arrived [s, monotonic]
+    cancel_at: float = _NEVER  # last cancel sent to it [s, monotonic]
+    stray_at: float = _NEVER  # last check of a task it drives that is not its own
+    parked_at: tuple[float, float] | None = None  # where it is in the parked grid [m]
+    in_service: bool = True  # False: decommissioned by an operator (gets no task)
+
+    @property
+    def task_id(self) -> str | None:
+        return None if self.state is None else self.state.task_id
+
+    @property
+    def gone_for_good(self) -> bool:
+        """Lost and decommissioned: taken out of the yard, no obstacle any more."""
+        return self.token is False and not self.in_service
 
 
 class Roster:
-    """Latest state and liveliness of every robot seen."""
+    """Latest state and liveliness of every robot seen (see the module docstring)."""
 
-    def __init__(self) -> None:
-        self._robots: dict[str, _Entry] = {}
+    def __init__(self, parked_cell: float = 1.0) -> None:
+        self._robots: dict[str, RobotRecord] = {}
+        self._parked = GoalIndex(parked_cell)
+        self._unlinked: dict[str, None] = {}  # robots lost or without a token (retention)
 
-    def update(self, state: RobotState, now: float) -> tuple[RobotView, bool]:
-        """Record a state; returns the new view and whether status or task changed."""
-        entry = self._robots.setdefault(state.robot_id, _Entry())
-        before = self.view(state.robot_id)
-        entry.state = state
-        entry.last_seen = now
-        after = self.view(state.robot_id)
-        assert after is not None
-        changed = before is None or (before.status, before.task_id, before.detail) != (
-            after.status,
-            after.task_id,
-            after.detail,
-        )
-        return after, changed
+    def __len__(self) -> int:
+        return len(self._robots)
 
-    def alive(self, robot_id: str, now: float) -> RobotView | None:
-        """The robot's liveliness token appeared; returns its view if its pose is known."""
-        entry = self._robots.setdefault(robot_id, _Entry())
-        entry.token = True
-        entry.last_seen = now
-        return self.view(robot_id)
-
-    def gone(self, robot_id: str, now: float) -> RobotView | None:
-        """The robot's token disappeared: it is ``lost`` (kept at its last pose)."""
-        entry = self._robots.setdefault(robot_id, _Entry())
-        entry.token = False
-        return self.view(robot_id)
-
-    def is_lost(self, robot_id: str) -> bool:
-        entry = self._robots.get(robot_id)
-        return entry is not None and entry.token is False
-
-    def state(self, robot_id: str) -> RobotState | None:
-        entry = self._robots.get(robot_id)
-        return None if entry is None else entry.state
+    def __contains__(self, robot_id: object) -> bool:
+        return robot_id in self._robots
 
     def known(self, robot_id: str) -> bool:
         """Whether the robot has been seen at all (state or token)."""
         return robot_id in self._robots
 
-    def view(self, robot_id: str) -> RobotView | None:
-        """The robot's view, or None if unknown or its pose is not known yet."""
-        entry = self._robots.get(robot_id)
-        if entry is None or entry.state is None:
+    def record(self, robot_id: str) -> RobotRecord | None:
+        return self._robots.get(robot_id)
+
+    def records(self) -> Iterator[RobotRecord]:
+        return iter(self._robots.values())
+
+    def _entry(self, robot_id: str) -> RobotRecord:
+        rec = self._robots.get(robot_id)
+        if rec is None:
+            rec = self._robots[robot_id] = RobotRecord(robot_id)
+            self._unlinked[robot_id] = None
+        return rec
+
+    def update(self, state: RobotState, now: float, wall: float) -> tuple[RobotRecord, bool]:
+        """Record a state; returns the robot's record and whether its status or task changed."""
+        rec = self._robots.get(state.robot_id) or self._entry(state.robot_id)
+        before = rec.state
+        rec.state = state
+        rec.seen = now
+        rec.seen_wall = wall
+        status = RobotStatus.LOST if rec.token is False else _STATUS_OF_MODE[state.mode]
+        changed = (
+            before is None
+            or status is not rec.status
+            or before.task_id != state.task_id
+            or before.detail != state.detail
+        )
+        if status is not rec.status:
+            rec.status = status
+            self._place(rec)
+        elif rec.parked_at is not None:
+            px, py = rec.parked_at
+            if abs(state.pose.x - px) + abs(state.pose.y - py) > _PARKED_MOVE_M:
+                self._place(rec)
+        return rec, changed
+
+    def alive(self, robot_id: str, wall: float) -> RobotRecord:
+        """The robot's liveliness token appeared."""
+        rec = self._entry(robot_id)
+        rec.token = True
+        rec.lost_since = None
+        rec.seen_wall = wall
+        self._unlinked.pop(robot_id, None)
+        self._restatus(rec)
+        return rec
+
+    def gone(self, robot_id: str, now: float) -> RobotRecord:
+        """The robot's token disappeared: it is ``lost`` (kept at its last pose)."""
+        rec = self._entry(robot_id)
+        rec.token = False
+        rec.lost_since = now
+        self._unlinked[robot_id] = None
+        self._restatus(rec)
+        return rec
+
+    def _restatus(self, rec: RobotRecord) -> None:
+        if rec.state is None:
+            return
+        status = RobotStatus.LOST if rec.token is False else _STATUS_OF_MODE[rec.state.mode]
+        if status is not rec.status:
+            rec.status = status
+            self._place(rec)
+
+    def set_in_service(self, robot_id: str, in_service: bool) -> RobotRecord | None:
+        """Decommission (False) or commission (True) a known robot; None if unknown."""
+        rec = self._robots.get(robot_id)
+        if rec is not None and rec.in_service is not in_service:
+            rec.in_service = in_service
+            self._place(rec)
+        return rec
+
+    def _place(self, rec: RobotRecord) -> None:
+        """Put the robot in (or take it out of) the parked grid according to its status."""
+        if rec.status in PARKED and rec.state is not None and not rec.gone_for_good:
+            p = rec.state.pose
+            what = f"{rec.status.value} robot {rec.robot_id}"
+            self._parked.add(rec.robot_id, ParkedRobot(p.x, p.y, what, rec.robot_id))
+            rec.parked_at = (p.x, p.y)
+        elif rec.parked_at is not None:
+            self._parked.remove(rec.robot_id)
+            rec.parked_at = None
+
+    def parked_near(self, x: float, y: float, radius: float) -> list[ParkedRobot]:
+        """Parked robots (arrived, holding, paused, e-stopped, lost but not decommissioned)
+        within ``radius`` [m] of (x, y), nearest first."""
+        return [p for p in self._parked.near(x, y, radius) if isinstance(p, ParkedRobot)]
+
+    def is_lost(self, robot_id: str) -> bool:
+        rec = self._robots.get(robot_id)
+        return rec is not None and rec.token is False
+
+    def state(self, robot_id: str) -> RobotState | None:
+        rec = self._robots.get(robot_id)
+        return None if rec is None else rec.state
+
+    def expired(self, now: float, retention_s: float) -> list[str]:
+        """Robots lost, or seen without any liveliness token, for ``retention_s`` [s] or more."""
+        out = []
+        for rid in self._unlinked:
+            rec = self._robots[rid]
+            since = rec.lost_since if rec.token is False else rec.seen
+            if since is not None and now - since >= retention_s:
+                out.append(rid)
+        return out
+
+    def remove(self, robot_id: str) -> RobotRecord | None:
+        """Forget a robot and everything kept about it."""
+        rec = self._robots.pop(robot_id, None)
+        self._unlinked.pop(robot_id, None)
+        if rec is not None and rec.parked_at is not None:
+            self._parked.remove(robot_id)
+        return rec
+
+    @staticmethod
+    def view_of(rec: RobotRecord) -> RobotView | None:
+        """The robot's view, or None if its pose is not known yet."""
+        s = rec.state
+        if s is None or rec.status is None:
             return None
-        s = entry.state
-        status = RobotStatus.LOST if entry.token is False else RobotStatus.from_mode(s.mode)
-        return RobotView(
+        # The state is a validated message: build the view without validating again.
+        return RobotView.model_construct(
             robot_id=s.robot_id,
-            status=status,
+            status=rec.status,
             pose=s.pose,
             u=s.u,
             omega=s.omega,
@@ -88,12 +235,21 @@ class Roster:
             law=s.law,
             goal=s.goal,
             radius=s.radius,
-            last_seen=entry.last_seen,
+            last_seen=rec.seen_wall,
             detail=s.detail,
+            in_service=rec.in_service,
             errors=s.errors,
         )
 
+    def view(self, robot_id: str) -> RobotView | None:
+        rec = self._robots.get(robot_id)
+        return None if rec is None else self.view_of(rec)
+
     def views(self) -> list[RobotView]:
         """Views of every robot with a known pose, sorted by id."""
-        out = [self.view(rid) for rid in sorted(self._robots)]
+        out = [self.view_of(self._robots[rid]) for rid in sorted(self._robots)]
         return [v for v in out if v is not None]
+
+    def sizes(self) -> dict[str, int]:
+        """How many entries each per-robot structure holds (bounded with the roster)."""
+        return {"robots": len(self._robots), "parked_robots": len(self._parked)}

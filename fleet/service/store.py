@@ -106,6 +106,11 @@ class TaskStore(Protocol):
         """(updated_at, event, task) of every stored transition of one task, oldest first."""
         ...
 
+    def delete_finished_before(self, before: float, limit: int = 1000) -> int:
+        """Delete up to ``limit`` finished tasks (succeeded, failed, cancelled) last updated
+        before ``before`` [s since epoch], with their history; returns how many went."""
+        ...
+
     def close(self) -> None: ...
 
 
@@ -164,6 +169,18 @@ class MemoryTaskStore:
             return [
                 (at, ev, t.model_copy(deep=True)) for at, ev, t in self._history if t.id == task_id
             ]
+
+    def delete_finished_before(self, before: float, limit: int = 1000) -> int:
+        with self._lock:
+            gone = [t.id for t in self._tasks.values() if t.status.final and t.updated_at < before][
+                :limit
+            ]
+            for task_id in gone:
+                del self._tasks[task_id]
+            dropped = set(gone)
+            self._keys = {k: v for k, v in self._keys.items() if v not in dropped}
+            self._history = [h for h in self._history if h[2].id not in dropped]
+            return len(gone)
 
     def close(self) -> None:
         pass
@@ -337,6 +354,28 @@ class SqliteTaskStore:
                 (task_id,),
             ).fetchall()
         return [(float(r[0]), str(r[1]), Task.model_validate_json(r[2])) for r in rows]
+
+    def delete_finished_before(self, before: float, limit: int = 1000) -> int:
+        """Retention of finished tasks (one bounded transaction; see :class:`TaskStore`)."""
+        marks = ", ".join("?" for _ in _FINAL)
+
+        def purge(db: sqlite3.Connection) -> int:
+            # Finds old finished rows without scanning every task (a no-op once it exists).
+            db.execute("CREATE INDEX IF NOT EXISTS tasks_finished ON tasks (status, updated_at)")
+            ids = [
+                str(r[0])
+                for r in db.execute(
+                    f"SELECT id FROM tasks WHERE status IN ({marks}) AND updated_at < ? LIMIT ?",
+                    (*_FINAL, before, limit),
+                )
+            ]
+            if ids:
+                qs = ", ".join("?" for _ in ids)
+                db.execute(f"DELETE FROM task_history WHERE task_id IN ({qs})", ids)
+                db.execute(f"DELETE FROM tasks WHERE id IN ({qs})", ids)
+            return len(ids)
+
+        return self._write(purge)
 
     def close(self) -> None:
         with self._lock:

@@ -4,7 +4,9 @@
 position error plus heading error times ``heading_arm`` [m] (a robot turning on the spot
 near its goal is making progress too) -- and when it last shrank by ``min_progress_m``.
 A task whose robot is held on purpose (paused, e-stopped, waiting for the planner) has its
-window restarted: standing still then is not being stuck.
+window restarted: standing still then is not being stuck. :meth:`StuckWatch.observe` runs
+for every state of a robot under way (the service's hot path): it measures the distance at
+most every ``check_interval_s`` [s], and otherwise only notes that the robot was heard.
 
 :func:`stuck_cause` names what the service can see: no pose (no state for the whole
 window), a peer within the peer influence radius, a static obstacle within its influence
@@ -25,11 +27,12 @@ from fleet.core.wire import Obstacle, Pose
 RECOVERIES = ("flip", "wait", "requeue")
 
 
-@dataclass
+@dataclass(slots=True)
 class _Progress:
     best: float
-    since: float  # [s, service clock] when ``best`` last shrank by min_progress_m
-    seen: float  # [s] last state of the task's robot
+    since: float  # [s, monotonic] when ``best`` last shrank by min_progress_m
+    seen: float  # [s, monotonic] last state of the task's robot
+    checked: float = -math.inf  # [s, monotonic] last distance measured
     attempts: int = 0
 
 
@@ -43,24 +46,37 @@ class StuckWatch:
     """Progress of every task under way (see the module docstring)."""
 
     def __init__(
-        self, stuck_after_s: float, min_progress_m: float = 0.05, heading_arm: float = 0.2
+        self,
+        stuck_after_s: float,
+        min_progress_m: float = 0.05,
+        heading_arm: float = 0.2,
+        check_interval_s: float = 0.25,
     ) -> None:
         self.stuck_after_s = stuck_after_s
         self.min_progress_m = min_progress_m
         self.heading_arm = heading_arm
+        self.check_interval_s = check_interval_s
         self._tasks: dict[str, _Progress] = {}
 
+    def __len__(self) -> int:
+        return len(self._tasks)
+
     def observe(self, task_id: str, pose: Pose, goal: Pose, now: float, held: bool) -> None:
-        """A state of the task's robot at ``now`` [s]; ``held``: it stands still on purpose."""
-        left = remaining(pose, goal, self.heading_arm)
+        """A state of the task's robot at ``now`` [s, monotonic]; ``held``: it stands still
+        on purpose (the window restarts)."""
         progress = self._tasks.get(task_id)
         if progress is None:
-            self._tasks[task_id] = _Progress(left, now, now)
-            return
+            progress = self._tasks[task_id] = _Progress(math.inf, now, now)
         progress.seen = now
-        if held or left < progress.best - self.min_progress_m:
-            progress.best = min(progress.best, left) if not held else left
-            progress.since = now
+        if held:
+            progress.best, progress.since = math.inf, now
+            return
+        if now - progress.checked < self.check_interval_s:
+            return
+        progress.checked = now
+        left = remaining(pose, goal, self.heading_arm)
+        if left < progress.best - self.min_progress_m:
+            progress.best, progress.since = left, now
 
     def start(self, task_id: str, now: float) -> None:
         """The task got (again) a robot at ``now``: a fresh window, attempts kept."""
@@ -69,6 +85,7 @@ class StuckWatch:
             self._tasks[task_id] = _Progress(math.inf, now, now)
         else:
             progress.best, progress.since, progress.seen = math.inf, now, now
+            progress.checked = -math.inf
 
     def stuck(self, task_id: str, now: float) -> bool:
         progress = self._tasks.get(task_id)
@@ -83,7 +100,7 @@ class StuckWatch:
         """Record an attempt and return it (``RECOVERIES`` in order), or None: give up."""
         progress = self._tasks[task_id]
         progress.since = now  # the next attempt after another full window
-        progress.best = math.inf
+        progress.best, progress.checked = math.inf, -math.inf
         if progress.attempts >= len(RECOVERIES):
             return None
         progress.attempts += 1

@@ -23,6 +23,7 @@ from fleet.core.tasks import (
 )
 from fleet.core.wire import Pose, RobotMode, RobotState
 from fleet.service.bus import MemoryBus
+from fleet.service.stats import PlannerStats
 from tests.api.conftest import add_robot
 
 pytestmark = pytest.mark.anyio
@@ -79,7 +80,7 @@ class FakeSource:
 
     def __init__(self) -> None:
         self.counters = {"bus_dropped_invalid": 3, "bus_dropped_oversized": 1, "plans": 4,
-                         "plan_wall_ms": 500, "recoveries": 2, "replans": 7}  # fmt: skip
+                         "plan_us": 500_000, "recoveries": 2, "replans": 7}  # fmt: skip
         self.listeners: list[Callable[[FleetEvent], None]] = []
 
     def robots(self) -> list[RobotView]:
@@ -92,6 +93,9 @@ class FakeSource:
         self.listeners.append(listener)
         return lambda: self.listeners.remove(listener)
 
+    def planner_stats(self) -> PlannerStats:
+        return PlannerStats(4, 4, 12.0, 80.0, 0, 0, 0, 0, 0)
+
 
 def test_service_counters_become_labelled_counters() -> None:
     source = FakeSource()
@@ -101,6 +105,8 @@ def test_service_counters_become_labelled_counters() -> None:
     assert got[("parkfleet_messages_dropped_total", (("reason", "oversized"),))] == 1
     assert got[("parkfleet_plans_total", ())] == 4
     assert got[("parkfleet_planning_seconds_total", ())] == 0.5
+    assert got[("parkfleet_planning_latency_seconds", (("quantile", "0.5"),))] == 0.012
+    assert got[("parkfleet_planning_latency_seconds", (("quantile", "0.99"),))] == 0.08
     assert got[("parkfleet_recoveries_total", ())] == 2
     assert got[("parkfleet_service_events_total", (("event", "replans"),))] == 7
     view = RobotView(robot_id="x", status=RobotStatus.LOST, pose=Pose(x=0, y=0), last_seen=0)

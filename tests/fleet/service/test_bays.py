@@ -46,7 +46,10 @@ def test_reservation_states_and_group_candidates() -> None:
     )
     assert (states["A1"].status, states["A1"].robot_id) == ("occupied", "r2")
     assert states["C2"].status == "free"
-    book.release(t1)
+    book.release("t2")  # not its holder: nothing changes
+    assert book.holder("C1") == "t1"
+    book.release(t1.id)
+    assert book.holder("C1") is None and len(book) == 0
     assert [b.name for b in book.candidates(None, "charging")] == ["C1", "C2"]
 
 

@@ -8,8 +8,8 @@ import pytest
 
 from fleet.core.tasks import GoalRejected, RobotNotFound, TaskConflict, TaskStatus
 from fleet.core.wire import ControlAction, ControlCommand, Hold, Pose, RobotMode, RobotState
-from fleet.service.control_desk import RESEND_S, ControlDesk
-from tests.fleet.service.test_service import Fleet, req
+from fleet.service.control_desk import RESEND_S, ControlDesk, ControlState
+from tests.fleet.service.conftest import Fleet, req
 
 
 @pytest.fixture
@@ -28,42 +28,48 @@ def test_hold_follows_the_commands() -> None:
 
 
 def test_a_fleet_wide_command_replaces_the_robots_own() -> None:
-    sent: list[ControlCommand] = []
-    desk = ControlDesk(sent.append, clock=lambda: 1000.0)
-    desk.command(ControlAction.PAUSE, "r1")
+    desk = ControlDesk()
+    sent = [desk.command(ControlAction.PAUSE, "r1", None, 1000.0)]
     assert desk.hold("r1").paused and not desk.hold("r2").paused
-    desk.command(ControlAction.ESTOP)
-    assert desk.robots() == {} and desk.hold("r1") == Hold(paused=False, estop=True)
+    sent.append(desk.command(ControlAction.ESTOP, None, None, 1000.0))
+    assert desk.state().robots == {} and desk.hold("r1") == Hold(paused=False, estop=True)
     seqs = [m.seq for m in sent]
     assert seqs == sorted(set(seqs))  # strictly increasing, even with a frozen clock
+    assert all(m.issuer == "fleet-service" for m in sent)
 
 
 def test_only_restrictive_commands_are_resent_and_not_too_often() -> None:
+    desk = ControlDesk()
+    now, wall = 0.0, 1000.0
     sent: list[ControlCommand] = []
-    now = [0.0]
-    desk = ControlDesk(sent.append, clock=lambda: 1000.0, monotonic=lambda: now[0])
 
-    def state(mode: RobotMode) -> RobotState:
-        return RobotState(robot_id="r1", seq=1, stamp=1.0, pose=Pose(x=0, y=0), mode=mode)
+    def check(mode: RobotMode) -> None:
+        state = RobotState(robot_id="r1", seq=1, stamp=1.0, pose=Pose(x=0, y=0), mode=mode)
+        again = desk.check(state, now, wall)
+        if again is not None:
+            sent.append(again)
 
-    desk.check(state(RobotMode.DRIVING))
+    check(RobotMode.DRIVING)
     assert sent == []  # nothing asked: nothing re-sent
-    desk.command(ControlAction.ESTOP, reason="drill")
-    desk.check(state(RobotMode.DRIVING))  # a robot that missed it (or restarted)
-    desk.check(state(RobotMode.DRIVING))  # too soon for another
+    sent.append(desk.command(ControlAction.ESTOP, None, "drill", wall))
+    check(RobotMode.DRIVING)  # a robot that missed it (or restarted)
+    check(RobotMode.DRIVING)  # too soon for another
     assert [(m.command, m.robot_id, m.reason) for m in sent[1:]] == [
         (ControlAction.ESTOP, "r1", "drill")
     ]
-    now[0] += RESEND_S
-    desk.check(state(RobotMode.ESTOP))  # obeys: nothing
-    desk.command(ControlAction.RELEASE)
-    desk.check(state(RobotMode.ESTOP))  # e-stopped by someone else: never released by us
+    now += RESEND_S
+    check(RobotMode.ESTOP)  # obeys: nothing
+    sent.append(desk.command(ControlAction.RELEASE, None, None, wall))
+    check(RobotMode.ESTOP)  # e-stopped by someone else: never released by us
     assert [m.command for m in sent] == [
         ControlAction.ESTOP,
         ControlAction.ESTOP,
         ControlAction.RELEASE,
     ]
-    assert desk.resent == 1
+    desk.forget("r1")
+    desk.restore(ControlState(Hold(estop=True), {}))  # as a previous run left it
+    check(RobotMode.IDLE)
+    assert sent[-1].command is ControlAction.ESTOP and sent[-1].robot_id == "r1"
 
 
 def test_estopped_robots_keep_their_tasks_without_timeout_and_take_no_new_ones(

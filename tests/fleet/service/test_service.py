@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Iterator
-from typing import Any
 
 import pytest
 
@@ -24,93 +22,16 @@ from fleet.core.tasks import (
 )
 from fleet.core.types import Law
 from fleet.core.wire import (
-    CancelAssignment,
     Obstacle,
-    ParkAssignment,
     Pose,
     RobotMode,
-    RobotState,
 )
 from fleet.io.settings import Settings
 from fleet.service.bus import MemoryBus
 from fleet.service.fleet_service import RESEND_INTERVAL_S, FleetService
 from fleet.service.store import MemoryTaskStore
 from robot_agent.logic import apply_assignment
-
-
-class Clock:
-    def __init__(self) -> None:
-        self.t = 1000.0
-
-    def __call__(self) -> float:
-        return self.t
-
-    def advance(self, dt: float) -> None:
-        self.t += dt
-
-
-class Fleet:
-    """A service wired to a MemoryBus and a store, plus helpers that play the robots."""
-
-    def __init__(self, store: MemoryTaskStore | None = None, **settings: Any) -> None:
-        self.clock = Clock()
-        self.bus = MemoryBus()
-        self.store = store or MemoryTaskStore()
-        self.settings = Settings(**settings)
-        self.service = FleetService(self.settings, self.bus, self.store, clock=self.clock)
-        self.events: list[FleetEvent] = []
-        self.service.add_listener(self.events.append)
-        self.seq = 0
-        self.service.start(background=False)
-
-    def robot(
-        self,
-        rid: str,
-        x: float,
-        y: float,
-        theta: float = 0.0,
-        mode: RobotMode = RobotMode.IDLE,
-        task_id: str | None = None,
-        revision: int = 0,
-    ) -> None:
-        self.seq += 1
-        self.bus.deliver_state(
-            RobotState(
-                robot_id=rid,
-                seq=self.seq,
-                stamp=self.clock.t,
-                pose=Pose(x=x, y=y, theta=theta),
-                mode=mode,
-                task_id=task_id,
-                revision=revision,
-            )
-        )
-
-    def join(self, rid: str, x: float, y: float) -> None:
-        self.bus.robot_alive(rid)
-        self.robot(rid, x, y)
-
-    def parks(self, rid: str | None = None) -> list[ParkAssignment]:
-        return [m for m in self.bus.sent(rid) if isinstance(m, ParkAssignment)]
-
-    def cancels(self, rid: str | None = None) -> list[CancelAssignment]:
-        return [m for m in self.bus.sent(rid) if isinstance(m, CancelAssignment)]
-
-    def task_statuses(self, task_id: str) -> list[TaskStatus]:
-        return [
-            e.task.status for e in self.events if isinstance(e, TaskEvent) and e.task.id == task_id
-        ]
-
-
-@pytest.fixture
-def fleet() -> Iterator[Fleet]:
-    f = Fleet(task_timeout_s=30.0)
-    yield f
-    f.service.close()
-
-
-def req(x: float, y: float, robot: str | None = None, **kw: Any) -> TaskRequest:
-    return TaskRequest(goal=Pose(x=x, y=y, theta=0.0), robot_id=robot, **kw)
+from tests.fleet.service.conftest import Fleet, req
 
 
 def test_full_life_cycle_is_stored_before_it_is_announced(fleet: Fleet) -> None:
@@ -478,24 +399,21 @@ def test_a_safe_robot_under_way_is_not_replanned(fleet: Fleet) -> None:
 
 def _assert_indexes_match(service: FleetService) -> None:
     """The service's incremental indexes equal the ones recomputed from every active task."""
-    active = dict(service._active)
-    assert service._queued == {k: t for k, t in active.items() if t.status == TaskStatus.QUEUED}
-    under_way = {
-        k: t
-        for k, t in active.items()
-        if t.status in (TaskStatus.ASSIGNED, TaskStatus.DRIVING) and t.robot_id is not None
-    }
-    assert service._under_way == under_way
-    assert service._robot_task == {t.robot_id: k for k, t in under_way.items()}
+    ledger = service._ledger
+    active = dict(ledger.active)
+    assert ledger.queued == {k: t for k, t in active.items() if t.status == TaskStatus.QUEUED}
+    under_way = {k: t for k, t in active.items() if t.status.under_way and t.robot_id is not None}
+    assert ledger.under_way == under_way
+    assert ledger.robot_task == {t.robot_id: k for k, t in under_way.items()}
     claims: dict[str, int] = {}
     for t in active.values():
         for rid in {t.robot_id, t.request.robot_id} - {None}:
             assert rid is not None
             claims[rid] = claims.get(rid, 0) + 1
-    assert dict(service._claims) == claims
-    assert len(service._goals) == len(active)
+    assert dict(ledger.claims) == claims
+    assert len(ledger.goals) == len(active)
     for t in active.values():
-        assert t.id in service._goals
+        assert t.id in ledger.goals
 
 
 def test_incremental_indexes_follow_every_transition() -> None:
@@ -508,7 +426,7 @@ def test_incremental_indexes_follow_every_transition() -> None:
         _assert_indexes_match(f.service)
         f.service.tick()
         _assert_indexes_match(f.service)
-        under_way = [t for t in f.service._active.values() if t.robot_id is not None]
+        under_way = [t for t in f.service._ledger.active.values() if t.robot_id is not None]
         assert len(under_way) == 3
         a, b, c = under_way
         assert a.robot_id and b.robot_id and c.robot_id
@@ -523,14 +441,14 @@ def test_incremental_indexes_follow_every_transition() -> None:
         _assert_indexes_match(f.service)
         f.service.tick()
         _assert_indexes_match(f.service)
-        f.clock.t += 31.0  # every task under way times out
+        f.clock.advance(31.0)  # every task under way times out
         f.service.tick()
         _assert_indexes_match(f.service)
         for t in [*tasks, named]:
             if not f.service.task(t.id).status.final:
                 f.service.cancel(t.id)
         _assert_indexes_match(f.service)
-        assert not f.service._active and len(f.service._goals) == 0
+        assert not f.service._ledger.active and len(f.service._ledger.goals) == 0
     finally:
         f.service.close()
 
@@ -560,7 +478,7 @@ def test_a_goal_is_reserved_while_its_task_is_written() -> None:
         writer = threading.Thread(target=lambda: first.append(f.service.submit(req(1.0, 1.0))))
         writer.start()
         assert entered.wait(5.0)
-        assert f.service._active == {}  # not dispatchable before it is stored
+        assert f.service._ledger.active == {}  # not dispatchable before it is stored
         with pytest.raises(GoalRejected, match="the goal of task"):
             f.service.submit(req(1.2, 1.0))
         release.set()

@@ -61,6 +61,29 @@ def test_finished_tasks_are_not_unfinished(store: TaskStore) -> None:
     assert store.unfinished() == []
 
 
+def test_finished_tasks_older_than_the_cutoff_are_deleted_with_their_history(
+    store: TaskStore,
+) -> None:
+    for name, t, status in [
+        ("old-done", 1.0, TaskStatus.SUCCEEDED),
+        ("old-failed", 2.0, TaskStatus.FAILED),
+        ("old-open", 3.0, TaskStatus.DRIVING),
+        ("new-done", 20.0, TaskStatus.CANCELLED),
+    ]:
+        task = store.save_new(_task(name, t), f"key-{name}")
+        store.save(task.model_copy(update={"status": status, "updated_at": t}), status.value)
+    assert store.delete_finished_before(10.0, limit=1) == 1  # bounded per call
+    assert store.delete_finished_before(10.0) == 1
+    assert store.delete_finished_before(10.0) == 0
+    assert sorted(t.id for t in store.list()) == ["new-done", "old-open"]
+    assert store.history("old-done") == [] and store.history("old-failed") == []
+    assert len(store.history("old-open")) == 2
+    assert store.find_by_idempotency_key("key-old-done") is None
+    # The key of a purged task may be used again (it is a new task then).
+    again = store.save_new(_task("again", 30.0), "key-old-done")
+    assert again.id == "again"
+
+
 def test_concurrent_save_new_with_one_key_creates_one_task(store: TaskStore) -> None:
     results: list[str] = []
     lock = threading.Lock()

@@ -7,19 +7,13 @@ from collections.abc import Iterator
 
 import pytest
 
+from fleet.core.planner import Plan, PlanningSnapshot, plan
 from fleet.core.tasks import RobotStatus, RobotView, TaskStatus
 from fleet.core.wire import Obstacle, Pose, RobotMode
 from fleet.service.stuck import StuckWatch, remaining, stuck_cause
-from tests.fleet.service.test_service import Fleet, req
+from tests.fleet.service.conftest import Fleet, req
 
 WINDOW = 30.0
-
-
-@pytest.fixture
-def fleet() -> Iterator[Fleet]:
-    f = Fleet(task_timeout_s=1000.0, stuck_after_s=WINDOW)
-    yield f
-    f.service.close()
 
 
 def test_progress_restarts_the_window_and_holding_is_not_being_stuck() -> None:
@@ -53,8 +47,31 @@ def test_the_cause_is_what_the_service_can_see() -> None:
     )
 
 
+class RecordingPlanner:
+    """The real planner, keeping the snapshots it was given."""
+
+    def __init__(self) -> None:
+        self.snapshots: list[PlanningSnapshot] = []
+
+    def __call__(self, snapshot: PlanningSnapshot) -> Plan:
+        self.snapshots.append(snapshot)
+        return plan(snapshot)
+
+
+@pytest.fixture
+def planner() -> RecordingPlanner:
+    return RecordingPlanner()
+
+
+@pytest.fixture
+def fleet(planner: RecordingPlanner) -> Iterator[Fleet]:
+    f = Fleet(planner=planner, task_timeout_s=1000.0, stuck_after_s=WINDOW)
+    yield f
+    f.service.close()
+
+
 def test_a_stuck_task_is_flipped_then_delayed_then_requeued_to_another_robot_then_failed(
-    fleet: Fleet,
+    fleet: Fleet, planner: RecordingPlanner
 ) -> None:
     fleet.join("r1", 0.0, 0.0)
     task = fleet.service.submit(req(5.0, 0.0))
@@ -80,15 +97,18 @@ def test_a_stuck_task_is_flipped_then_delayed_then_requeued_to_another_robot_the
     assert waited.law == flipped.law and waited.revision == 2
     assert fleet.parks("r1")[-1].start_delay_s == pytest.approx(WINDOW / 3)
 
+    fleet.robot("r2", 0.0, 4.0)  # the peer moved on, out of r1's way
     stand_still("r1", 2)
-    fleet.service.tick()  # dispatch: to the other robot, although r1 is free again
+    fleet.service.tick()  # planned: to the other robot, although r1 is free again
+    (seen,) = [t for t in planner.snapshots[-1].tasks if t.task_id == task.id]
+    assert seen.avoid_robot == "r1"  # a planner input: give it to another robot if any
     moved = fleet.service.task(task.id)
     assert moved.robot_id == "r2" and moved.status is TaskStatus.ASSIGNED
-    assert moved.attempts == 2
+    assert moved.attempts == 2 and moved.revision == 3  # a requeue is a new revision
     assert fleet.cancels("r1")[-1].task_id == task.id
 
     for _ in range(3):
-        fleet.robot("r2", -0.8, 0.0, mode=RobotMode.DRIVING, task_id=task.id)
+        fleet.robot("r2", 0.0, 4.0, mode=RobotMode.DRIVING, task_id=task.id, revision=3)
         fleet.clock.advance(WINDOW / 2)
     fleet.service.tick()
     failed = fleet.service.task(task.id)

@@ -1,0 +1,125 @@
+"""The planner's input, built from what the service copied under its lock (pure).
+
+The shell copies references under its lock -- one :class:`RobotFacts` per robot with a known
+pose (not those taken out of the yard: lost and decommissioned), the active tasks, the
+obstacles, the robots an operator holds still and the tasks taken from stuck robots -- and
+:func:`planning_input` turns them into the
+immutable :class:`fleet.core.planner.PlanningSnapshot` *outside* the lock. It also keeps,
+per robot, the state sequence number at which the plan's time starts (``origin_seqs``: the
+snapshot's seq plus the lead time in control ticks), so the service can compare observed
+poses with the predicted corridors at the same robot time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass
+
+from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
+from fleet.core.tasks import RobotStatus, Task, TaskStatus
+from fleet.core.types import LAWS
+from fleet.core.wire import Obstacle, RobotState
+from fleet.io.settings import Settings
+
+
+@dataclass(frozen=True, slots=True)
+class RobotFacts:
+    """One robot as copied under the service lock."""
+
+    state: RobotState
+    status: RobotStatus
+    age_s: float  # since its state arrived [s, service clock]
+    available: bool  # may take a new task (not lost, no task, in service, not held)
+
+
+@dataclass(frozen=True)
+class PlanInput:
+    """A snapshot for the planner and what the service needs to apply its plan."""
+
+    snapshot: PlanningSnapshot
+    origin_seqs: dict[str, float]  # robot -> state seq at t = 0 of the plan
+
+
+def worth_planning(robots: Sequence[RobotFacts], tasks: Sequence[Task]) -> bool:
+    """Whether a plan could decide anything: a queued task and an available robot (its
+    own, if it names one), or a task under way."""
+    if any(t.status.under_way for t in tasks):
+        return True
+    available = {r.state.robot_id for r in robots if r.available}
+    if not available:
+        return False
+    return any(
+        t.status is TaskStatus.QUEUED
+        and (t.request.robot_id is None or t.request.robot_id in available)
+        for t in tasks
+    )
+
+
+def _task_snapshot(task: Task, held: Collection[str], avoided: Mapping[str, str]) -> TaskSnapshot:
+    request = task.request
+    under_way = task.status.under_way
+    return TaskSnapshot(
+        task_id=task.id,
+        goal=request.goal.as_tuple(),
+        direction=request.direction,
+        gains={law: request.gains_for(law) for law in LAWS},
+        tolerance=request.tolerance,
+        status=task.status,
+        created_at=task.created_at,
+        named_robot=request.robot_id,
+        robot_id=task.robot_id if under_way else None,
+        law=task.law,
+        revision=task.revision,
+        hold=task.hold or (under_way and task.robot_id in held),
+        start_delay_s=task.start_delay_s,
+        avoid_robot=avoided.get(task.id),
+    )
+
+
+def planning_input(
+    version: int,
+    robots: Sequence[RobotFacts],
+    tasks: Sequence[Task],
+    obstacles: Sequence[Obstacle],
+    settings: Settings,
+    lead_time_s: float,
+    time_scale: float,
+    held: Collection[str] = (),
+    avoided: Mapping[str, str] | None = None,
+) -> PlanInput:
+    """The planner's snapshot (robots sorted by id, tasks oldest first). ``held``: robots an
+    operator holds still (their tasks stand, ``hold``); ``avoided``: queued task -> the
+    stuck robot it was taken from."""
+    hz = settings.control_rate_hz
+    robot_snaps = []
+    origins: dict[str, float] = {}
+    for r in sorted(robots, key=lambda r: r.state.robot_id):
+        s = r.state
+        robot_snaps.append(
+            RobotSnapshot(
+                robot_id=s.robot_id,
+                pose=s.pose.as_tuple(),
+                status=r.status,
+                available=r.available,
+                task_id=s.task_id,
+                law=s.law,
+                revision=s.revision,
+                age_s=r.age_s * time_scale,
+            )
+        )
+        origins[s.robot_id] = s.seq + lead_time_s * hz
+    snapshot = PlanningSnapshot(
+        version=version,
+        robots=tuple(robot_snaps),
+        tasks=tuple(
+            _task_snapshot(t, held, avoided or {})
+            for t in sorted(tasks, key=lambda t: t.created_at)
+        ),
+        obstacles=tuple(obstacles),
+        profile=settings.profile,
+        avoidance=settings.avoidance,
+        separation_m=settings.safety_separation_m,
+        lead_time_s=lead_time_s,
+        control_dt=1.0 / hz,
+    )
+    return PlanInput(snapshot, origins)

@@ -1,0 +1,277 @@
+"""The task ledger alone: transitions and the effects they return (pure, no threads)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from fleet.core.planner import TaskDecision
+from fleet.core.tasks import Task, TaskEvent, TaskNotFound, TaskRequest, TaskStatus
+from fleet.core.wire import CancelAssignment, ParkAssignment, Pose, RobotMode, RobotState
+from fleet.service.effects import Effects, Notify, Publish, StoreWrite
+from fleet.service.ledger import LedgerConfig, Outcome, TaskLedger
+
+WALL = 1.7e9
+
+
+def task(task_id: str, x: float = 3.0, robot: str | None = None, **kw: Any) -> Task:
+    request = TaskRequest(goal=Pose(x=x, y=0.0), robot_id=robot, **kw)
+    return Task(id=task_id, request=request, created_at=WALL, updated_at=WALL)
+
+
+def state(rid: str, task_id: str | None, mode: RobotMode, seq: int = 1, **kw: Any) -> RobotState:
+    return RobotState(
+        robot_id=rid,
+        seq=seq,
+        stamp=0.0,
+        pose=Pose(x=kw.pop("x", 0.0), y=kw.pop("y", 0.0)),
+        mode=mode,
+        task_id=task_id,
+        **kw,
+    )
+
+
+def assign(tid: str, rid: str, **kw: Any) -> TaskDecision:
+    return TaskDecision(tid, rid, "assign", kw.pop("law", "cw"), **kw)
+
+
+def kinds(effects: Effects) -> list[str]:
+    """The effects in order, as short names: store:<event>, publish:<kind>, notify:<status>."""
+    out = []
+    for e in effects:
+        if isinstance(e, StoreWrite):
+            out.append(f"store:{e.event}")
+        elif isinstance(e, Publish):
+            out.append(f"publish:{e.message.kind}")
+        elif isinstance(e, Notify) and isinstance(e.event, TaskEvent):
+            out.append(f"notify:{e.event.task.status.value}")
+    return out
+
+
+@pytest.fixture
+def ledger() -> TaskLedger:
+    return TaskLedger(LedgerConfig(task_timeout_s=30.0, resend_interval_s=0.2, control_hz=50.0))
+
+
+def applied(ledger: TaskLedger, d: TaskDecision, now: float = 0.0, **kw: Any) -> Effects:
+    outcome, effects = ledger.apply(
+        d,
+        robot_available=kw.pop("robot_available", True),
+        plan_safe=kw.pop("plan_safe", True),
+        origin_seq=kw.pop("origin_seq", None),
+        now=now,
+        wall=WALL + now,
+    )
+    assert outcome is Outcome.APPLIED, outcome
+    return effects
+
+
+def test_a_task_goes_queued_assigned_driving_succeeded_with_its_effects(ledger: TaskLedger) -> None:
+    assert kinds(ledger.add(task("t1"))) == ["notify:queued"]
+    assert dict(ledger.queued) == {"t1": ledger.active["t1"]}
+
+    effects = applied(ledger, assign("t1", "r1", start_delay_s=1.5))
+    assert kinds(effects) == ["store:assigned", "notify:assigned", "publish:park"]
+    (park,) = [e.message for e in effects if isinstance(e, Publish)]
+    assert isinstance(park, ParkAssignment)
+    assert (park.robot_id, park.law, park.start_delay_s, park.hold) == ("r1", "cw", 1.5, False)
+    t = ledger.active["t1"]
+    assert (t.status, t.robot_id, t.attempts, t.start_delay_s) == (
+        TaskStatus.ASSIGNED,
+        "r1",
+        1,
+        1.5,
+    )
+    assert ledger.task_of_robot("r1") == t and not ledger.queued
+
+    seen = ledger.observe(state("r1", "t1", RobotMode.WAITING), 0.0, WALL)
+    assert kinds(seen.effects) == ["store:acknowledged", "notify:driving"]
+    assert ledger.sent_revision_acknowledged("t1")
+
+    seen = ledger.observe(state("r1", "t1", RobotMode.ARRIVED, seq=2, x=3.0), 0.0, WALL + 1)
+    assert seen.finished
+    assert kinds(seen.effects) == ["store:succeeded", "notify:succeeded"]
+    assert not ledger.active and not ledger.robot_task and len(ledger.goals) == 0
+    assert ledger.finished_status("t1") is TaskStatus.SUCCEEDED
+    assert [p[1] for p in ledger.paths.get("t1") or []] == [0.0, 3.0]
+
+
+def test_a_hold_makes_the_task_wait_with_the_reason_and_a_resume_assigns_it_again(
+    ledger: TaskLedger,
+) -> None:
+    ledger.add(task("t1"))
+    effects = applied(ledger, assign("t1", "r1", hold=True, reason="waiting: r2 in the way"))
+    held = ledger.active["t1"]
+    assert held.status is TaskStatus.WAITING and held.reason == "waiting: r2 in the way"
+    park = next(e.message for e in effects if isinstance(e, Publish))
+    assert isinstance(park, ParkAssignment) and park.hold
+    ledger.observe(state("r1", "t1", RobotMode.WAITING), 0.0, WALL)
+    assert ledger.active["t1"].status is TaskStatus.WAITING  # acknowledged, still waiting
+
+    resume = TaskDecision("t1", "r1", "revise", "cw", revision=0)
+    effects = applied(ledger, resume, now=1.0)
+    assert kinds(effects) == ["store:resumed", "notify:assigned", "publish:park"]
+    resumed = ledger.active["t1"]
+    assert (resumed.status, resumed.revision, resumed.hold, resumed.reason) == (
+        TaskStatus.ASSIGNED,
+        1,
+        False,
+        None,
+    )
+    # A state of the old revision does not acknowledge the resume; the new one does.
+    assert not ledger.observe(state("r1", "t1", RobotMode.WAITING, seq=2), 0.0, WALL).effects
+    seen = ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=3, revision=1), 0.0, WALL)
+    assert kinds(seen.effects) == ["store:acknowledged", "notify:driving"]
+
+
+def test_a_flip_keeps_the_status_and_sends_the_next_revision(ledger: TaskLedger) -> None:
+    ledger.add(task("t1"))
+    applied(ledger, assign("t1", "r1", law="ccw"))
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING), 0.0, WALL)
+    effects = applied(ledger, TaskDecision("t1", "r1", "revise", "cw", revision=0))
+    assert kinds(effects) == ["store:replanned", "notify:driving", "publish:park"]
+    t = ledger.active["t1"]
+    assert (t.law, t.revision, t.status) == ("cw", 1, TaskStatus.DRIVING)
+
+
+def test_decisions_on_changed_tasks_are_stale_and_unchanged_ones_send_nothing(
+    ledger: TaskLedger,
+) -> None:
+    ledger.add(task("t1"))
+    ledger.add(task("t2", x=-3.0, robot="r2"))
+
+    def outcome(d: TaskDecision, available: bool = True) -> Outcome:
+        return ledger.apply(
+            d, robot_available=available, plan_safe=True, origin_seq=None, now=0.0, wall=WALL
+        )[0]
+
+    assert outcome(assign("nope", "r1")) is Outcome.STALE
+    assert outcome(assign("t1", "r1"), available=False) is Outcome.STALE
+    assert outcome(assign("t2", "r1")) is Outcome.STALE  # t2 names r2
+    assert outcome(assign("t1", "r1", revision=3)) is Outcome.STALE
+    assert outcome(assign("t1", "r1")) is Outcome.APPLIED
+    assert outcome(assign("t1", "r1")) is Outcome.STALE  # no longer queued
+    assert outcome(assign("t2", "r1")) is Outcome.STALE  # r1 is busy now
+    same = TaskDecision("t1", "r1", "revise", "cw", revision=0)
+    assert outcome(same) is Outcome.UNCHANGED
+    assert outcome(TaskDecision("t1", "r1", "keep", "cw", revision=0)) is Outcome.UNCHANGED
+    assert outcome(TaskDecision("t1", "r9", "revise", "ccw", revision=0)) is Outcome.STALE
+    assert outcome(TaskDecision("t1", "r1", "revise", "ccw", revision=0)) is Outcome.APPLIED
+    assert outcome(TaskDecision("t1", "r1", "revise", "cw", revision=0)) is Outcome.STALE
+
+
+def test_an_unsafe_plan_never_starts_or_resumes_a_robot(ledger: TaskLedger) -> None:
+    ledger.add(task("t1"))
+    ledger.add(task("t2", x=-3.0))
+
+    def outcome(d: TaskDecision) -> Outcome:
+        return ledger.apply(
+            d, robot_available=True, plan_safe=False, origin_seq=None, now=0.0, wall=WALL
+        )[0]
+
+    assert outcome(assign("t1", "r1")) is Outcome.UNSAFE
+    assert ledger.active["t1"].status is TaskStatus.QUEUED
+    assert outcome(assign("t1", "r1", hold=True)) is Outcome.APPLIED  # holding is safe
+    assert outcome(TaskDecision("t1", "r1", "revise", "cw", revision=0)) is Outcome.UNSAFE
+    assert ledger.active["t1"].hold
+    # A robot already moving may be flipped in an unsafe plan (it does not start anything).
+    applied(ledger, assign("t2", "r2", law="ccw"))
+    assert outcome(TaskDecision("t2", "r2", "revise", "cw", revision=0)) is Outcome.APPLIED
+
+
+def test_resends_until_acknowledged_and_timeouts_stop_the_robot(ledger: TaskLedger) -> None:
+    ledger.add(task("t1"))
+    applied(ledger, assign("t1", "r1"), now=0.0)
+    assert ledger.resends(0.1) == []
+    assert kinds(ledger.resends(0.2)) == ["publish:park"]
+    assert ledger.resends(0.3) == []
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING), 0.0, WALL)
+    assert ledger.resends(10.0) == []
+    ledger.observe(state("r1", None, RobotMode.IDLE, seq=2), 0.0, WALL)  # restarted: forgot it
+    assert kinds(ledger.resends(10.0)) == ["publish:park"]
+
+    assert ledger.timeouts(29.9, WALL) == []
+    effects = ledger.timeouts(30.0, WALL + 30)
+    assert kinds(effects) == ["store:failed", "notify:failed", "publish:cancel"]
+    cancel = effects[-1]
+    assert isinstance(cancel, Publish) and cancel.message == CancelAssignment(
+        robot_id="r1", task_id="t1"
+    )
+    failed = next(e.task for e in effects if isinstance(e, StoreWrite))
+    assert failed.status is TaskStatus.FAILED and "timeout" in (failed.reason or "")
+
+
+def test_a_state_of_a_finished_task_is_a_stray_to_stop(ledger: TaskLedger) -> None:
+    ledger.add(task("t1"))
+    applied(ledger, assign("t1", "r1"))
+    _, effects = ledger.cancel("t1", WALL)
+    assert kinds(effects) == ["store:cancelled", "notify:cancelled", "publish:cancel"]
+    assert ledger.observe(state("r1", "t1", RobotMode.DRIVING), 0.0, WALL).stray
+    assert not ledger.observe(state("r1", "t1", RobotMode.HOLDING), 0.0, WALL).stray
+    with pytest.raises(TaskNotFound):
+        ledger.cancel("t1", WALL)
+
+
+@pytest.mark.parametrize("on_lost", ["fail", "requeue"])
+def test_a_lost_robot_fails_or_requeues_its_task(on_lost: str) -> None:
+    ledger = TaskLedger(LedgerConfig(on_robot_lost=on_lost))  # type: ignore[arg-type]
+    ledger.add(task("t1"))
+    applied(ledger, assign("t1", "r1", hold=True, start_delay_s=2.0))
+    effects = ledger.robot_lost("r1", 1.0, WALL)
+    t = next(e.task for e in effects if isinstance(e, StoreWrite))
+    if on_lost == "fail":
+        assert t.status is TaskStatus.FAILED and "lost" in (t.reason or "")
+    else:
+        assert (t.status, t.robot_id, t.law, t.hold, t.start_delay_s) == (
+            TaskStatus.QUEUED,
+            None,
+            None,
+            False,
+            0.0,
+        )
+        assert "requeued" in (t.reason or "")
+        assert ledger.queued["t1"] == t
+    assert ledger.robot_lost("r1", 1.0, WALL) == []  # nothing left on it
+
+
+def test_removing_a_robot_fails_the_queued_tasks_that_name_it(ledger: TaskLedger) -> None:
+    ledger.add(task("t1", robot="r1"))
+    ledger.add(task("t2", x=-3.0, robot="r2"))
+    effects = ledger.robot_removed("r1", WALL)
+    assert kinds(effects) == ["store:failed", "notify:failed"]
+    assert list(ledger.active) == ["t2"] and "r1" not in ledger.claims
+
+
+def test_a_robot_leaving_its_corridor_trips_it_once(ledger: TaskLedger) -> None:
+    ledger.add(task("t1"))
+    corridor = ((0.0, 0.0, 0.0), (1.0, 1.0, 0.0), (2.0, 2.0, 0.0))
+    applied(ledger, assign("t1", "r1", corridor=corridor))
+    # The first acknowledging state (seq 100) is t = 0; 50 states later t = 1 s.
+    assert not ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=100), 0.0, WALL).off_corridor
+    on = ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=150, x=1.2), 0.0, WALL)
+    assert not on.off_corridor  # 0.2 m <= 0.3 m
+    off = ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=175, x=1.0), 0.0, WALL)
+    assert off.off_corridor  # predicted 1.5 m at t = 1.5 s: 0.5 m away
+    again = ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=176, x=1.0), 0.0, WALL)
+    assert not again.off_corridor  # one departure, one re-plan
+    # A kept decision brings a new corridor, anchored at the snapshot (origin seq given).
+    keep = TaskDecision("t1", "r1", "keep", "cw", revision=0, corridor=((0.0, 1.0, 0.0),))
+    outcome, _ = ledger.apply(
+        keep, robot_available=False, plan_safe=True, origin_seq=176.0, now=0.0, wall=WALL
+    )
+    assert outcome is Outcome.UNCHANGED
+    assert ledger.observe(
+        state("r1", "t1", RobotMode.DRIVING, seq=200, x=1.5), 0.0, WALL
+    ).off_corridor
+
+
+def test_recovered_tasks_under_way_are_resent_at_once(ledger: TaskLedger) -> None:
+    running = task("t1").model_copy(
+        update={"status": TaskStatus.DRIVING, "robot_id": "r1", "law": "cw", "revision": 2}
+    )
+    assert ledger.recover([running, task("t2", x=-3.0)], now=5.0) == 2
+    (park,) = [e.message for e in ledger.resends(5.0) if isinstance(e, Publish)]
+    assert isinstance(park, ParkAssignment) and (park.task_id, park.revision) == ("t1", 2)
+    assert list(ledger.queued) == ["t2"]
+    assert ledger.timeouts(34.9, WALL) == [] and ledger.timeouts(35.0, WALL)

@@ -6,10 +6,11 @@ from collections.abc import Iterator
 
 import pytest
 
-from fleet.core.tasks import GoalRejected, RobotNotFound, TaskConflict, TaskStatus
+from fleet.core.tasks import GoalRejected, RobotNotFound, Task, TaskConflict, TaskStatus
 from fleet.core.wire import ControlAction, ControlCommand, Hold, Pose, RobotMode, RobotState
 from fleet.service.control_desk import RESEND_S, ControlDesk, ControlState
-from tests.fleet.service.conftest import Fleet, req
+from fleet.service.store import MemoryTaskStore
+from tests.fleet.service.conftest import Fleet, ScriptedPlanner, assign_queued, req
 
 
 @pytest.fixture
@@ -132,3 +133,67 @@ def test_a_lost_decommissioned_robot_no_longer_blocks_goals(fleet: Fleet) -> Non
         fleet.service.submit(req(0.5, 0.0))
     fleet.service.decommission("r1")
     assert fleet.service.submit(req(0.5, 0.0)).status is TaskStatus.QUEUED
+
+
+def drive_one_task(fleet: Fleet) -> Task:
+    """Robot r1 joins, takes a task and drives it."""
+    fleet.join("r1", 0.0, 0.0)
+    task = fleet.service.submit(req(3.0, 0.0))
+    fleet.service.tick()
+    fleet.robot("r1", 0.1, 0.0, mode=RobotMode.DRIVING, task_id=task.id)
+    return task
+
+
+class BreakingStore(MemoryTaskStore):
+    """A store whose writes fail once ``broken`` is set (a full disk)."""
+
+    broken = False
+
+    def save(self, task: Task, event: str) -> None:
+        if self.broken:
+            raise OSError("disk full")
+        super().save(task, event)
+
+
+def test_an_estop_goes_out_first_even_when_the_holds_cannot_be_stored() -> None:
+    store = BreakingStore()
+    fleet = Fleet(store=store, task_timeout_s=30.0)
+    try:
+        drive_one_task(fleet)
+        store.broken = True
+        fleet.service.control(ControlAction.ESTOP, reason="drill")
+        assert [c.command for c in fleet.bus.controls] == [ControlAction.ESTOP]
+        assert fleet.service.counters["store_errors"] == 1  # the task's hold, not the e-stop
+    finally:
+        fleet.service.close()
+
+
+def test_holds_are_in_the_history_the_plan_and_resent_to_late_joiners() -> None:
+    planner = ScriptedPlanner(assign_queued())
+    fleet = Fleet(planner=planner, task_timeout_s=30.0)
+    try:
+        task = drive_one_task(fleet)
+        fleet.service.control(ControlAction.PAUSE, reason="lunch")
+        assert fleet.service.control_state().fleet == Hold(paused=True)
+        fleet.join("r2", 5.0, 5.0)  # joins while the fleet is paused: told at once
+        assert [(c.command, c.robot_id) for c in fleet.bus.controls] == [
+            (ControlAction.PAUSE, None),
+            (ControlAction.PAUSE, "r2"),
+        ]
+        fleet.service.submit(req(-4.0, 4.0))
+        fleet.clock.advance(5.0)
+        fleet.service.tick()  # the periodic plan: r1's task stands, r2 takes nothing
+        (held,) = [t for t in planner.snapshots[-1].tasks if t.task_id == task.id]
+        assert held.hold and not any(r.available for r in planner.snapshots[-1].robots)
+        fleet.robot("r1", 0.1, 0.0, mode=RobotMode.PAUSED, task_id=task.id)
+        fleet.service.control(ControlAction.RESUME)
+        held_reason = "paused by the operator: lunch"
+        assert fleet.service.task(task.id).reason == held_reason  # it still reports paused
+        fleet.robot("r1", 0.1, 0.0, mode=RobotMode.DRIVING, task_id=task.id)
+        rows = [(event, t.reason) for _, event, t in fleet.service.history(task.id)]
+        assert rows[-2:] == [
+            ("operator_hold", held_reason),
+            ("operator_release", None),
+        ]
+    finally:
+        fleet.service.close()

@@ -275,3 +275,91 @@ def test_recovered_tasks_under_way_are_resent_at_once(ledger: TaskLedger) -> Non
     assert isinstance(park, ParkAssignment) and (park.task_id, park.revision) == ("t1", 2)
     assert list(ledger.queued) == ["t2"]
     assert ledger.timeouts(34.9, WALL) == [] and ledger.timeouts(35.0, WALL)
+
+
+def test_an_operator_hold_stops_the_timeout_and_is_stored_with_the_reason(
+    ledger: TaskLedger,
+) -> None:
+    ledger.add(task("t1"))
+    applied(ledger, assign("t1", "r1"), now=0.0)  # deadline 30 s
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING), 1.0, WALL)
+    effects = ledger.hold_robot("r1", "emergency stop by cli: drill", 10.0, WALL + 10)
+    assert kinds(effects) == ["store:operator_hold", "notify:driving"]
+    assert ledger.active["t1"].reason == "emergency stop by cli: drill"
+    assert ledger.hold_robot("r1", "again", 11.0, WALL) == []  # held once
+    assert ledger.timeouts(100.0, WALL + 100) == []  # no deadline while held
+    effects = ledger.release_robot("r1", 100.0, WALL + 100)
+    assert kinds(effects) == ["store:operator_release", "notify:driving"]
+    assert ledger.active["t1"].reason is None and dict(ledger.held) == {}
+    assert ledger.release_robot("r1", 101.0, WALL) == []
+    # 10 s ran before the hold: the deadline moved on by the 90 s held, to 120 s.
+    assert ledger.timeouts(119.9, WALL) == [] and ledger.timeouts(120.0, WALL)
+
+
+def test_a_held_robot_without_a_task_is_remembered_until_removed(ledger: TaskLedger) -> None:
+    assert ledger.hold_robot("r1", "paused", 0.0, WALL) == []
+    assert dict(ledger.held) == {"r1": "paused"} and ledger.sizes()["robots_held"] == 1
+    ledger.robot_removed("r1", WALL)
+    assert dict(ledger.held) == {}
+
+
+def test_a_decommissioned_robots_task_is_requeued_as_a_new_revision_and_it_is_stopped(
+    ledger: TaskLedger,
+) -> None:
+    ledger.add(task("t1"))
+    applied(ledger, assign("t1", "r1"))
+    effects = ledger.robot_decommissioned("r1", WALL)
+    assert kinds(effects) == ["store:requeued", "notify:queued", "publish:cancel"]
+    t = ledger.queued["t1"]
+    assert (t.robot_id, t.revision, t.reason) == (None, 1, "robot r1 decommissioned; requeued")
+    assert ledger.robot_decommissioned("r1", WALL) == []
+
+
+def test_a_stuck_task_is_recovered_in_order_then_failed() -> None:
+    ledger = TaskLedger(LedgerConfig(task_timeout_s=1e6, stuck_after_s=30.0))
+    ledger.add(task("t1"))
+    applied(ledger, assign("t1", "r1", law="ccw"), now=0.0)
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING), 0.0, WALL)
+    assert ledger.stuck(29.0) == [] and [t.id for t in ledger.stuck(30.0)] == ["t1"]
+
+    effects = ledger.recover_stuck("t1", "a peer in the way", 30.0, WALL)
+    assert kinds(effects) == ["store:recovery", "notify:driving", "publish:park"]
+    t = ledger.active["t1"]
+    assert (t.law, t.revision, t.start_delay_s) == ("cw", 1, 0.0)
+    assert t.reason == "stuck: a peer in the way; recovery 1: flip"
+    ledger.observe(state("r1", "t1", RobotMode.WAITING, seq=2, revision=1), 45.0, WALL)
+    assert ledger.stuck(74.0) == []  # standing still on purpose restarts the window
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=3, revision=1), 46.0, WALL)
+    (stuck,) = ledger.stuck(76.0)
+    ledger.recover_stuck(stuck.id, "no progress", 76.0, WALL)
+    assert ledger.active["t1"].start_delay_s == 10.0  # wait: a third of the window
+
+    effects = ledger.recover_stuck("t1", "no progress", 106.0, WALL)
+    assert kinds(effects) == ["store:recovery", "notify:queued", "publish:cancel"]
+    assert ledger.avoided() == {"t1": "r1"}
+    applied(ledger, assign("t1", "r2", revision=3), now=107.0)
+    assert ledger.avoided() == {}  # under way again: nothing to avoid in a plan
+    ledger.hold_robot("r2", "paused", 108.0, WALL)
+    assert ledger.stuck(1000.0) == []  # held: not stuck
+    ledger.release_robot("r2", 1000.0, WALL)
+    ledger.observe(state("r2", "t1", RobotMode.DRIVING, seq=4, revision=3), 1000.0, WALL)
+    (stuck,) = ledger.stuck(1030.0)
+    effects = ledger.recover_stuck(stuck.id, "no progress", 1030.0, WALL)
+    assert kinds(effects) == ["store:failed", "notify:failed", "publish:cancel"]
+    failed = next(e.task for e in effects if isinstance(e, StoreWrite))
+    assert failed.reason == "stuck: no progress; 3 recoveries did not help"
+    assert ledger.sizes()["tasks_watched_stuck"] == 0
+
+
+def test_a_bay_is_held_from_the_reservation_until_the_task_ends(ledger: TaskLedger) -> None:
+    t1 = task("t1", bay="A1")
+    ledger.reserve(t1)
+    assert ledger.bays.holder("A1") == "t1"
+    ledger.release("t1")  # not stored after all
+    assert ledger.bays.holder("A1") is None
+    ledger.reserve(t1)
+    ledger.add(t1)
+    ledger.release("t1")  # stored: the reservation stays with the active task
+    assert ledger.bays.holder("A1") == "t1"
+    ledger.cancel("t1", WALL)
+    assert ledger.bays.holder("A1") is None and ledger.sizes()["bays_reserved"] == 0

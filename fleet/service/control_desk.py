@@ -19,7 +19,10 @@ hot path (every robot state): two dict lookups when nothing is asked.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+from pydantic import BaseModel, ConfigDict
 
 from fleet.core.wire import ControlAction, ControlCommand, Hold, RobotState, obeys
 
@@ -32,10 +35,53 @@ _NEVER = float("-inf")
 @dataclass(frozen=True)
 class ControlState:
     """What the operator asked: the fleet-wide hold, and robots with a command of their own
-    since the last fleet-wide one."""
+    since the last fleet-wide one (with the reasons given)."""
 
     fleet: Hold
     robots: dict[str, Hold]
+    fleet_reason: str | None = None
+    robot_reasons: dict[str, str | None] = field(default_factory=dict)
+
+
+class _HoldDoc(BaseModel):
+    paused: bool = False
+    estop: bool = False
+
+
+class OperatorRecord(BaseModel):
+    """What operators asked that outlives the service process, stored as one JSON document
+    (``KEY``): the desk's holds and reasons, and the robots out of service."""
+
+    KEY: ClassVar[str] = "operator"
+    model_config = ConfigDict(extra="ignore")
+
+    v: int = 1
+    fleet: _HoldDoc = _HoldDoc()
+    robots: dict[str, _HoldDoc] = {}
+    fleet_reason: str | None = None
+    robot_reasons: dict[str, str | None] = {}
+    out_of_service: list[str] = []
+
+    @classmethod
+    def of(cls, state: ControlState, out_of_service: list[str]) -> OperatorRecord:
+        def doc(hold: Hold) -> _HoldDoc:
+            return _HoldDoc(paused=hold.paused, estop=hold.estop)
+
+        return cls(
+            fleet=doc(state.fleet),
+            robots={rid: doc(h) for rid, h in state.robots.items()},
+            fleet_reason=state.fleet_reason,
+            robot_reasons=dict(state.robot_reasons),
+            out_of_service=sorted(out_of_service),
+        )
+
+    def control_state(self) -> ControlState:
+        return ControlState(
+            Hold(self.fleet.paused, self.fleet.estop),
+            {rid: Hold(h.paused, h.estop) for rid, h in self.robots.items()},
+            self.fleet_reason,
+            dict(self.robot_reasons),
+        )
 
 
 class ControlDesk:
@@ -88,13 +134,16 @@ class ControlDesk:
         return self._fleet
 
     def state(self) -> ControlState:
-        return ControlState(self._fleet, dict(self._robots))
+        robot_reasons = {rid: why for rid, why in self._reasons.items() if rid is not None}
+        return ControlState(self._fleet, dict(self._robots), self._reasons.get(None), robot_reasons)
 
     def restore(self, state: ControlState) -> None:
         """Take up the holds a previous run of the service asked for (no command sent:
         :meth:`check` re-sends them to robots that do not obey)."""
         self._fleet = state.fleet
         self._robots = dict(state.robots)
+        self._reasons = {None: state.fleet_reason}
+        self._reasons.update(state.robot_reasons)
 
     def check(self, state: RobotState, now: float, wall: float) -> ControlCommand | None:
         """The restrictive command a robot reporting ``state`` does not obey, to send again

@@ -8,7 +8,9 @@ after the lock is released, stored before announced:
 * :class:`Publish` -- an assignment, a cancel, the obstacle set or an operator's control
   command on the bus;
 * :class:`Notify` -- an event for the listeners (SSE clients, benches);
-* :class:`PurgeFinished` -- delete finished tasks older than a wall-clock time (retention).
+* :class:`PurgeFinished` -- delete finished tasks older than a wall-clock time (retention);
+* :class:`SaveState` -- replace a state document of the service (operator holds, robots out
+  of service), so it survives a restart.
 """
 
 from __future__ import annotations
@@ -41,5 +43,11 @@ class PurgeFinished:
     limit: int  # at most this many per call (bounded transactions)
 
 
-Effect = StoreWrite | Publish | Notify | PurgeFinished
+@dataclass(frozen=True, slots=True)
+class SaveState:
+    key: str
+    value: str  # JSON
+
+
+Effect = StoreWrite | Publish | Notify | PurgeFinished | SaveState
 Effects = list[Effect]

@@ -89,8 +89,8 @@ from fleet.io.settings import Settings
 from fleet.service.bays import BayState
 from fleet.service.bus import FleetBus
 from fleet.service.clock import Clock, SystemClock
-from fleet.service.control_desk import ControlDesk, ControlState
-from fleet.service.effects import Effects, Publish, PurgeFinished
+from fleet.service.control_desk import ControlDesk, ControlState, OperatorRecord
+from fleet.service.effects import Effects, Publish, PurgeFinished, SaveState
 from fleet.service.horizon import close_pairs
 from fleet.service.ledger import LedgerConfig, Outcome, TaskLedger
 from fleet.service.outbox import Batch, Listener, Outbox
@@ -195,12 +195,16 @@ class FleetService:
         ``queued`` tasks are planned as usual.
         """
         unfinished = self._store.unfinished()
+        operator = self._stored_operator_record()
         with self._lock:
             if self._started:
                 return
             self._started = True
             self._inline = not background
             n = self._ledger.recover(unfinished, self._clock.monotonic())
+            if operator is not None:
+                self._desk.restore(operator.control_state())
+                self._roster.restore_out_of_service(operator.out_of_service)
             self._version += 1
         self._counters.add("tasks_recovered", n)
         self._bus.start(self)
@@ -211,6 +215,24 @@ class FleetService:
             self._thread.start()
         if n:
             self._planner.request("recovered")
+
+    def _stored_operator_record(self) -> OperatorRecord | None:
+        """What operators asked before a restart (holds, robots out of service), if stored
+        and readable (an unreadable one is logged and counted, and ignored)."""
+        raw = self._store.load_state(OperatorRecord.KEY)
+        if raw is None:
+            return None
+        try:
+            return OperatorRecord.model_validate_json(raw)
+        except ValueError:
+            self._counters.add("operator_state_unreadable")
+            _log.exception("stored operator state unreadable: starting without it")
+            return None
+
+    def _operator_saved(self) -> SaveState:
+        """The operator record as it is now, to store (call with the lock held)."""
+        record = OperatorRecord.of(self._desk.state(), self._roster.out_of_service())
+        return SaveState(OperatorRecord.KEY, record.model_dump_json())
 
     def close(self) -> None:
         """Stop the threads and the bus, after applying the effects already queued;
@@ -441,7 +463,7 @@ class FleetService:
                 more, freed = self._sync_hold(rec, now, wall)
                 effects += more
                 released |= freed
-            self._queue(effects, now)
+            self._queue([*effects, self._operator_saved()], now)
         self._counters.add("control_requests")
         if action is ControlAction.ESTOP:
             self._counters.add("estops_requested")
@@ -465,7 +487,7 @@ class FleetService:
                 raise RobotNotFound(f"robot {robot_id} not found")
             self._roster.set_in_service(robot_id, in_service)
             effects = [] if in_service else self._ledger.robot_decommissioned(robot_id, wall)
-            batch = self._queue(effects, now)
+            batch = self._queue([*effects, self._operator_saved()], now)
             self._version += 1
             view = Roster.view_of(rec)
         assert view is not None
@@ -597,12 +619,21 @@ class FleetService:
         for rid in self._roster.expired(now, self.settings.lost_robot_retention_s):
             if rid in self._ledger.robot_task:
                 continue  # a silent robot still holding a task: its timeout comes first
-            self._queue(self._ledger.robot_removed(rid, wall), now)
-            self._roster.remove(rid)
-            self._desk.forget(rid)
-            self._version += 1
+            self._forget_robot(rid, now, wall)
             removed.append(rid)
         return removed
+
+    def _forget_robot(self, robot_id: str, now: float, wall: float) -> Batch | None:
+        """Remove a robot and everything kept about it (call with the lock held): queued
+        tasks naming it fail; the operator record is stored again if it named the robot."""
+        effects = self._ledger.robot_removed(robot_id, wall)
+        rec = self._roster.remove(robot_id)
+        named = robot_id in self._desk.state().robots or (rec is not None and not rec.in_service)
+        self._desk.forget(robot_id)
+        if named:
+            effects.append(self._operator_saved())
+        self._version += 1
+        return self._queue(effects, now)
 
     # -- planning ----------------------------------------------------------------------
 
@@ -898,10 +929,7 @@ class FleetService:
                 raise RobotConflict(
                     f"robot {robot_id} still has task {task.id} ({task.status.value})"
                 )
-            batch = self._queue(self._ledger.robot_removed(robot_id, wall), now)
-            self._roster.remove(robot_id)
-            self._desk.forget(robot_id)
-            self._version += 1
+            batch = self._forget_robot(robot_id, now, wall)
         self._counters.add("robots_removed")
         self._settle(batch, wait=True)
         self._planner.request("robot_removed")

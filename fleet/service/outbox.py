@@ -25,7 +25,7 @@ from collections.abc import Callable
 from fleet.core.tasks import FleetEvent
 from fleet.core.wire import ControlCommand, ObstacleSet
 from fleet.service.bus import FleetBus
-from fleet.service.effects import Effects, Notify, Publish, PurgeFinished, StoreWrite
+from fleet.service.effects import Effects, Notify, Publish, PurgeFinished, SaveState, StoreWrite
 from fleet.service.stats import Counters
 from fleet.service.store import TaskStore
 
@@ -160,6 +160,8 @@ class Outbox:
             for e in effects:
                 if isinstance(e, StoreWrite):
                     self._store.save(e.task, e.event)
+                elif isinstance(e, SaveState):
+                    self._store.save_state(e.key, e.value)
                 elif isinstance(e, PurgeFinished):
                     purged = self._store.delete_finished_before(e.before, e.limit)
                     self._counters.add("tasks_purged", purged)

@@ -94,6 +94,7 @@ class Roster:
         self._robots: dict[str, RobotRecord] = {}
         self._parked = GoalIndex(parked_cell)
         self._unlinked: dict[str, None] = {}  # robots lost or without a token (retention)
+        self._out_of_service_unseen: set[str] = set()  # decommissioned, not seen since start
 
     def __len__(self) -> int:
         return len(self._robots)
@@ -116,6 +117,9 @@ class Roster:
         if rec is None:
             rec = self._robots[robot_id] = RobotRecord(robot_id)
             self._unlinked[robot_id] = None
+            if robot_id in self._out_of_service_unseen:
+                self._out_of_service_unseen.discard(robot_id)
+                rec.in_service = False
         return rec
 
     def update(self, state: RobotState, now: float, wall: float) -> tuple[RobotRecord, bool]:
@@ -175,6 +179,20 @@ class Roster:
             rec.in_service = in_service
             self._place(rec)
         return rec
+
+    def restore_out_of_service(self, robot_ids: list[str]) -> None:
+        """Robots decommissioned before the service restarted: out of service once seen."""
+        for rid in robot_ids:
+            rec = self._robots.get(rid)
+            if rec is None:
+                self._out_of_service_unseen.add(rid)
+            else:
+                self.set_in_service(rid, False)
+
+    def out_of_service(self) -> list[str]:
+        """Every robot decommissioned (seen since the start or not), sorted."""
+        seen = [rid for rid, rec in self._robots.items() if not rec.in_service]
+        return sorted([*seen, *self._out_of_service_unseen])
 
     def _place(self, rec: RobotRecord) -> None:
         """Put the robot in (or take it out of) the parked grid according to its status."""

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
 from fleet.core.tasks import GoalRejected, RobotNotFound, Task, TaskConflict, TaskStatus
 from fleet.core.wire import ControlAction, ControlCommand, Hold, Pose, RobotMode, RobotState
 from fleet.service.control_desk import RESEND_S, ControlDesk, ControlState
-from fleet.service.store import MemoryTaskStore
+from fleet.service.store import MemoryTaskStore, SqliteTaskStore
 from tests.fleet.service.conftest import Fleet, ScriptedPlanner, assign_queued, req
 
 
@@ -197,3 +198,34 @@ def test_holds_are_in_the_history_the_plan_and_resent_to_late_joiners() -> None:
         ]
     finally:
         fleet.service.close()
+
+
+def test_holds_and_decommissioning_survive_a_restart(tmp_path: Path) -> None:
+    store = SqliteTaskStore(tmp_path / "parkfleet.db")
+    try:
+        first = Fleet(store=store)
+        first.join("r1", 0.0, 0.0)
+        first.join("r2", 3.0, 3.0)
+        first.service.decommission("r1")
+        first.service.control(ControlAction.ESTOP, reason="drill")
+        first.service.control(ControlAction.PAUSE, "r2", reason="inspection")
+        first.service.close()
+
+        second = Fleet(store=store)  # the service restarts on the same database
+        state = second.service.control_state()
+        assert state.fleet == Hold(estop=True) and state.robots == {"r2": Hold(True, True)}
+        second.join("r1", 0.0, 0.0)  # robots report in, e.g. restarted and not e-stopped
+        second.join("r2", 3.0, 3.0)
+        assert not second.service.robot("r1").in_service
+        assert [(c.command, c.robot_id, c.reason) for c in second.bus.controls] == [
+            (ControlAction.ESTOP, "r1", "drill"),
+            (ControlAction.ESTOP, "r2", "inspection"),
+        ]
+        second.service.commission("r1")
+        second.service.close()
+        third = Fleet(store=store)
+        third.join("r1", 0.0, 0.0)
+        assert third.service.robot("r1").in_service
+        third.service.close()
+    finally:
+        store.close()

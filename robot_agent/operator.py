@@ -14,17 +14,12 @@ Not thread-safe: the agent applies commands on its control thread (``RobotAgent.
 
 from __future__ import annotations
 
-from collections import OrderedDict
-
-from fleet.core.wire import ControlAction, ControlCommand, Hold, RobotMode
+from fleet.core.wire import ControlAction, ControlCommand, Hold, IssuerOrder, RobotMode
 
 _MODE_OF: dict[ControlAction | None, RobotMode] = {
     ControlAction.ESTOP: RobotMode.ESTOP,
     ControlAction.PAUSE: RobotMode.PAUSED,
 }
-
-#: Issuers whose last sequence number a robot remembers (oldest forgotten first).
-MAX_ISSUERS = 64
 
 
 class OperatorLatch:
@@ -34,7 +29,7 @@ class OperatorLatch:
         self.robot_id = robot_id
         self.hold = Hold()
         self._why: dict[ControlAction, str] = {}  # pause / estop -> "by <issuer>: <reason>"
-        self._last_seq: OrderedDict[str, int] = OrderedDict()
+        self._order = IssuerOrder()
         self.applied = 0
         self.ignored = 0  # repeats, reordered copies, commands for other robots
 
@@ -43,14 +38,9 @@ class OperatorLatch:
         if command.robot_id not in (None, self.robot_id):
             self.ignored += 1
             return False
-        last = self._last_seq.get(command.issuer)
-        if last is not None and command.seq <= last:
+        if not self._order.accept(command):
             self.ignored += 1
             return False
-        self._last_seq[command.issuer] = command.seq
-        self._last_seq.move_to_end(command.issuer)
-        while len(self._last_seq) > MAX_ISSUERS:
-            self._last_seq.popitem(last=False)
         action = command.command
         if action in (ControlAction.PAUSE, ControlAction.ESTOP):
             why = f"by {command.issuer}" + (f": {command.reason}" if command.reason else "")

@@ -59,6 +59,7 @@ the fleet service is down:
 from __future__ import annotations
 
 import re
+from collections import OrderedDict
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Annotated, Literal, TypeVar
@@ -116,6 +117,11 @@ class Keys:
     @property
     def all_states(self) -> str:
         return f"{self.root}/robot/*/state"
+
+    @property
+    def all_robot_controls(self) -> str:
+        """Every robot's own control key (the fleet's is :meth:`control`)."""
+        return f"{self.root}/robot/*/control"
 
     @property
     def obstacles(self) -> str:
@@ -310,6 +316,34 @@ class Hold:
         if self.paused:
             return ControlAction.PAUSE
         return None
+
+
+#: Issuers whose last sequence number a receiver remembers (oldest forgotten first).
+MAX_ISSUERS = 64
+
+
+class IssuerOrder:
+    """The one ordering rule of operator commands: a command counts only if its ``seq`` is
+    above the last one taken from its issuer (repeats and reordered copies are ignored); the
+    last ``max_issuers`` issuers are remembered. Not thread-safe."""
+
+    def __init__(self, max_issuers: int = MAX_ISSUERS) -> None:
+        self.max_issuers = max_issuers
+        self._last_seq: OrderedDict[str, int] = OrderedDict()
+
+    def __len__(self) -> int:
+        return len(self._last_seq)
+
+    def accept(self, command: ControlCommand) -> bool:
+        """Whether ``command`` is newer than its issuer's last one (then it is the last)."""
+        last = self._last_seq.get(command.issuer)
+        if last is not None and command.seq <= last:
+            return False
+        self._last_seq[command.issuer] = command.seq
+        self._last_seq.move_to_end(command.issuer)
+        while len(self._last_seq) > self.max_issuers:
+            self._last_seq.popitem(last=False)
+        return True
 
 
 def obeys(action: ControlAction, mode: RobotMode) -> bool:

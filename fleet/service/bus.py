@@ -4,7 +4,9 @@ Outgoing: :meth:`FleetBus.publish_assignment`, :meth:`FleetBus.publish_obstacles
 :meth:`FleetBus.publish_control` (operator commands).
 Incoming: the bus calls the :class:`FleetSink` given to :meth:`FleetBus.start` --
 ``on_state`` for every decoded ``RobotState``, ``on_robot_alive``/``on_robot_gone`` for
-liveliness tokens appearing/disappearing, and ``obstacles()`` to answer late joiners.
+liveliness tokens appearing/disappearing, ``on_control`` for every operator command seen on
+the control keys (from any issuer, the service's own included), and ``obstacles()`` to
+answer late joiners.
 
 :class:`MemoryBus` is the in-memory implementation for unit tests; the Zenoh one is
 :class:`fleet.service.zenoh_bus.ZenohFleetBus`.
@@ -33,6 +35,8 @@ class FleetSink(Protocol):
     def on_robot_alive(self, robot_id: str) -> None: ...
 
     def on_robot_gone(self, robot_id: str) -> None: ...
+
+    def on_control(self, command: ControlCommand) -> None: ...
 
     def obstacles(self) -> list[Obstacle]: ...
 
@@ -110,6 +114,10 @@ class MemoryBus:
 
     def robot_gone(self, robot_id: str) -> None:
         self._require_sink().on_robot_gone(robot_id)
+
+    def deliver_control(self, command: ControlCommand) -> None:
+        """An operator command from another tool (e.g. ``parkfleet estop``)."""
+        self._require_sink().on_control(command)
 
     def sent(self, robot_id: str | None = None) -> list[ParkAssignment | CancelAssignment]:
         """Assignments published so far (to one robot, if given)."""

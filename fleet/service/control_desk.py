@@ -5,6 +5,12 @@
 newer numbers) and remembers the state it asked for: fleet-wide (``paused``, ``estop``) and
 per robot (a fleet-wide command clears the per-robot ones, as it applies to every robot).
 
+Commands other tools issued (``parkfleet estop`` from another process, seen on the control
+keys) are :meth:`ControlDesk.adopt`-ed by the same rule, in each issuer's ``seq`` order
+(:class:`fleet.core.wire.IssuerOrder`): the desk mirrors what is latched whoever latched it,
+so the service re-sends a CLI's e-stop to a robot that joins later, and never re-sends an
+e-stop that the CLI released.
+
 It re-asserts only the *restrictive* states: when a robot that should be e-stopped (or
 paused) reports a mode that does not obey (it restarted, joined later, or lost the message),
 :meth:`ControlDesk.check` returns the command again for that robot, at most every
@@ -24,7 +30,7 @@ from typing import ClassVar
 
 from pydantic import BaseModel, ConfigDict
 
-from fleet.core.wire import ControlAction, ControlCommand, Hold, RobotState, obeys
+from fleet.core.wire import ControlAction, ControlCommand, Hold, IssuerOrder, RobotState, obeys
 
 ISSUER = "fleet-service"
 #: Seconds between re-sends of a restrictive command to a robot that does not obey it.
@@ -93,6 +99,7 @@ class ControlDesk:
         self._reasons: dict[str | None, str | None] = {}  # robot (None: fleet) -> reason
         self._resent_at: dict[str, float] = {}  # robot -> last re-send [s, monotonic]
         self._last_seq = 0
+        self._order = IssuerOrder()  # of the commands adopted from other issuers
 
     def _message(
         self, action: ControlAction, robot_id: str | None, reason: str | None, wall: float
@@ -112,6 +119,10 @@ class ControlDesk:
     ) -> ControlCommand:
         """Record ``action`` for one robot or (``None``) the whole fleet; returns the
         command to publish."""
+        self._record(action, robot_id, reason)
+        return self._message(action, robot_id, reason, wall)
+
+    def _record(self, action: ControlAction, robot_id: str | None, reason: str | None) -> None:
         if robot_id is None:
             self._fleet = self._fleet.apply(action)
             self._robots.clear()
@@ -119,7 +130,16 @@ class ControlDesk:
         else:
             self._robots[robot_id] = self.hold(robot_id).apply(action)
             self._reasons[robot_id] = reason
-        return self._message(action, robot_id, reason, wall)
+
+    def adopt(self, command: ControlCommand) -> bool:
+        """Take up a command another tool issued (its own issuer, seen on the bus); False if
+        it is the service's own, a repeat or older than one already taken from its issuer."""
+        if command.issuer == ISSUER or not self._order.accept(command):
+            return False
+        given = command.reason
+        why = command.issuer if given is None else f"{given} ({command.issuer})"
+        self._record(command.command, command.robot_id, why)
+        return True
 
     def hold(self, robot_id: str) -> Hold:
         """What the operator asked of ``robot_id`` (its own command, else the fleet's)."""

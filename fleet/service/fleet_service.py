@@ -440,6 +440,21 @@ class FleetService:
             return self._ledger.release_robot(rec.robot_id, now, wall), True
         return [], False
 
+    def _sync_holds(self, robot_id: str | None, now: float, wall: float) -> tuple[Effects, bool]:
+        """:meth:`_sync_hold` for one robot (if known) or (``None``) every robot."""
+        if robot_id is None:
+            records = list(self._roster.records())
+        else:
+            rec = self._roster.record(robot_id)
+            records = [] if rec is None else [rec]
+        effects: Effects = []
+        released = False
+        for rec in records:
+            more, freed = self._sync_hold(rec, now, wall)
+            effects += more
+            released |= freed
+        return effects, released
+
     def control(
         self, action: ControlAction, robot_id: str | None = None, reason: str | None = None
     ) -> ControlCommand:
@@ -451,18 +466,12 @@ class FleetService:
         """
         clock = self._clock
         now, wall = clock.monotonic(), clock.wall()
-        released = False
         with self._lock:
             if robot_id is not None and not self._roster.known(robot_id):
                 raise RobotNotFound(f"robot {robot_id} not found")
             message = self._desk.command(action, robot_id, reason, wall)
             sent = self._outbox.enqueue([Publish(message)])
-            effects: Effects = []
-            one = self._roster.record(robot_id) if robot_id is not None else None
-            for rec in [one] if one is not None else list(self._roster.records()):
-                more, freed = self._sync_hold(rec, now, wall)
-                effects += more
-                released |= freed
+            effects, released = self._sync_holds(robot_id, now, wall)
             self._queue([*effects, self._operator_saved()], now)
         self._counters.add("control_requests")
         if action is ControlAction.ESTOP:
@@ -471,6 +480,23 @@ class FleetService:
         if released:
             self._planner.request("resumed")
         return message
+
+    def on_control(self, command: ControlCommand) -> None:
+        """An operator command seen on the control keys: one another tool issued (e.g.
+        ``parkfleet estop`` from another process) is taken up as if asked here -- robots
+        held or released, the record stored -- so the service re-sends a latched e-stop to
+        robots that join later, and never re-asserts one that was released elsewhere."""
+        clock = self._clock
+        now, wall = clock.monotonic(), clock.wall()
+        with self._lock:
+            if self._closed or not self._desk.adopt(command):
+                return
+            effects, released = self._sync_holds(command.robot_id, now, wall)
+            batch = self._queue([*effects, self._operator_saved()], now)
+        self._counters.add("control_adopted")
+        self._settle(batch)
+        if released:
+            self._planner.request("resumed")
 
     def control_state(self) -> ControlState:
         """What the operator asked: the fleet-wide hold, robots with a command of their own."""

@@ -1,13 +1,15 @@
 """Operator control over real Zenoh: ``parkfleet estop | pause | resume`` run as separate
-processes stop and release simulated robots with no fleet service running at all."""
+processes stop and release simulated robots with no fleet service running at all, and a
+running service takes up what they latched."""
 
 from __future__ import annotations
 
 import subprocess
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
-from support import StateWatcher, assign_until_acked, park, wait_for
+from support import StateWatcher, assign_until_acked, park, wait_for, zenoh_fleet_service
 
 from fleet.core.wire import ErrorLevel, RobotMode
 from fleet.io.processes import parkfleet_command
@@ -132,3 +134,39 @@ def test_a_robot_that_does_not_answer_is_reported_and_the_exit_code_says_so(
 def test_wrong_ids_are_refused_before_anything_is_sent(router_endpoint: str) -> None:
     done = parkfleet(router_endpoint, "estop", "--robot", "r*")
     assert done.returncode == 2 and "invalid robot id" in done.stderr
+
+
+def test_the_service_takes_up_a_cli_estop_for_a_late_joiner_and_its_release(
+    router_endpoint: str, client_settings: Settings, tmp_path: Path
+) -> None:
+    """``parkfleet estop`` from another process while the service runs: the service sees it
+    on the control key, tells a robot that joins later, and stops once the CLI releases."""
+    with (
+        zenoh_fleet_service(client_settings, tmp_path / "fleet.db") as service,
+        open_session(client_settings, "client") as robots,
+        open_session(client_settings, "client") as tool,
+        SimFleet(robots, client_settings, [Spawn("r1", -8, 0, 0)]) as first,
+    ):
+        watcher = StateWatcher(tool)
+        try:
+            first.start()
+            wait_for(lambda: watcher.latest("r1") is not None, 10, "r1 reporting")
+            done = parkfleet(router_endpoint, "estop", "--reason", "drill", "--issuer", "ops-1")
+            assert done.returncode == 0, done.stdout + done.stderr
+            wait_for(lambda: service.control_state().fleet.estop, 10, "the service saw it")
+            with SimFleet(robots, client_settings, [Spawn("r2", -8, 3, 0)]) as late:
+                late.start()
+                wait_for(lambda: in_mode(watcher, "r2", RobotMode.ESTOP), 10, "r2 e-stopped")
+                state = watcher.latest("r2")
+                assert state is not None and state.detail is not None
+                assert state.detail == "emergency stop by fleet-service: drill (ops-1)"
+                done = parkfleet(router_endpoint, "estop", "--release", "--issuer", "ops-1")
+                assert done.returncode == 0, done.stdout + done.stderr
+                wait_for(lambda: not service.control_state().fleet.estop, 10, "released")
+                wait_for(lambda: in_mode(watcher, "r2", RobotMode.IDLE), 10, "r2 released")
+                seq = last_seq(watcher, "r2")  # and the service does not e-stop it again
+                wait_for(lambda: last_seq(watcher, "r2") > seq + 50, 10, "r2 ticks")
+                assert all(s.mode is RobotMode.IDLE for s in watcher.since("r2", seq))
+            assert service.counters["control_adopted"] == 2
+        finally:
+            watcher.close()

@@ -5,8 +5,8 @@ from __future__ import annotations
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fleet.core.wire import ControlAction, ControlCommand, RobotMode
-from robot_agent.operator import MAX_ISSUERS, OperatorLatch
+from fleet.core.wire import MAX_ISSUERS, ControlAction, ControlCommand, RobotMode
+from robot_agent.operator import OperatorLatch
 
 
 def cmd(
@@ -72,7 +72,7 @@ def test_issuers_remembered_are_bounded() -> None:
     latch = OperatorLatch("r1")
     for i in range(MAX_ISSUERS + 10):
         latch.apply(cmd("pause", 5, issuer=f"tool-{i}"))
-    assert len(latch._last_seq) == MAX_ISSUERS
+    assert len(latch._order) == MAX_ISSUERS
 
 
 commands = st.lists(

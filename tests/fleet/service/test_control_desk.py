@@ -229,3 +229,30 @@ def test_holds_and_decommissioning_survive_a_restart(tmp_path: Path) -> None:
         third.service.close()
     finally:
         store.close()
+
+
+def foreign(action: ControlAction, seq: int, robot: str | None = None) -> ControlCommand:
+    return ControlCommand(
+        command=action, robot_id=robot, issuer="cli-host", seq=seq, stamp=1.0, reason="drill"
+    )
+
+
+def test_commands_of_other_tools_are_taken_up_in_their_order(fleet: Fleet) -> None:
+    task = drive_one_task(fleet)
+    fleet.bus.deliver_control(foreign(ControlAction.ESTOP, 10))  # parkfleet estop, elsewhere
+    assert fleet.service.control_state().fleet == Hold(estop=True)
+    why = "emergency stop by the operator: drill (cli-host)"
+    assert fleet.service.task(task.id).reason == why
+    fleet.join("r2", 5.0, 5.0)  # a late joiner learns the latched e-stop from the service
+    assert [(c.command, c.robot_id, c.issuer) for c in fleet.bus.controls] == [
+        (ControlAction.ESTOP, "r2", "fleet-service"),
+    ]
+    fleet.bus.deliver_control(foreign(ControlAction.RELEASE, 12))
+    fleet.bus.deliver_control(foreign(ControlAction.ESTOP, 11))  # late copy of an older one
+    fleet.bus.deliver_control(fleet.bus.controls[0])  # the service's own, echoed
+    assert fleet.service.control_state().fleet == Hold()
+    fleet.clock.advance(1.0)
+    fleet.robot("r2", 5.0, 5.0)  # not e-stopped: nothing is re-sent any more
+    assert len(fleet.bus.controls) == 1
+    assert fleet.service.task(task.id).reason is None
+    assert fleet.service.counters["control_adopted"] == 2

@@ -20,7 +20,7 @@ tool (``parkfleet estop``) latched stays latched until someone releases it.
 Pure and not thread-safe: the service calls it under its lock with the time as arguments
 (``now`` [s, monotonic], ``wall`` [s since epoch]) and publishes the commands it returns
 through its outbox, after releasing the lock. :meth:`ControlDesk.check` is on the service's
-hot path (every robot state): two dict lookups when nothing is asked.
+hot path (every robot state): one attribute read when no robot is held.
 """
 
 from __future__ import annotations
@@ -96,6 +96,7 @@ class ControlDesk:
     def __init__(self) -> None:
         self._fleet = Hold()
         self._robots: dict[str, Hold] = {}
+        self._holding = False  # some hold is restrictive (else check() returns at once)
         self._reasons: dict[str | None, str | None] = {}  # robot (None: fleet) -> reason
         self._resent_at: dict[str, float] = {}  # robot -> last re-send [s, monotonic]
         self._last_seq = 0
@@ -130,6 +131,12 @@ class ControlDesk:
         else:
             self._robots[robot_id] = self.hold(robot_id).apply(action)
             self._reasons[robot_id] = reason
+        self._note_holding()
+
+    def _note_holding(self) -> None:
+        self._holding = self._fleet.restrictive is not None or any(
+            h.restrictive is not None for h in self._robots.values()
+        )
 
     def adopt(self, command: ControlCommand) -> bool:
         """Take up a command another tool issued (its own issuer, seen on the bus); False if
@@ -164,10 +171,13 @@ class ControlDesk:
         self._robots = dict(state.robots)
         self._reasons = {None: state.fleet_reason}
         self._reasons.update(state.robot_reasons)
+        self._note_holding()
 
     def check(self, state: RobotState, now: float, wall: float) -> ControlCommand | None:
         """The restrictive command a robot reporting ``state`` does not obey, to send again
         (None: it obeys, nothing is asked, or it was re-sent less than ``RESEND_S`` ago)."""
+        if not self._holding:
+            return None
         rid = state.robot_id
         action = self._robots.get(rid, self._fleet).restrictive
         if action is None or obeys(action, state.mode):
@@ -179,6 +189,7 @@ class ControlDesk:
 
     def forget(self, robot_id: str) -> None:
         """The robot was removed from the fleet: what is kept for it goes (bounded)."""
-        self._robots.pop(robot_id, None)
+        if self._robots.pop(robot_id, None) is not None:
+            self._note_holding()
         self._reasons.pop(robot_id, None)
         self._resent_at.pop(robot_id, None)

@@ -5,6 +5,9 @@
   models; :mod:`~api.deps`: dependencies (auth, service); :mod:`~api.errors`: error bodies;
   :mod:`~api.streaming`: Server-Sent Events; :mod:`~api.server`: uvicorn; ``static/``: the
   dashboard.
+- Bounds (``api_*`` settings): :mod:`~api.body_limit` (request bodies, before parsing),
+  :mod:`~api.paging` (cursors of the task list), :mod:`~api.plot_cache` and
+  :mod:`~api.rate_limit` (plot renders); the event-stream caps live in :mod:`~api.streaming`.
 
 Kept import-free so ``parkfleet --help`` does not load FastAPI.
 """

@@ -2,7 +2,10 @@
 
 Its lifespan owns the fleet: the Zenoh router session, the SQLite task store, the Zenoh
 bus and the fleet service, opened in that order and closed in reverse however startup or
-shutdown goes (an unclosed Zenoh session would hang interpreter exit).
+shutdown goes (an unclosed Zenoh session would hang interpreter exit). What a client can
+make the server hold is bounded by the ``api_*`` settings: request bodies
+(:mod:`api.body_limit`), event streams (:mod:`api.streaming`), task pages
+(:mod:`api.routes.tasks`) and plot renders (:mod:`api.plot_cache`).
 """
 
 from __future__ import annotations
@@ -16,8 +19,10 @@ from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 
 from api import errors
+from api.body_limit import BodyLimit
 from api.deps import FleetAPI
 from api.metrics import FleetMetrics
+from api.plot_cache import PlotCache
 from api.routes import (
     bays,
     control,
@@ -36,7 +41,7 @@ from fleet.core.wire import Keys
 from fleet.io.settings import Settings
 from fleet.io.transport import listening_locators, open_session
 from fleet.service.fleet_service import FleetService
-from fleet.service.store import SqliteTaskStore
+from fleet.service.store import SqliteTaskStore, TaskStore
 from fleet.service.zenoh_bus import ZenohFleetBus
 
 _log = logging.getLogger(__name__)
@@ -50,9 +55,9 @@ ccw and (20) cw). When `PARKFLEET_API_TOKEN` is set, POST and PUT need
 """
 
 
-def open_fleet(settings: Settings, stack: ExitStack) -> tuple[FleetAPI, list[str]]:
-    """Open router session, store, bus and service on ``stack``; return the service and the
-    Zenoh endpoints the router really listens on."""
+def open_fleet(settings: Settings, stack: ExitStack) -> tuple[FleetAPI, TaskStore, list[str]]:
+    """Open router session, store, bus and service on ``stack``; return the service, the
+    store (for task pages) and the Zenoh endpoints the router really listens on."""
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     session = open_session(settings, "router")
     stack.callback(session.close)
@@ -64,32 +69,40 @@ def open_fleet(settings: Settings, stack: ExitStack) -> tuple[FleetAPI, list[str
     service = FleetService(settings, bus, store)
     service.start()
     stack.callback(service.close)
-    return service, locators
+    return service, store, locators
 
 
-def create_app(settings: Settings, *, service: FleetAPI | None = None) -> FastAPI:
-    """The API app. With ``service`` given (tests), the lifespan uses it and opens nothing."""
-    hub = EventHub()
+def create_app(
+    settings: Settings, *, service: FleetAPI | None = None, store: TaskStore | None = None
+) -> FastAPI:
+    """The API app. With ``service`` and its ``store`` given (tests), the lifespan uses
+    them and opens nothing."""
+    if (service is None) != (store is None):
+        raise ValueError("create_app: give both the service and its task store, or neither")
+    hub = EventHub(
+        max_backlog=settings.api_sse_queue_frames, max_clients=settings.api_sse_max_clients
+    )
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         with ExitStack() as stack:
             if service is None:
                 try:
-                    app.state.service, app.state.zenoh_locators = open_fleet(settings, stack)
+                    opened = open_fleet(settings, stack)
+                    app.state.service, app.state.tasks, app.state.zenoh_locators = opened
                 except Exception as exc:
                     app.state.startup_error = exc  # for the CLI's one-line error
                     raise
                 _log.info("fleet service up; Zenoh router on %s", app.state.zenoh_locators)
             else:
-                app.state.service, app.state.zenoh_locators = service, []
+                app.state.service, app.state.tasks, app.state.zenoh_locators = service, store, []
             app.state.metrics = FleetMetrics(app.state.service)  # a registry per app
             stack.callback(app.state.metrics.close)
             try:
                 yield
             finally:
                 hub.close()
-                app.state.service = None
+                app.state.service = app.state.tasks = None
 
     app = FastAPI(
         title="parkfleet",
@@ -99,10 +112,17 @@ def create_app(settings: Settings, *, service: FleetAPI | None = None) -> FastAP
     )
     app.state.settings = settings
     app.state.events = hub
+    app.state.plots = PlotCache(
+        settings.api_plot_cache_entries,
+        settings.api_plot_renders_per_s,
+        settings.api_plot_render_burst,
+    )
     app.state.service = None
+    app.state.tasks = None
     app.state.zenoh_locators = []
     app.state.startup_error = None
     errors.install(app)
+    app.add_middleware(BodyLimit, max_bytes=settings.api_max_body_bytes)
     for module in (tasks, robots, control, bays, obstacles, events, health):
         app.include_router(module.router)
     app.include_router(plots.router)

@@ -16,12 +16,13 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from api.schemas import ObstacleIn, ObstaclesIn, TaskIn, yard_errors
-from fleet.core.tasks import FleetEvent, RobotView, Task, TaskRequest, TaskStatus
+from fleet.core.tasks import FleetEvent, RobotView, Task, TaskRequest
 from fleet.core.wire import ControlAction, ControlCommand, Obstacle, Pose
 from fleet.io.settings import Settings
 from fleet.service.bays import BayState
 from fleet.service.control_desk import ControlState
 from fleet.service.stats import PlannerStats
+from fleet.service.store import TaskStore
 
 
 class FleetAPI(Protocol):
@@ -44,9 +45,6 @@ class FleetAPI(Protocol):
     def bays(self) -> list[BayState]: ...
     def decommission(self, robot_id: str) -> RobotView: ...
     def commission(self, robot_id: str) -> RobotView: ...
-    def tasks(
-        self, status: TaskStatus | None = None, robot_id: str | None = None
-    ) -> list[Task]: ...
     def robots(self) -> list[RobotView]: ...
     def robot(self, robot_id: str) -> RobotView: ...
     def remove_robot(self, robot_id: str) -> None: ...
@@ -69,12 +67,22 @@ async def get_service(request: Request) -> FleetAPI:
     return service
 
 
+async def get_task_store(request: Request) -> TaskStore:
+    """The service's task store: ``GET /tasks`` reads its pages there, where every
+    transition lands before it is announced."""
+    tasks: TaskStore | None = getattr(request.app.state, "tasks", None)
+    if tasks is None:
+        raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE, "task store not open")
+    return tasks
+
+
 async def get_settings(request: Request) -> Settings:
     settings: Settings = request.app.state.settings
     return settings
 
 
 ServiceDep = Annotated[FleetAPI, Depends(get_service)]
+TaskStoreDep = Annotated[TaskStore, Depends(get_task_store)]
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 
 _bearer = HTTPBearer(auto_error=False, description="PARKFLEET_API_TOKEN, when set")

@@ -6,10 +6,11 @@ Every error body is ``{"detail": "<reason>"}``; a 422 adds ``errors`` (one per f
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Sequence
 from typing import Any
 
-from fastapi import FastAPI, Request, status
+from fastapi import FastAPI, HTTPException, Request, status
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
@@ -34,6 +35,11 @@ STATUS_OF: dict[type[FleetError], int] = {
     GoalRejected: status.HTTP_409_CONFLICT,
     TaskConflict: status.HTTP_409_CONFLICT,
 }
+
+
+def retry_later(code: int, reason: str, after_s: float) -> HTTPException:
+    """A refusal for now (429, 503) with ``Retry-After``: whole seconds, at least one."""
+    return HTTPException(code, reason, headers={"Retry-After": str(max(1, math.ceil(after_s)))})
 
 
 def _field_name(loc: Sequence[Any]) -> str:

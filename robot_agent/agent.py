@@ -1,9 +1,10 @@
 """``RobotAgent``: one robot's control loop on Zenoh, over a :class:`~robot_agent.drive.Drive`.
 
-Each tick (default 50 Hz, ``Settings.control_rate_hz``, on the agent's monotonic clock):
-read the pose, apply pending assignment messages, decide with the pure
-:func:`robot_agent.logic.decide`, command the wheels, publish ``RobotState`` on
-``keys.state(id)`` (stamped with the wall clock). Zenoh edges:
+Each tick (default 50 Hz, ``Settings.control_rate_hz``, on the agent's monotonic clock) has
+two phases: :meth:`RobotAgent.sense` reads the pose and applies pending assignment
+messages; :meth:`RobotAgent.act` decides with the pure :func:`robot_agent.logic.decide`,
+commands the wheels and publishes ``RobotState`` on ``keys.state(id)`` (stamped with the
+wall clock). Zenoh edges:
 
 * liveliness token ``keys.alive(id)``;
 * subscriber on ``keys.assignment(id)`` (park / cancel, decoded by ``wire.Decoder``:
@@ -124,6 +125,8 @@ class RobotAgent:
         self.faults = FaultBook()
         self._seq = 0
         self._pose = Pose(x=0.0, y=0.0, theta=0.0)
+        self._reading: tuple[Pose, float, float] | None = None  # sensed (pose, stamp, now)
+        self._failure: tuple[str, str] | None = None  # (phase, message) of a failed sense
         self.tick_errors = 0
         self.last: AgentSnapshot | None = None
         self._handles: list[Any] = []
@@ -194,10 +197,19 @@ class RobotAgent:
 
     # -- control loop ---------------------------------------------------------------------
     def tick(self) -> AgentSnapshot | None:
-        """One control step: messages -> pose -> decide -> wheels -> publish state."""
-        failure: tuple[str, str] | None = None
-        pose_age = float("nan")
-        link_ok = True
+        """One control step: :meth:`sense` then :meth:`act`."""
+        self.sense()
+        return self.act()
+
+    def sense(self) -> None:
+        """First phase of a tick: apply pending control commands and assignment messages, read
+        the pose (time t) and put it in the world view shared with agents on this session.
+
+        A lockstep simulation (``sim_agent.fleet``) senses every robot before any acts, so
+        each decides on its peers' poses of the same time t, as the batch simulator does.
+        """
+        self._reading = None
+        self._failure = None
         phase = "tick_error"
         try:
             self._apply_inbox(self.clock.now())
@@ -205,39 +217,57 @@ class RobotAgent:
             pose, stamp = self.drive.read_pose()
             phase = "tick_error"
             now = self.clock.now()
-            pose_age = now - stamp
             self._pose = pose
-            link_ok = self.link.ok()
-            override = self.operator.mode
-            if override is not None:  # an operator's pause or e-stop: stand still, keep task
-                decision = TickResult(mode=override, task=self._task, detail=self.operator.detail)
-            else:
-                active = self._task is not None and self._task.status is AgentTaskStatus.ACTIVE
-                decision = decide(
-                    pose.as_tuple(),
-                    pose_age,
-                    self._task,
-                    self.world.peer_positions(exclude=self.robot_id) if active else _NO_PEERS,
-                    self.world.obstacles(),
-                    self.settings.profile,
-                    self.settings.avoidance,
-                    self.settings.pose_stale_s,
-                    link_ok=link_ok if active else True,
-                    now=now,
-                )
-            self._task = decision.task
-            phase = "drive_error"
-            if decision.moving:
-                self.drive.command_wheels(decision.right, decision.left)
-            else:
-                self.drive.stop()
+            self.world.update_position(self.robot_id, pose.x, pose.y)
+            self._reading = (pose, stamp, now)
         except Exception as exc:
-            self.tick_errors += 1
-            if self.tick_errors <= 10 or self.tick_errors % 1000 == 0:
-                _log.exception("%s: tick failed (%d so far)", self.robot_id, self.tick_errors)
-            self._safe_stop()
-            what = "drive error" if phase == "drive_error" else "tick error"
-            failure = (phase, f"{what}, robot stopped: {type(exc).__name__}: {exc}")
+            self._failure = self._tick_failed(phase, exc)
+
+    def act(self) -> AgentSnapshot | None:
+        """Second phase of a tick: decide on the sensed pose (an operator's pause or e-stop
+        overrides the decision), command the wheels, publish the state and its faults."""
+        reading, self._reading = self._reading, None
+        failure = self._failure
+        pose_age = float("nan")
+        link_ok = True
+        decision: TickResult | None = None
+        if reading is not None:
+            pose, stamp, now = reading
+            pose_age = now - stamp
+            phase = "tick_error"
+            try:
+                link_ok = self.link.ok()
+                override = self.operator.mode
+                if override is not None:  # an operator's pause or e-stop: stand still, keep task
+                    decision = TickResult(
+                        mode=override, task=self._task, detail=self.operator.detail
+                    )
+                else:
+                    active = self._task is not None and self._task.status is AgentTaskStatus.ACTIVE
+                    decision = decide(
+                        pose.as_tuple(),
+                        pose_age,
+                        self._task,
+                        self.world.peer_positions(exclude=self.robot_id) if active else _NO_PEERS,
+                        self.world.obstacles(),
+                        self.settings.profile,
+                        self.settings.avoidance,
+                        self.settings.pose_stale_s,
+                        link_ok=link_ok if active else True,
+                        now=now,
+                    )
+                self._task = decision.task
+                phase = "drive_error"
+                if decision.moving:
+                    self.drive.command_wheels(decision.right, decision.left)
+                else:
+                    self.drive.stop()
+            except Exception as exc:
+                failure = self._tick_failed(phase, exc)
+                decision = None
+        if decision is None:  # sensing or acting failed (counted, logged, robot stopped)
+            drive_failed = failure is not None and failure[0] == "drive_error"
+            what = "drive error" if drive_failed else "tick error"
             decision = TickResult(
                 mode=self.operator.mode or RobotMode.HOLDING,
                 task=self._task,
@@ -252,6 +282,15 @@ class RobotAgent:
         )
         wall = self._wall()
         return self._publish(decision, self.faults.update(faults, wall), wall)
+
+    def _tick_failed(self, phase: str, exc: Exception) -> tuple[str, str]:
+        """Count and log an exception of a tick, stop the robot; the fault to report."""
+        self.tick_errors += 1
+        if self.tick_errors <= 10 or self.tick_errors % 1000 == 0:
+            _log.exception("%s: tick failed (%d so far)", self.robot_id, self.tick_errors)
+        self._safe_stop()
+        what = "drive error" if phase == "drive_error" else "tick error"
+        return (phase, f"{what}, robot stopped: {type(exc).__name__}: {exc}")
 
     def _apply_inbox(self, now: float) -> None:
         """Apply queued control commands and assignments, in arrival order."""

@@ -26,27 +26,28 @@ Every stop says why (``TickResult.detail``: ``pose stale``, ``link lost``, ``tas
 cancelled``, ``start delay``, ``held by the fleet``). An operator's pause or e-stop
 (:mod:`robot_agent.operator`) overrides the whole tick in the agent, before :func:`decide`.
 
-Control of an active task (:func:`decide`): error of Eq. (5), law (17) ``ccw`` or (20)
-``cw``, plus the repulsion -K_avoid/x_OA of Eq. (27) from every peer within the peer
-influence radius and every static obstacle within its own radius (mode ``avoiding``
-while any is inside), then the wheel-speed limit (scaled together, curvature kept), a
-contact guard (no forward motion towards a peer within two body radii plus the x_OA
-guard; see :func:`_towards_contact`) and Eq. (2) to wheel speeds. Arrival uses the batch
-simulator's stop rule: the pre-step error is within tolerance (||(x_e, y_e)|| < position
-and |theta_e| < heading).
+Control of an active task (:func:`decide`) is one call of the compiled control step,
+:func:`fleet.core.step.step_robot` -- the same code the batch simulator and the planner's
+rollouts run: error of Eq. (5), stop rule, law (17) ``ccw`` or (20) ``cw``, the repulsion
+-K_avoid/x_OA of Eq. (27) from every peer within the peer influence radius and every
+static obstacle within its own radius (mode ``avoiding`` while any is inside), the
+wheel-speed limit (scaled together, curvature kept), the contact guard (no motion towards
+a peer within two body radii plus the x_OA guard; mode ``avoiding``) and Eq. (2) to wheel
+speeds. Arrival is the stop rule on the pre-step error (x_e^2 + y_e^2 < position^2 and
+|theta_e| < heading); as in the batch simulator, that tick's command is still applied
+(``arrived`` with the last, small, wheel command) and the robot stops at the next tick.
+Importing this module compiles the step (or loads it from numba's cache): never in a tick.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from enum import StrEnum
 
 import numpy as np
 
-from fleet.core.control import is_cw, obstacle_repulsion, pose_error, posture_law, saturate
-from fleet.core.control import wheel_speeds as to_wheel_speeds
+from fleet.core import step
 from fleet.core.params import Avoidance, RobotProfile
 from fleet.core.types import FloatArray
 from fleet.core.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
@@ -123,12 +124,13 @@ def _stopped(mode: RobotMode, task: AgentTask | None, detail: str | None = None)
 
 
 def within_tolerance(pose: Sequence[float] | FloatArray, assignment: ParkAssignment) -> bool:
-    """The simulator's stop rule on the pre-step error of Eq. (5) with the law's wrap."""
-    x_e, y_e, theta_e = pose_error(pose, assignment.goal.as_tuple(), is_cw(assignment.law))
-    return bool(
-        math.hypot(float(x_e), float(y_e)) < assignment.tolerance.position
-        and abs(float(theta_e)) < assignment.tolerance.heading
-    )
+    """The stop rule on the pre-step error of Eq. (5) with the law's wrap."""
+    goal, tol = assignment.goal, assignment.tolerance
+    x_e, y_e, theta_e = step.pose_error(
+        float(pose[0]), float(pose[1]), float(pose[2]), goal.x, goal.y, goal.theta,
+        assignment.law == "cw",
+    )  # fmt: skip
+    return bool(step.within_tolerance(x_e, y_e, theta_e, tol.position**2, tol.heading))
 
 
 def obstacle_arrays(obstacles: Sequence[Obstacle]) -> tuple[FloatArray, FloatArray]:
@@ -140,26 +142,24 @@ def obstacle_arrays(obstacles: Sequence[Obstacle]) -> tuple[FloatArray, FloatArr
     return centres, radii
 
 
-def _towards_contact(
-    p: FloatArray, peers: FloatArray, u: float, profile: RobotProfile, avoid: Avoidance
-) -> bool:
-    """Whether driving at speed ``u`` moves towards a peer already within contact range.
+def _step_params(assignment: ParkAssignment, profile: RobotProfile, limit: float) -> FloatArray:
+    """The robot's parameter row of :mod:`fleet.core.step` (1, ``ROBOT_COLUMNS``)."""
+    goal, gains, tol = assignment.goal, assignment.gains, assignment.tolerance
 
-    Contact guard (not in the paper; on whenever avoidance is, i.e. k_avoid > 0): Eq. (27)
-    slows a robot near a peer but does not forbid contact -- a robot whose goal lies
-    behind a standing (e.g. dead) peer settles where the law's pull and the repulsion
-    balance, which with the default gains is closer than two body radii. Within
-    ``2 * radius + min_x_oa`` of a peer centre the robot may turn on the spot or move
-    away, never towards it.
-    """
-    contact = 2.0 * profile.radius + avoid.min_x_oa
-    dx = peers[:, 0] - p[0]
-    dy = peers[:, 1] - p[1]
-    near = dx * dx + dy * dy < contact * contact
-    if not bool(near.any()):
-        return False
-    ahead = math.cos(p[2]) * dx[near] + math.sin(p[2]) * dy[near]  # x_OA of each close peer
-    return bool((ahead > 0).any()) if u > 0 else bool((ahead < 0).any())
+    def column(value: float) -> FloatArray:
+        return np.array([value])
+
+    return step.robot_params(
+        np.array([goal.as_tuple()]),
+        np.array([gains.as_tuple()]),
+        column(1.0 if assignment.law == "cw" else 0.0),
+        column(tol.position),
+        column(tol.heading),
+        column(profile.wheel_radius),
+        column(profile.half_axle),
+        column(limit),
+        column(profile.radius),
+    )
 
 
 def decide(
@@ -215,51 +215,35 @@ def decide(
         return _stopped(RobotMode.HOLDING, task, "link lost")
 
     a = task.assignment
-    p = np.asarray(pose, dtype=np.float64)
-    if within_tolerance(p, a):
-        return _stopped(RobotMode.ARRIVED, replace(task, status=AgentTaskStatus.ARRIVED))
-    if task.waiting(now):
-        return _stopped(RobotMode.WAITING, task, "held by the fleet" if a.hold else "start delay")
-
-    cw = is_cw(a.law)
-    x_e, y_e, theta_e = pose_error(p, a.goal.as_tuple(), cw)
-    u, omega = posture_law(x_e, y_e, theta_e, a.gains.as_tuple(), cw)  # Eq. (17) / (20)
-
     # The task's avoidance parameters win when the fleet sent them; else the robot's own.
     avoid = a.avoidance if "avoidance" in a.model_fields_set else avoidance
-    repulsion = 0.0
-    active = False
-    if avoid.k_avoid > 0:
-        centres, radii = obstacles
-        for points, radius in ((peers, avoid.peer_radius), (centres, radii)):
-            if points.shape[0] == 0:
-                continue
-            d2 = (points[:, 0] - p[0]) ** 2 + (points[:, 1] - p[1]) ** 2
-            if bool((d2 < np.asarray(radius) ** 2).any()):
-                active = True
-                repulsion += float(
-                    obstacle_repulsion(p, points, radius, avoid.k_avoid, avoid.min_x_oa)
-                )  # Eq. (27)
-
     limit = profile.max_wheel_speed
     if a.max_wheel_speed is not None:
         limit = min(limit, a.max_wheel_speed)  # never above the robot's own limit
-    u_s, w_s = saturate(float(u) + repulsion, omega, profile.wheel_radius, profile.half_axle, limit)
-    if (
-        avoid.k_avoid > 0  # part of avoidance: k_avoid = 0 switches both off
-        and peers.shape[0]
-        and float(u_s) != 0.0
-        and _towards_contact(p, peers, float(u_s), profile, avoid)
-    ):
-        u_s = u_s * 0.0  # contact guard: turn on the spot, never drive into a peer
-        active = True
-    right, left = to_wheel_speeds(u_s, w_s, profile.wheel_radius, profile.half_axle)
+    centres, radii = obstacles
+    hold = task.waiting(now)
+    result = step.step_robot(
+        (pose[0], pose[1], pose[2]),
+        _step_params(a, profile, limit),
+        hold=hold,
+        peers=np.ascontiguousarray(peers.T, dtype=np.float64),
+        obstacles=np.ascontiguousarray(np.vstack([centres.T, radii[None, :]]), dtype=np.float64),
+        k_avoid=avoid.k_avoid,
+        peer_radius=avoid.peer_radius,
+        min_x_oa=avoid.min_x_oa,
+    )
+    if result.done:  # the stop rule: this step is still applied (see the module docstring)
+        mode, task = RobotMode.ARRIVED, replace(task, status=AgentTaskStatus.ARRIVED)
+    elif hold:
+        return _stopped(RobotMode.WAITING, task, "held by the fleet" if a.hold else "start delay")
+    else:
+        mode = RobotMode.AVOIDING if result.avoiding else RobotMode.DRIVING
     return TickResult(
-        mode=RobotMode.AVOIDING if active else RobotMode.DRIVING,
+        mode=mode,
         task=task,
-        u=float(u_s),
-        omega=float(w_s),
-        right=float(right),
-        left=float(left),
-        repulsion=repulsion,
+        u=result.u,
+        omega=result.omega,
+        right=result.right,
+        left=result.left,
+        repulsion=result.repulsion,
     )

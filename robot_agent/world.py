@@ -36,14 +36,21 @@ class WorldView:
             if old is not None and state.seq <= old.seq and state.stamp <= old.stamp:
                 return
             self._states[state.robot_id] = state
-            row = self._rows.get(state.robot_id)
-            if row is None:
-                row = self._rows[state.robot_id] = len(self._rows)
-                if row >= self._positions.shape[0]:
-                    self._positions = np.concatenate(
-                        [self._positions, np.zeros_like(self._positions)]
-                    )
-            self._positions[row] = (state.pose.x, state.pose.y)
+            self._set_position(state.robot_id, state.pose.x, state.pose.y)
+
+    def update_position(self, robot_id: str, x: float, y: float) -> None:
+        """A robot's position [m] as its agent on this session just measured it, before its
+        state (with mode and speeds) is published: peers deciding now see it."""
+        with self._lock:
+            self._set_position(robot_id, x, y)
+
+    def _set_position(self, robot_id: str, x: float, y: float) -> None:
+        row = self._rows.get(robot_id)
+        if row is None:
+            row = self._rows[robot_id] = len(self._rows)
+            if row >= self._positions.shape[0]:
+                self._positions = np.concatenate([self._positions, np.zeros_like(self._positions)])
+        self._positions[row] = (x, y)
 
     def set_obstacles(self, obstacles: ObstacleSet) -> None:
         arrays = obstacle_arrays(obstacles.obstacles)

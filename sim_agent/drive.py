@@ -2,7 +2,8 @@
 
 The wheel command is held between calls (zero-order hold) and the pose is integrated by
 forward Euler on Eq. (3) -- x' = u cos(theta), y' = u sin(theta), theta' = omega, with
-(u, omega) from the wheel speeds by Eq. (2) -- exactly as ``fleet.core.simulate``. Integration
+(u, omega) from the wheel speeds by Eq. (2) -- by the compiled control step's own Euler
+update (:func:`fleet.core.step.integrate_wheels`), as in ``fleet.core.simulate``. Integration
 is lazy: every call advances the true pose to ``clock.now()`` in steps of at most
 ``max_step`` clock seconds. On a :class:`~robot_agent.clock.SteppedClock` advanced by one
 control period per tick (``sim_agent.fleet``), that is one Euler step of the control
@@ -19,8 +20,8 @@ import threading
 
 import numpy as np
 
-from fleet.core.control import body_velocities
 from fleet.core.params import RobotProfile
+from fleet.core.step import integrate_wheels
 from fleet.core.wire import Pose
 from fleet.io.settings import Settings
 from robot_agent.clock import Clock, MonotonicClock
@@ -63,18 +64,11 @@ class SimDrive:
         self._t = now
         if elapsed <= 0.0 or (self.right == 0.0 and self.left == 0.0):
             return now
-        u, omega = body_velocities(
-            self.right, self.left, self.profile.wheel_radius, self.profile.half_axle
-        )
-        u_f, w_f = float(u), float(omega)
         steps = min(math.ceil(elapsed / self.max_step - 1e-9), MAX_SUBSTEPS)
-        dt = elapsed / steps
-        x, y, theta = self.x, self.y, self.theta
-        for _ in range(steps):  # forward Euler on Eq. (3), as fleet.core.simulate
-            x += u_f * math.cos(theta) * dt
-            y += u_f * math.sin(theta) * dt
-            theta += w_f * dt
-        self.x, self.y, self.theta = x, y, theta
+        self.x, self.y, self.theta = integrate_wheels(
+            self.x, self.y, self.theta, self.right, self.left,
+            self.profile.wheel_radius, self.profile.half_axle, elapsed / steps, steps,
+        )  # fmt: skip
         return now
 
     @property

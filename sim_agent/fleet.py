@@ -3,7 +3,8 @@
 Every robot is a full :class:`~robot_agent.agent.RobotAgent` (own publisher, liveliness
 token, assignment subscriber) over a :class:`~sim_agent.drive.SimDrive`; they share one
 :class:`~robot_agent.world.WorldView` (peer states decoded once) and one control thread
-that ticks them all at the control rate on a common stepped clock (lockstep simulation).
+that ticks them all at the control rate on a common stepped clock (lockstep simulation:
+all robots sense their poses of time t, then all act, as in the batch simulator).
 
 Spawn layouts (:func:`spawn_layout`): ``random`` (uniform in the yard, kept apart, seeded),
 ``grid`` (rows centred on the origin), or a JSON file ``[{"id", "x", "y", "theta"}, ...]``.
@@ -184,9 +185,13 @@ class SimFleet:
         return self
 
     def tick(self) -> None:
-        """One control period: every agent ticks at sim time t, then t += period."""
+        """One control period in two phases: every agent senses its pose at sim time t
+        (peers see it at once), then every agent acts; then t += period. So each robot
+        decides on all its peers' poses of time t, as in the batch simulator."""
         for agent in self.agents:
-            agent.tick()
+            agent.sense()
+        for agent in self.agents:
+            agent.act()
         self.clock.advance(self.period)
 
     def _slices(self) -> list[list[RobotAgent]]:
@@ -196,9 +201,9 @@ class SimFleet:
     def run(self, stop: threading.Event | None = None) -> None:
         """Tick every agent each control period until ``stop`` (or :meth:`close`).
 
-        Large fleets tick in slices spread evenly over the period (every agent still ticks
-        at the same simulated time t), so their states leave as a steady stream, not one
-        burst per period.
+        Every period starts with all agents sensing (see :meth:`tick`); large fleets then act
+        in slices spread evenly over the period (every agent still decides at the same
+        simulated time t), so their states leave as a steady stream, not one burst per period.
         """
         self.open()
         event = stop or self._stop
@@ -207,8 +212,11 @@ class SimFleet:
 
         def step() -> None:
             nonlocal position
+            if position == 0:
+                for agent in self.agents:
+                    agent.sense()
             for agent in slices[position]:
-                agent.tick()
+                agent.act()
             position += 1
             if position == len(slices):
                 position = 0

@@ -15,6 +15,18 @@ hypothesis_settings.register_profile("parkfleet", deadline=None, print_blob=True
 hypothesis_settings.load_profile("parkfleet")
 
 
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Compile the control step once (numba's on-disk cache) before any test starts a
+    ``parkfleet`` child: on a fresh clone every child would otherwise compile it for
+    itself, and under load that takes longer than the children's start-up waits."""
+    from fleet.core.params import Gains
+    from fleet.core.simulate import BatchProblem, simulate
+
+    simulate(
+        BatchProblem.build((1.0, 0.0, 0.0), (0.0, 0.0, 0.0), Gains(kx=1, ky=1, ktheta=1), "cw")
+    )
+
+
 @pytest.fixture
 def router_endpoint() -> Iterator[str]:
     """A Zenoh router listening on ``tcp/127.0.0.1:<free port>``; yields its endpoint."""

@@ -4,6 +4,7 @@ The fleet service records the task's robot as its states arrive (``FleetService.
 irregular samples on the service's wall clock. They are resampled onto a uniform time grid
 (at most :data:`MAX_STEPS` steps) for :func:`fleet.paper.plotting.plot_trajectory`, which draws
 the path with oriented triangles as in the paper's figures, and u, omega over time.
+Images are cached and renders rate-limited (:mod:`api.plot_cache`): 429 when over the rate.
 """
 
 from __future__ import annotations
@@ -13,9 +14,11 @@ from typing import Annotated
 
 import numpy as np
 import numpy.typing as npt
-from fastapi import APIRouter, HTTPException, Path, Response, status
+from fastapi import APIRouter, HTTPException, Path, Request, Response, status
 
 from api.deps import ServiceDep
+from api.errors import retry_later
+from api.plot_cache import PlotCache, RenderLimited
 from api.schemas import ErrorOut
 
 router = APIRouter(prefix="/tasks", tags=["tasks"])
@@ -62,10 +65,13 @@ def resample(
         200: {"content": {"image/png": {}}, "description": "path and control signals"},
         404: {"model": ErrorOut, "description": "unknown task"},
         409: {"model": ErrorOut, "description": "no recorded path (yet, or any more)"},
+        429: {"model": ErrorOut, "description": "too many plots rendered lately (Retry-After)"},
     },
 )
 def task_plot(
-    task_id: Annotated[str, Path(min_length=1, max_length=200)], service: ServiceDep
+    task_id: Annotated[str, Path(min_length=1, max_length=200)],
+    service: ServiceDep,
+    request: Request,
 ) -> Response:
     """PNG of the task robot's recorded path (oriented triangles) and its u, ω over time.
 
@@ -78,20 +84,33 @@ def task_plot(
 
     task = service.task(task_id)  # 404 when unknown
     samples = service.path(task_id)
-    try:
-        poses, controls, dt = resample(samples)
-    except ValueError:
-        raise HTTPException(
-            status.HTTP_409_CONFLICT,
-            f"task {task_id} has no recorded path ({task.status.value}): a path is recorded "
-            "while a robot drives the task, and only for the most recent tasks",
-        ) from None
-    goal = task.request.goal
-    law = f"law {task.law}, {_EQUATION[task.law]}" if task.law else "law not chosen"
-    title = f"task {task.id[:8]} · {task.robot_id or 'no robot'}\n{law} · {task.status.value}"
-    fig = plot_trajectory(poses, controls, dt, [goal.x, goal.y, goal.theta], title)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100)
-    return Response(
-        buffer.getvalue(), media_type="image/png", headers={"Cache-Control": "no-store"}
-    )
+    plots: PlotCache = request.app.state.plots
+    # What the image shows: the task's title fields and the path so far.
+    key = (task.id, task.status, task.law, task.robot_id, len(samples), tuple(samples[-1:]))
+    image = plots.get(key)
+    if image is None:
+        try:
+            poses, controls, dt = resample(samples)
+        except ValueError:
+            raise HTTPException(
+                status.HTTP_409_CONFLICT,
+                f"task {task_id} has no recorded path ({task.status.value}): a path is "
+                "recorded while a robot drives the task, and only for the most recent tasks",
+            ) from None
+        goal = task.request.goal
+        law = f"law {task.law}, {_EQUATION[task.law]}" if task.law else "law not chosen"
+        title = f"task {task.id[:8]} · {task.robot_id or 'no robot'}\n{law} · {task.status.value}"
+
+        def draw() -> bytes:
+            fig = plot_trajectory(poses, controls, dt, [goal.x, goal.y, goal.theta], title)
+            buffer = io.BytesIO()
+            fig.savefig(buffer, format="png", dpi=100)
+            return buffer.getvalue()
+
+        try:
+            image = plots.render(key, draw)
+        except RenderLimited as exc:
+            raise retry_later(
+                status.HTTP_429_TOO_MANY_REQUESTS, str(exc), exc.retry_after
+            ) from None
+    return Response(image, media_type="image/png", headers={"Cache-Control": "no-store"})

@@ -2,22 +2,30 @@
 
 Handlers are plain ``def`` on purpose: the service may write SQLite, so FastAPI runs them
 in its thread pool instead of on the event loop. Domain errors map to status codes in
-``api.errors``.
+``api.errors``. The list is paged in SQL (``TaskStore.list``): at most ``limit`` tasks
+(``api_tasks_page_max`` at most), the next page named by the ``Link: <…>; rel="next"``
+header, so a listing costs the same with ten tasks stored or ten million.
 """
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
-from fastapi import APIRouter, Path, Query, status
+from fastapi import APIRouter, Path, Query, Request, Response, status
+from fastapi.exceptions import RequestValidationError
 
-from api.deps import Authorized, IdempotencyKey, ServiceDep, TaskBody
+from api.deps import Authorized, IdempotencyKey, ServiceDep, SettingsDep, TaskBody, TaskStoreDep
+from api.paging import decode_cursor, encode_cursor
 from api.schemas import ErrorOut, PathPointOut, TaskEventOut, TaskOut
 from fleet.core.tasks import TaskStatus
+from fleet.service.store import TaskCursor
 
 router = APIRouter(prefix="/tasks", tags=["tasks"])
 
 TaskId = Annotated[str, Path(min_length=1, max_length=200)]
+
+#: Tasks in a page when the client does not say (never more than ``api_tasks_page_max``).
+DEFAULT_PAGE = 100
 
 
 @router.post(
@@ -45,18 +53,58 @@ def submit_task(
     )
 
 
-@router.get("")
+@router.get(
+    "",
+    responses={
+        200: {
+            "description": "a page of tasks; when more follow, a `Link` header names the "
+            'next page: `<URL>; rel="next"`',
+        },
+    },
+)
 def list_tasks(
-    service: ServiceDep,
+    request: Request,
+    response: Response,
+    tasks: TaskStoreDep,
+    settings: SettingsDep,
     status: TaskStatus | None = None,
     robot_id: Annotated[str | None, Query(max_length=200)] = None,
-    limit: Annotated[int | None, Query(ge=1, le=100_000, description="newest N")] = None,
+    order: Annotated[
+        Literal["oldest", "newest"], Query(description="oldest first (default) or newest first")
+    ] = "oldest",
+    limit: Annotated[
+        int | None,
+        Query(ge=1, description=f"page size (default {DEFAULT_PAGE}, at most api_tasks_page_max)"),
+    ] = None,
+    cursor: Annotated[
+        str | None, Query(max_length=512, description="the next page, from the Link header")
+    ] = None,
 ) -> list[TaskOut]:
-    """Tasks, oldest first, optionally filtered by status and (assigned) robot."""
-    tasks = sorted(service.tasks(status, robot_id), key=lambda t: (t.created_at, t.id))
-    if limit is not None:
-        tasks = tasks[-limit:]
-    return [TaskOut.of(task) for task in tasks]
+    """A page of tasks in creation order, optionally filtered by status and robot (the
+    assigned one, else the one asked for)."""
+    page_max = settings.api_tasks_page_max
+    if limit is not None and limit > page_max:
+        raise RequestValidationError(
+            [{"type": "less_than_equal", "loc": ("query", "limit"),
+              "msg": f"at most {page_max} tasks a page (api_tasks_page_max)"}]
+        )  # fmt: skip
+    page = min(limit or DEFAULT_PAGE, page_max)
+    after: TaskCursor | None = None
+    if cursor is not None:
+        try:
+            after = decode_cursor(cursor)
+        except ValueError as exc:
+            raise RequestValidationError(
+                [{"type": "value_error", "loc": ("query", "cursor"), "msg": str(exc)}]
+            ) from None
+    found = tasks.list(
+        status, robot_id, after=after, limit=page + 1, newest_first=order == "newest"
+    )
+    if len(found) > page:  # one more than the page: there is a next one
+        found = found[:page]
+        following = request.url.include_query_params(cursor=encode_cursor(found[-1]), limit=page)
+        response.headers["Link"] = f'<{following}>; rel="next"'
+    return [TaskOut.of(task) for task in found]
 
 
 @router.get("/{task_id}", responses={404: {"model": ErrorOut}})

@@ -62,7 +62,7 @@ export function idempotencyKey() {
 export const api = {
   config: () => request("GET", "config"),
   robots: () => request("GET", "robots"),
-  tasks: (limit) => request("GET", `tasks?limit=${limit}`),
+  tasks: (limit) => request("GET", `tasks?order=newest&limit=${limit}`), // the newest `limit`
   obstacles: () => request("GET", "obstacles"),
   submitTask: (body, token, key) =>
     request("POST", "tasks", { body, token, headers: { "Idempotency-Key": key } }),

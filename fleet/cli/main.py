@@ -17,6 +17,7 @@ from collections.abc import Sequence
 COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.reproduce",
     "fleet.cli.plot",
+    "fleet.cli.tune",
     "fleet.cli.router",
     "fleet.cli.agent",
     "fleet.cli.sim",
@@ -29,6 +30,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.bench_fleet",
     "fleet.cli.bench_estop",
     "fleet.cli.bench_on_state",
+    "fleet.cli.bench_soak",
 )
 
 

@@ -2,8 +2,10 @@
 
 - :mod:`~fleet.core.types`: shared type names (``Law``, ``Posture``, arrays).
 - :mod:`~fleet.core.params`: validated gains, tolerances, robot profile, avoidance.
-- :mod:`~fleet.core.control`: the paper's laws (17)/(20), Eq. (5) error, Eq. (27)
-  repulsion, wheel speeds and saturation (Eq. 2), Lyapunov functions.
+- :mod:`~fleet.core.step`: THE closed-loop control step, compiled (numba): error (5),
+  laws (17)/(20), Eq. (27) repulsion, saturation (Eq. 2), contact guard, Euler, stop rule;
+  run by the agents, the simulated drive and the batch simulator.
+- :mod:`~fleet.core.control`: law names, Eq. (2) on arrays, Lyapunov functions.
 - :mod:`~fleet.core.simulate`: the batch closed-loop simulator (N robots at once).
 - :mod:`~fleet.core.reference`: the plain-Python reference loop (test oracle).
 - :mod:`~fleet.core.wire`: Zenoh key expressions and the versioned JSON messages.
@@ -12,7 +14,7 @@
 - :mod:`~fleet.core.assignment`: optimal assignment of tasks to robots.
 - :mod:`~fleet.core.direction`: cw/ccw choice by closed-loop fleet rollouts.
 
-Submodules are imported explicitly (``from fleet.core.control import ccw_law``).
+Submodules are imported explicitly (``from fleet.core.step import step_robot``).
 """
 
 __all__: list[str] = []

@@ -1,12 +1,15 @@
 """Batch closed-loop simulator: N unicycle robots under laws (17)/(20) at once.
 
-Forward Euler on the kinematics of Eq. (3) at ``dt`` (0.01 s in the paper). Each robot
-has its own goal, gains, law, tolerance and wheel limits; static obstacles and, optionally,
-the other robots act through the repulsion of Eq. (27).
+Every step of every robot is the one compiled control step (:mod:`fleet.core.step`, the
+code the robot agents run): forward Euler on the kinematics of Eq. (3) at ``dt`` (0.01 s in
+the paper). Each robot has its own goal, gains, law, tolerance, wheel limits and body
+radius; static obstacles and, optionally, the other robots act through the repulsion of
+Eq. (27), and the other robots through the contact guard.
 
 Stop rule (DESIGN.md): a robot is done at the first step k whose *pre-step* error is within
-tolerance (||(x_e, y_e)|| < tol_position and |theta_e| < tol_heading). That step is still
-applied and counted, so its time is (k + 1) dt; afterwards the robot stands still.
+tolerance (x_e^2 + y_e^2 < tol_position^2 and |theta_e| < tol_heading). That step is still
+applied and counted, so its time is (k + 1) dt; afterwards the robot stands still (and
+still acts on its peers).
 
 Metrics per robot: control effort, Eq. (25), int(|u| + |omega|) dt; travelled distance
 int |u| dt; time.
@@ -20,13 +23,25 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from fleet.core.control import DEFAULT_MIN_X_OA, TWO_PI, is_cw, obstacle_repulsion
+from fleet.core.control import DEFAULT_MIN_X_OA, is_cw
 from fleet.core.params import DEFAULT_TOLERANCE, UNLIMITED, Gains, RobotProfile, Tolerance
+from fleet.core.step import (
+    DISTANCE,
+    EFFORT,
+    RECORD_COLUMNS,
+    Interaction,
+    Schedule,
+    advance_batch,
+    lower_min_separation,
+    robot_params,
+)
 from fleet.core.types import BoolArray, FloatArray, Law
 
 PAPER_DT = 0.01
 #: Tolerance [s] on the end of a start delay (as ``robot_agent.logic.DELAY_EPS``).
 DELAY_EPS = 1e-6
+#: Recorded rows per compiled call when recording (bounds the buffers to rows x N x 8 floats).
+RECORD_CHUNK_ROWS = 256
 
 
 def _column(values: npt.ArrayLike, n: int, name: str) -> FloatArray:
@@ -60,10 +75,28 @@ class BatchProblem:
     #: (N,) [s] each robot stands still (u = omega = 0) while t < start_delay - DELAY_EPS,
     #: like an agent in its start delay; arrival is checked throughout. None: no delays.
     start_delay: FloatArray | None = None
+    #: (N,) body radius [m] of the contact guard (2 radius + min_x_oa); None: 0 m.
+    body_radius: FloatArray | None = None
 
     @property
     def size(self) -> int:
         return int(self.start.shape[0])
+
+    def params(self) -> FloatArray:
+        """Parameter rows of :mod:`fleet.core.step` (N, ``ROBOT_COLUMNS``)."""
+        n = self.size
+        return robot_params(
+            self.goal,
+            self.gains,
+            self.cw.astype(np.float64),
+            self.tol_position,
+            self.tol_heading,
+            self.wheel_radius,
+            self.half_axle,
+            self.max_wheel_speed,
+            np.zeros(n) if self.body_radius is None else self.body_radius,
+            None if self.start_delay is None else self.start_delay - DELAY_EPS,
+        )
 
     @classmethod
     def build(
@@ -119,6 +152,7 @@ class BatchProblem:
             peer_radius=float(peer_radius),
             min_x_oa=float(min_x_oa),
             start_delay=None if start_delay is None else _column(start_delay, n, "start_delay"),
+            body_radius=_column([p.radius for p in profs], n, "body_radius"),
         )
 
 
@@ -159,142 +193,9 @@ class SimResult:
         return float(self.min_pair_distance.min())
 
 
-class _Workspace:
-    """Preallocated per-step buffers so the hot loop allocates little."""
-
-    def __init__(self, n: int) -> None:
-        self.c = np.empty(n)
-        self.s = np.empty(n)
-        self.dx = np.empty(n)
-        self.dy = np.empty(n)
-        self.tmp = np.empty(n)
-        self.x_e = np.empty(n)
-        self.y_e = np.empty(n)
-        self.theta_e = np.empty(n)
-        self.y_e_sq = np.empty(n)
-        self.abs_theta_e = np.empty(n)
-        self.mag = np.empty(n)
-        self.u = np.empty(n)
-        self.omega = np.empty(n)
-        self.abs_u = np.empty(n)
-        self.inside = np.empty(n, dtype=bool)
-        self.mask = np.empty(n, dtype=bool)
-
-
-def _wrap_heading_into(theta: FloatArray, ws: _Workspace) -> None:
-    """(11.a): ``theta`` mapped to [0, 2pi) into ``ws.tmp``, bit for bit ``wrap_to_2pi``.
-
-    ``np.mod`` costs as much as a sine, so the remainder is formed directly for
-    theta in [-4pi, 6pi) (robots turn a few times at most): with k = floor(theta / 2pi)
-    clipped to [-2, 2], k 2pi is exact and theta - k 2pi is exact for k >= 0 (Sterbenz)
-    and, for k < 0, the single rounding that numpy's remainder also makes (exact ``fmod``,
-    then one addition of 2pi). A k misjudged by the rounded division lands outside
-    [0, 2pi], as does any other angle or NaN: those entries take ``np.mod``.
-    """
-    np.divide(theta, TWO_PI, out=ws.tmp)
-    np.floor(ws.tmp, out=ws.tmp)
-    np.clip(ws.tmp, -2.0, 2.0, out=ws.tmp)
-    ws.tmp *= TWO_PI
-    np.subtract(theta, ws.tmp, out=ws.tmp)
-    low, high = ws.tmp.min(), ws.tmp.max()
-    if not (low >= 0.0 and high <= TWO_PI):
-        np.greater_equal(ws.tmp, 0.0, out=ws.mask)  # False for NaN
-        np.logical_not(ws.mask, out=ws.mask)
-        ws.mask |= ws.tmp > TWO_PI
-        ws.tmp[ws.mask] = np.mod(theta[ws.mask], TWO_PI)
-        high = ws.tmp.max()
-    if not high < TWO_PI:  # np.mod can round a tiny negative angle up to exactly 2pi
-        np.greater_equal(ws.tmp, TWO_PI, out=ws.mask)
-        ws.tmp[ws.mask] = 0.0
-
-
-def _pose_error_into(
-    x: FloatArray,
-    y: FloatArray,
-    theta: FloatArray,
-    goal_x: FloatArray,
-    goal_y: FloatArray,
-    goal_theta_wrapped: FloatArray,
-    cw: BoolArray,
-    ws: _Workspace,
-) -> None:
-    """Eq. (5) with the wraps (11.a)/(11.b)/(21), written into ``ws.x_e/y_e/theta_e``.
-
-    Same arithmetic as :func:`fleet.core.control.pose_error`; property tests hold them equal.
-    Conditional +-2pi shifts are done as ``+= mask * 2pi`` (adding 0.0 is exact), which is
-    several times cheaper than ufuncs with ``where=``; the rare rounding guards run only
-    when a reduction shows they are needed.
-    """
-    np.cos(theta, out=ws.c)
-    np.sin(theta, out=ws.s)
-    np.subtract(goal_x, x, out=ws.dx)
-    np.subtract(goal_y, y, out=ws.dy)
-    np.multiply(ws.c, ws.dx, out=ws.x_e)
-    np.multiply(ws.s, ws.dy, out=ws.tmp)
-    ws.x_e += ws.tmp
-    np.multiply(ws.c, ws.dy, out=ws.y_e)
-    np.multiply(ws.s, ws.dx, out=ws.tmp)
-    ws.y_e -= ws.tmp
-    # (11.a) on the robot heading; the goal heading was wrapped once up front.
-    _wrap_heading_into(theta, ws)
-    te = ws.theta_e
-    np.subtract(goal_theta_wrapped, ws.tmp, out=te)
-    np.less(te, 0.0, out=ws.mask)
-    np.multiply(ws.mask, TWO_PI, out=ws.tmp)
-    te += ws.tmp  # (11.b)
-    if te.max() >= TWO_PI:  # -1e-300 + 2pi rounds to 2pi: that error is really zero
-        np.greater_equal(te, TWO_PI, out=ws.mask)
-        te[ws.mask] = 0.0
-    np.greater(te, 0.0, out=ws.mask)
-    ws.mask &= cw
-    np.multiply(ws.mask, TWO_PI, out=ws.tmp)
-    te -= ws.tmp  # (21)
-    if te.min() <= -TWO_PI:
-        np.less_equal(te, -TWO_PI, out=ws.mask)
-        te[ws.mask] = 0.0
-
-
-def _law_into(
-    kx: FloatArray, signed_ky: FloatArray, signed_ktheta: FloatArray, ws: _Workspace
-) -> None:
-    """Laws (17)/(20) into ``ws.u``/``ws.omega``; same arithmetic as ``posture_law``.
-
-    Expects ``ws.y_e_sq`` = y_e^2 and ``ws.abs_theta_e`` = |theta_e| (shared with the stop
-    rule). ``signed_ky``/``signed_ktheta`` carry the law's sign (negative for cw): rounding
-    is symmetric, so (-a)(b) + (-c)(d) is bit for bit -(ab + cd).
-    """
-    np.multiply(kx, ws.x_e, out=ws.u)
-    np.multiply(ws.y_e_sq, signed_ky, out=ws.mag)
-    np.multiply(ws.theta_e, ws.theta_e, out=ws.tmp)
-    ws.tmp *= signed_ktheta
-    ws.mag += ws.tmp
-    np.negative(ws.abs_theta_e, out=ws.tmp)
-    np.exp(ws.tmp, out=ws.tmp)
-    np.multiply(ws.mag, ws.tmp, out=ws.omega)
-
-
-def _saturate_into(
-    wheel_radius: FloatArray, half_axle: FloatArray, max_wheel_speed: FloatArray, ws: _Workspace
-) -> None:
-    """``control.saturate`` in place on ``ws.u``/``ws.omega`` (bit for bit; x * 1.0 == x)."""
-    right, left, peak = ws.dx, ws.dy, ws.tmp
-    np.multiply(half_axle, ws.omega, out=peak)
-    np.add(ws.u, peak, out=right)
-    right /= wheel_radius
-    np.subtract(ws.u, peak, out=left)
-    left /= wheel_radius
-    np.abs(right, out=right)
-    np.abs(left, out=left)
-    np.maximum(right, left, out=peak)
-    np.greater(peak, max_wheel_speed, out=ws.mask)
-    if not ws.mask.any():
-        return
-    np.maximum(peak, 1e-300, out=peak)
-    np.divide(max_wheel_speed, peak, out=peak)
-    np.logical_not(ws.mask, out=ws.mask)
-    peak[ws.mask] = 1.0
-    ws.u *= peak
-    ws.omega *= peak
+def _recorded_steps(start: int, end: int, every: int) -> int:
+    """How many steps k in [start, end) have k % every == 0."""
+    return -(-end // every) - -(-start // every)
 
 
 def simulate(
@@ -308,13 +209,15 @@ def simulate(
 ) -> SimResult:
     """Simulate the closed-loop batch until every robot is done or ``max_time`` [s] passes.
 
-    ``record`` keeps poses, controls and errors of every ``record_every``-th step (memory
-    T/record_every x N; the final pose is always kept); ``track_separation``
+    Every step of every robot is :func:`fleet.core.step.robot_step`, run compiled by
+    :func:`fleet.core.step.advance_batch` (many steps per call, on both cores for large
+    batches). ``record`` keeps poses, controls and errors of every ``record_every``-th step
+    (memory T/record_every x N; the final pose is always kept); ``track_separation``
     keeps the minimum centre distance of every pair over the run (cost N^2 per step).
     ``group`` > 0 splits the batch into independent consecutive blocks of ``group`` rows
-    (e.g. copies of one scene): peers repel, and separations are tracked, only within a
-    block (cost N x group per step instead of N^2); pairs across blocks get an infinite
-    ``min_pair_distance``. Static obstacles still act on every row.
+    (e.g. copies of one scene): peers repel, guard against contact and are tracked only
+    within a block (cost N x group per step instead of N^2); pairs across blocks get an
+    infinite ``min_pair_distance``. Static obstacles still act on every row.
     """
     if dt <= 0 or not np.isfinite(dt):
         raise ValueError("dt must be a positive finite number of seconds")
@@ -323,155 +226,65 @@ def simulate(
     n = problem.size
     if group < 0 or (group > 0 and n % group != 0):
         raise ValueError("group must divide the batch size")
-    g = group if group > 0 else n
-    blocks = n // g if g > 0 else 0
-    x = problem.start[:, 0].copy()
-    y = problem.start[:, 1].copy()
-    theta = problem.start[:, 2].copy()
-    goal = problem.goal
-    goal_x = np.ascontiguousarray(goal[:, 0])
-    goal_y = np.ascontiguousarray(goal[:, 1])
-    goal_theta_wrapped = np.mod(goal[:, 2], TWO_PI)
-    goal_theta_wrapped[goal_theta_wrapped >= TWO_PI] = 0.0
-    cw = problem.cw
-    # Contiguous gain columns; the law's sign folded into the omega gains (see _law_into).
-    law_sign = np.where(cw, -1.0, 1.0)
-    kx = np.ascontiguousarray(problem.gains[:, 0])
-    signed_ky = problem.gains[:, 1] * law_sign
-    signed_ktheta = problem.gains[:, 2] * law_sign
-    tol_pos_sq = problem.tol_position**2
-    limited = bool(np.isfinite(problem.max_wheel_speed).any())
-    has_obstacles = problem.k_avoid > 0 and problem.obstacles.shape[0] > 0
-    peers = problem.k_avoid > 0 and problem.peer_radius > 0 and n > 1
-    delay_end = None
-    if problem.start_delay is not None and bool((problem.start_delay > 0).any()):
-        delay_end = problem.start_delay - DELAY_EPS
-    waiting = np.empty(n, dtype=bool)
-
-    ws = _Workspace(n)
-    active = np.ones(n, dtype=bool)
-    all_active = n > 0
-    finished_now = np.empty(n, dtype=bool)
+    g = group if group > 0 else max(n, 1)
+    blocks = n // g
+    pose = np.array(problem.start.T, order="C")  # a copy: the problem stays as built
+    params = problem.params()
     done_step = np.full(n, -1, dtype=np.int64)
-    effort = np.zeros(n)
-    distance = np.zeros(n)
-    peer_radius = np.zeros((0, 0))
-    if peers:  # (N, group): only when peers repel, never for large batches without them
-        peer_radius = np.full((blocks, g, g), problem.peer_radius)
-        peer_radius[:, np.arange(g), np.arange(g)] = 0.0
-        peer_radius = peer_radius.reshape(n, g)
-    min_pair = np.full((blocks, g, g), np.inf) if track_separation else None
-    poses: list[FloatArray] = []
-    controls: list[FloatArray] = []
-    errors: list[FloatArray] = []
+    metrics = np.zeros((2, n))
+    obstacles = np.zeros((3, 0))
+    if problem.k_avoid > 0 and problem.obstacles.shape[0] > 0:
+        obstacles = np.ascontiguousarray(
+            np.vstack([problem.obstacles.T, problem.obstacle_radius[None, :]])
+        )
+    interaction = Interaction(g, problem.k_avoid, problem.peer_radius, problem.min_x_oa)
+    min_pair_sq = np.full((blocks, g, g), np.inf) if track_separation else None
+    recorded: list[FloatArray] = []
 
     max_steps = round(max_time / dt)
+    # Without recording, one call runs to the end; recording goes in chunks of bounded memory.
+    span = RECORD_CHUNK_ROWS * record_every if record else max_steps
     step = 0
-    while step < max_steps and (all_active or active.any()):
-        if min_pair is not None:
-            xb, yb = x.reshape(blocks, g), y.reshape(blocks, g)
-            d = np.hypot(xb[:, :, None] - xb[:, None, :], yb[:, :, None] - yb[:, None, :])
-            np.minimum(min_pair, d, out=min_pair)
-        _pose_error_into(x, y, theta, goal_x, goal_y, goal_theta_wrapped, cw, ws)
-        # Stop rule: pre-step error inside tolerance -> done at this step (still applied).
-        np.multiply(ws.y_e, ws.y_e, out=ws.y_e_sq)
-        np.multiply(ws.x_e, ws.x_e, out=ws.tmp)
-        ws.tmp += ws.y_e_sq
-        np.less(ws.tmp, tol_pos_sq, out=finished_now)
-        np.abs(ws.theta_e, out=ws.abs_theta_e)
-        np.less(ws.abs_theta_e, problem.tol_heading, out=ws.inside)
-        finished_now &= ws.inside
-        finished_now &= active
-        any_finished = bool(finished_now.any())
-        if any_finished:
-            done_step[finished_now] = step
-
-        _law_into(kx, signed_ky, signed_ktheta, ws)
-        if has_obstacles or peers:
-            pose = np.stack([x, y, theta], axis=1)
-            if has_obstacles:
-                ws.u += obstacle_repulsion(
-                    pose,
-                    problem.obstacles,
-                    problem.obstacle_radius,
-                    problem.k_avoid,
-                    problem.min_x_oa,
-                )
-            if peers:
-                xy = np.stack([x, y], axis=1).reshape(blocks, 1, g, 2)
-                positions = np.broadcast_to(xy, (blocks, g, g, 2)).reshape(n, g, 2)
-                ws.u += obstacle_repulsion(
-                    pose, positions, peer_radius, problem.k_avoid, problem.min_x_oa
-                )
-        if limited:
-            _saturate_into(problem.wheel_radius, problem.half_axle, problem.max_wheel_speed, ws)
-        if not all_active:
-            np.logical_not(active, out=ws.mask)
-            ws.u[ws.mask] = 0.0
-            ws.omega[ws.mask] = 0.0
-        if delay_end is not None:  # robots in their start delay stand still
-            np.less(step * dt, delay_end, out=waiting)
-            if waiting.any():
-                ws.u[waiting] = 0.0
-                ws.omega[waiting] = 0.0
-            else:
-                delay_end = None
-
-        if record and step % record_every == 0:
-            poses.append(np.stack([x, y, theta], axis=1))
-            controls.append(np.stack([ws.u, ws.omega], axis=1))
-            errors.append(np.stack([ws.x_e, ws.y_e, ws.theta_e], axis=1))
-
-        # Metrics: Eq. (25) effort int(|u| + |omega|) dt, distance int |u| dt.
-        np.abs(ws.u, out=ws.abs_u)
-        np.abs(ws.omega, out=ws.tmp)
-        ws.tmp += ws.abs_u
-        ws.tmp *= dt
-        effort += ws.tmp
-        ws.abs_u *= dt
-        distance += ws.abs_u
-        # Forward Euler on Eq. (3).
-        ws.c *= ws.u
-        ws.c *= dt
-        x += ws.c
-        ws.s *= ws.u
-        ws.s *= dt
-        y += ws.s
-        ws.omega *= dt
-        theta += ws.omega
-
-        if any_finished:
-            active &= ~finished_now
-            all_active = False
-        step += 1
+    while step < max_steps and (done_step < 0).any():
+        steps = min(span, max_steps - step)
+        buffer = None
+        if record:
+            rows = _recorded_steps(step, step + steps, record_every)
+            buffer = np.empty((rows, n, RECORD_COLUMNS))
+        taken = advance_batch(
+            pose, params, done_step, metrics, obstacles, interaction,
+            Schedule(dt, step, steps, record_every), buffer, min_pair_sq,
+        )  # fmt: skip
+        if buffer is not None:  # rows after the last robot was done are not part of the run
+            recorded.append(buffer[: _recorded_steps(step, step + taken, record_every)])
+        step += taken
+        if taken < steps:
+            break
 
     min_pair_full = None
-    if min_pair is not None:
-        xb, yb = x.reshape(blocks, g), y.reshape(blocks, g)
-        d = np.hypot(xb[:, :, None] - xb[:, None, :], yb[:, :, None] - yb[:, None, :])
-        np.minimum(min_pair, d, out=min_pair)
-        if blocks == 1:
-            min_pair_full = min_pair.reshape(n, n)
-        else:
-            min_pair_full = np.full((n, n), np.inf)
-            for b in range(blocks):
-                min_pair_full[b * g : (b + 1) * g, b * g : (b + 1) * g] = min_pair[b]
+    if min_pair_sq is not None:
+        lower_min_separation(pose, g, min_pair_sq, 0, blocks)
+        min_pair = np.sqrt(min_pair_sq)
+        min_pair_full = np.full((n, n), np.inf)
+        for b in range(blocks):
+            min_pair_full[b * g : (b + 1) * g, b * g : (b + 1) * g] = min_pair[b]
         np.fill_diagonal(min_pair_full, np.inf)
     done = done_step >= 0
+    final_pose = np.ascontiguousarray(pose.T)
     trajectory = None
     if record:
-        poses.append(np.stack([x, y, theta], axis=1))
+        steps_recorded = np.concatenate([*recorded, np.zeros((0, n, RECORD_COLUMNS))])
         trajectory = Trajectory(
-            poses=np.asarray(poses),
-            controls=np.asarray(controls).reshape(-1, n, 2),
-            errors=np.asarray(errors).reshape(-1, n, 3),
+            poses=np.concatenate([steps_recorded[..., 0:3], final_pose[None]]),
+            controls=steps_recorded[..., 3:5],
+            errors=steps_recorded[..., 5:8],
         )
     return SimResult(
         done=done,
         time=np.where(done, (done_step + 1) * dt, np.nan),
-        control_effort=effort,
-        distance=distance,
-        final_pose=np.stack([x, y, theta], axis=1),
+        control_effort=metrics[EFFORT],
+        distance=metrics[DISTANCE],
+        final_pose=final_pose,
         steps=step,
         min_pair_distance=min_pair_full,
         trajectory=trajectory,

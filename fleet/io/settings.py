@@ -142,6 +142,14 @@ class Settings(BaseSettings):
     api_host: str = "127.0.0.1"
     api_port: Annotated[int, Field(ge=0, le=65535)] = 8000
     api_token: SecretStr | None = None
+    # API limits (README "REST API"): what one client can make the server hold or do.
+    api_max_body_bytes: Annotated[int, Field(ge=1024)] = 262_144  # request body, 413 beyond
+    api_tasks_page_max: Annotated[int, Field(ge=1, le=10_000)] = 1000  # GET /tasks page size
+    api_sse_max_clients: Annotated[int, Field(ge=1)] = 32  # open /events streams, 503 beyond
+    api_sse_queue_frames: Annotated[int, Field(ge=16)] = 2000  # per client; dropped beyond
+    api_plot_cache_entries: Annotated[int, Field(ge=1)] = 64  # rendered plot.png kept
+    api_plot_renders_per_s: Annotated[float, Field(gt=0)] = 2.0  # plot renders, 429 beyond
+    api_plot_render_burst: Annotated[int, Field(ge=1)] = 5  # renders allowed at once
     # Yard rectangle: x_min, x_max, y_min, y_max [m]; goals outside it are rejected.
     yard: tuple[float, float, float, float] = (-10.0, 10.0, -10.0, 10.0)
     task_timeout_s: Annotated[float, Field(gt=0)] = 120.0

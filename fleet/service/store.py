@@ -43,9 +43,15 @@ CREATE TABLE IF NOT EXISTS tasks (
     updated_at REAL NOT NULL,
     body TEXT NOT NULL
 );
-CREATE INDEX IF NOT EXISTS tasks_status ON tasks (status);
-CREATE INDEX IF NOT EXISTS tasks_robot ON tasks (robot_id);
-CREATE INDEX IF NOT EXISTS tasks_created ON tasks (created_at);
+-- Pages of the task list (``list``) walk one of these in (created_at, id) order from a
+-- cursor, so a page costs the same however many tasks are stored. They cover the
+-- single-column indexes of earlier versions, which are dropped.
+DROP INDEX IF EXISTS tasks_status;
+DROP INDEX IF EXISTS tasks_robot;
+DROP INDEX IF EXISTS tasks_created;
+CREATE INDEX IF NOT EXISTS tasks_page ON tasks (created_at, id);
+CREATE INDEX IF NOT EXISTS tasks_status_page ON tasks (status, created_at, id);
+CREATE INDEX IF NOT EXISTS tasks_robot_page ON tasks (robot_id, created_at, id);
 CREATE TABLE IF NOT EXISTS task_history (
     seq INTEGER PRIMARY KEY AUTOINCREMENT,
     task_id TEXT NOT NULL,
@@ -63,6 +69,14 @@ CREATE TABLE IF NOT EXISTS service_state (
 
 
 _T = TypeVar("_T")
+
+TaskCursor = tuple[float, str]
+"""A position in the task list: ``(created_at, id)`` of the last task of the previous page.
+Tasks are listed in ``(created_at, id)`` order (reversed for newest first)."""
+
+
+def _page_key(task: Task) -> TaskCursor:
+    return (task.created_at, task.id)
 
 
 class _Write(Generic[_T]):
@@ -92,10 +106,18 @@ class TaskStore(Protocol):
     def get(self, task_id: str) -> Task | None: ...
 
     def list(
-        self, status: TaskStatus | None = None, robot_id: str | None = None
+        self,
+        status: TaskStatus | None = None,
+        robot_id: str | None = None,
+        *,
+        after: TaskCursor | None = None,
+        limit: int | None = None,
+        newest_first: bool = False,
     ) -> builtins.list[Task]:
-        """Tasks in creation order, optionally filtered by status and by robot (the robot
-        the task is assigned to, or else the robot the request names)."""
+        """Tasks in creation order ``(created_at, id)``, oldest first (or ``newest_first``),
+        optionally filtered by status and by robot (the robot the task is assigned to, or
+        else the robot the request names). A page: at most ``limit`` tasks, those that come
+        after the cursor ``after`` in that order."""
         ...
 
     def find_by_idempotency_key(self, key: str) -> Task | None: ...
@@ -157,15 +179,27 @@ class MemoryTaskStore:
             return None if task is None else task.model_copy(deep=True)
 
     def list(
-        self, status: TaskStatus | None = None, robot_id: str | None = None
+        self,
+        status: TaskStatus | None = None,
+        robot_id: str | None = None,
+        *,
+        after: TaskCursor | None = None,
+        limit: int | None = None,
+        newest_first: bool = False,
     ) -> builtins.list[Task]:
         with self._lock:
-            return [
+            ordered = sorted(self._tasks.values(), key=_page_key, reverse=newest_first)
+            page = [
                 t.model_copy(deep=True)
-                for t in sorted(self._tasks.values(), key=lambda t: t.created_at)
+                for t in ordered
                 if (status is None or t.status == status)
                 and (robot_id is None or _robot_of(t) == robot_id)
+                and (
+                    after is None
+                    or (_page_key(t) < after if newest_first else _page_key(t) > after)
+                )
             ]
+        return page if limit is None else page[:limit]
 
     def find_by_idempotency_key(self, key: str) -> Task | None:
         with self._lock:
@@ -337,20 +371,33 @@ class SqliteTaskStore:
         return None if row is None else Task.model_validate_json(row[0])
 
     def list(
-        self, status: TaskStatus | None = None, robot_id: str | None = None
+        self,
+        status: TaskStatus | None = None,
+        robot_id: str | None = None,
+        *,
+        after: TaskCursor | None = None,
+        limit: int | None = None,
+        newest_first: bool = False,
     ) -> builtins.list[Task]:
+        """One indexed range scan (``tasks_*page``): a page costs the same at any depth."""
         sql = "SELECT body FROM tasks"
         where: builtins.list[str] = []
-        args: builtins.list[str] = []
+        args: builtins.list[str | float | int] = []
         if status is not None:
             where.append("status = ?")
             args.append(TaskStatus(status).value)
         if robot_id is not None:
             where.append("robot_id = ?")
             args.append(robot_id)
+        if after is not None:
+            where.append(f"(created_at, id) {'<' if newest_first else '>'} (?, ?)")
+            args += [float(after[0]), str(after[1])]
         if where:
             sql += " WHERE " + " AND ".join(where)
-        sql += " ORDER BY created_at, rowid"
+        sql += " ORDER BY created_at DESC, id DESC" if newest_first else " ORDER BY created_at, id"
+        if limit is not None:
+            sql += " LIMIT ?"
+            args.append(int(limit))
         with self._lock:
             rows = self._conn.execute(sql, args).fetchall()
         return [Task.model_validate_json(r[0]) for r in rows]

@@ -2,19 +2,25 @@
 
 from __future__ import annotations
 
-import asyncio
 import math
 import time
 
 import httpx
 import numpy as np
 import pytest
+from support import wait_for
 
+from api.plot_cache import PlotCache
+from api.rate_limit import TokenBucket
 from api.routes.dashboard import ASSETS
 from api.routes.plots import resample
+from fleet.core.tasks import TaskStatus
 from fleet.core.wire import Pose, RobotMode, RobotState
+from fleet.io.settings import Settings
 from fleet.service.bus import MemoryBus
-from tests.api.conftest import add_robot
+from fleet.service.fleet_service import FleetService
+from fleet.service.store import SqliteTaskStore
+from tests.api.conftest import add_robot, api_client
 
 pytestmark = pytest.mark.anyio
 
@@ -74,19 +80,10 @@ async def test_plot_without_a_recorded_path_is_409(client: httpx.AsyncClient) ->
     assert "no recorded path" in r.json()["detail"]
 
 
-async def _assigned(client: httpx.AsyncClient, task_id: str) -> None:
-    deadline = time.monotonic() + 10
-    while (await client.get(f"/tasks/{task_id}")).json()["status"] == "queued":
-        assert time.monotonic() < deadline, "the service never assigned the task"
-        await asyncio.sleep(0.02)
-
-
-async def test_plot_of_a_driven_task_is_a_png(client: httpx.AsyncClient, bus: MemoryBus) -> None:
-    add_robot(bus, "r1", 0.0, 0.0)
-    body = {"goal": {"x": 2.0, "y": 1.0, "theta": 1.0}, "robot_id": "r1"}
-    task_id = (await client.post("/tasks", json=body)).json()["id"]
-    await _assigned(client, task_id)
-    for k in range(1, 40):
+def drive(fleet: FleetService, bus: MemoryBus, task_id: str, steps: range) -> None:
+    """Robot r1 drives ``task_id`` once assigned: a state for each of the ``steps``."""
+    wait_for(lambda: fleet.task(task_id).status != TaskStatus.QUEUED, 30, "the task to be assigned")
+    for k in steps:
         s = k / 40
         bus.deliver_state(
             RobotState(
@@ -96,14 +93,69 @@ async def test_plot_of_a_driven_task_is_a_png(client: httpx.AsyncClient, bus: Me
                 pose=Pose(x=2.0 * s, y=1.0 * s, theta=s),
                 u=0.5,
                 omega=0.2,
-                mode=RobotMode.ARRIVED if k == 39 else RobotMode.DRIVING,
+                mode=RobotMode.DRIVING,
                 task_id=task_id,
             )
         )
+
+
+async def test_plot_of_a_driven_task_is_a_png(
+    client: httpx.AsyncClient, fleet: FleetService, bus: MemoryBus
+) -> None:
+    add_robot(bus, "r1", 0.0, 0.0)
+    body = {"goal": {"x": 2.0, "y": 1.0, "theta": 1.0}, "robot_id": "r1"}
+    task_id = (await client.post("/tasks", json=body)).json()["id"]
+    drive(fleet, bus, task_id, range(1, 40))
     r = await client.get(f"/tasks/{task_id}/plot.png")
     assert r.status_code == 200, r.text
     assert r.headers["content-type"] == "image/png"
     assert r.content.startswith(PNG_MAGIC)
+
+
+async def test_plots_are_cached_and_renders_rate_limited(
+    settings: Settings, fleet: FleetService, store: SqliteTaskStore, bus: MemoryBus
+) -> None:
+    one_render = {"api_plot_render_burst": 1, "api_plot_renders_per_s": 1e-6}
+    async for client in api_client(settings.model_copy(update=one_render), fleet, store):
+        plots: PlotCache = client._transport.app.state.plots  # type: ignore[attr-defined]
+        add_robot(bus, "r1", 0.0, 0.0)
+        body = {"goal": {"x": 2.0, "y": 1.0, "theta": 1.0}, "robot_id": "r1"}
+        task_id = (await client.post("/tasks", json=body)).json()["id"]
+        drive(fleet, bus, task_id, range(1, 21))
+        url = f"/tasks/{task_id}/plot.png"
+        first, again = await client.get(url), await client.get(url)
+        assert first.status_code == again.status_code == 200
+        assert again.content == first.content and plots.renders == 1  # the same path: cached
+        drive(fleet, bus, task_id, range(21, 31))  # the path grows: a new image, over the rate
+        limited = await client.get(url)
+        assert limited.status_code == 429
+        assert "rate-limited" in limited.json()["detail"]
+        assert int(limited.headers["retry-after"]) > 0
+        assert plots.renders == 1 and plots.refused == 1
+
+
+def test_the_plot_cache_keeps_the_most_recently_used() -> None:
+    cache = PlotCache(entries=2, rate=100.0, burst=10)
+    for key in ("a", "b"):
+        cache.render(key, key.encode)
+    assert cache.get("a") == b"a"  # "a" used: "b" is now the oldest
+    assert cache.render("c", lambda: b"c") == b"c"
+    assert (cache.get("a"), cache.get("b"), cache.get("c")) == (b"a", None, b"c")
+    assert cache.render("a", lambda: b"never drawn") == b"a"
+    assert cache.renders == 3
+
+
+def test_token_bucket_allows_bursts_then_the_rate() -> None:
+    now = [0.0]
+    bucket = TokenBucket(rate=2.0, burst=3, clock=lambda: now[0])
+    assert [bucket.take() for _ in range(3)] == [0.0, 0.0, 0.0]
+    assert bucket.take() == pytest.approx(0.5)  # empty: the next token in 1/rate
+    now[0] = 0.25
+    assert bucket.take() == pytest.approx(0.25)
+    now[0] = 0.5
+    assert bucket.take() == 0.0
+    now[0] = 100.0  # a long pause saves no more than the burst
+    assert [bucket.take() for _ in range(4)] == [0.0, 0.0, 0.0, pytest.approx(0.5)]
 
 
 def test_resample_is_uniform_and_keeps_the_ends() -> None:

@@ -1,18 +1,19 @@
-"""Server-Sent Events: snapshot, task events, per-robot coalescing, unsubscribe, shutdown."""
+"""Server-Sent Events: snapshot, task events, per-robot coalescing, unsubscribe, shutdown,
+and the bounds: clients (503 beyond), frames queued per client (slow clients dropped)."""
 
 from __future__ import annotations
 
 import asyncio
 import json
 import threading
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from typing import Any
 
+import httpx
 import pytest
 
-from api.streaming import EventHub
+from api.streaming import EventHub, TooManyClients
 from fleet.core.tasks import (
-    FleetEvent,
     RobotEvent,
     RobotStatus,
     RobotView,
@@ -21,27 +22,10 @@ from fleet.core.tasks import (
     TaskRequest,
 )
 from fleet.core.wire import Pose
+from fleet.service.fleet_service import FleetService
+from tests.api.conftest import EventSource
 
 pytestmark = pytest.mark.anyio
-
-
-class Source:
-    """Just what the hub uses of the service: listeners and a robot snapshot."""
-
-    def __init__(self, robots: list[RobotView] = []) -> None:  # noqa: B006
-        self.listeners: list[Callable[[FleetEvent], None]] = []
-        self._robots = list(robots)
-
-    def robots(self) -> list[RobotView]:
-        return self._robots
-
-    def add_listener(self, listener: Callable[[FleetEvent], None]) -> Callable[[], None]:
-        self.listeners.append(listener)
-        return lambda: self.listeners.remove(listener)
-
-    def emit(self, event: FleetEvent) -> None:
-        for listener in list(self.listeners):
-            listener(event)
 
 
 def task_event(x: float) -> TaskEvent:
@@ -54,11 +38,22 @@ def parse(frame: str) -> tuple[str, dict[str, Any]]:
     return lines["event"], json.loads(lines["data"])
 
 
-async def next_frame(stream: AsyncIterator[str]) -> str:
-    while True:
-        frame = await asyncio.wait_for(anext(stream), 5.0)
-        if not frame.startswith((":", "retry:")):
-            return frame
+class Frames:
+    """The event frames of a stream one at a time (one chunk of it may hold several)."""
+
+    def __init__(self, stream: AsyncIterator[str]) -> None:
+        self.stream = stream
+        self._held: list[str] = []
+
+    async def next(self) -> str:
+        while not self._held:
+            chunk = await asyncio.wait_for(anext(self.stream), 5.0)
+            self._held = [
+                frame + "\n\n"
+                for frame in chunk.split("\n\n")
+                if frame and not frame.startswith((":", "retry:"))
+            ]
+        return self._held.pop(0)
 
 
 def view(robot_id: str, x: float, status: RobotStatus = RobotStatus.DRIVING) -> RobotView:
@@ -66,18 +61,19 @@ def view(robot_id: str, x: float, status: RobotStatus = RobotStatus.DRIVING) -> 
 
 
 async def test_snapshot_then_task_events_from_other_threads() -> None:
-    fleet = Source([view("r1", x=1.0, status=RobotStatus.IDLE)])
+    fleet = EventSource([view("r1", x=1.0, status=RobotStatus.IDLE)])
     hub = EventHub()
     stream = hub.stream(fleet)
+    frames = Frames(stream)
     try:
         assert await anext(stream) == "retry: 2000\n\n"
-        kind, data = parse(await next_frame(stream))
+        kind, data = parse(await frames.next())
         assert (kind, data["robot_id"], data["pose"]["x"]) == ("robot", "r1", 1.0)
 
         worker = threading.Thread(target=fleet.emit, args=(task_event(2.0),))
         worker.start()
         worker.join()
-        kind, data = parse(await next_frame(stream))
+        kind, data = parse(await frames.next())
         assert kind == "task"
         assert data["status"] == "queued"
         assert data["goal"] == {"x": 2.0, "y": 0.0, "theta": 0.0}
@@ -87,9 +83,10 @@ async def test_snapshot_then_task_events_from_other_threads() -> None:
 
 
 async def test_robot_states_are_coalesced_and_the_latest_is_delivered() -> None:
-    fleet = Source()
+    fleet = EventSource()
     hub = EventHub(robot_hz=10.0)
     stream = hub.stream(fleet)
+    frames = Frames(stream)
     try:
         await anext(stream)  # retry
         listener = fleet.listeners[0]
@@ -101,20 +98,20 @@ async def test_robot_states_are_coalesced_and_the_latest_is_delivered() -> None:
         worker = threading.Thread(target=burst)
         worker.start()
         worker.join()
-        first = parse(await next_frame(stream))[1]
+        first = parse(await frames.next())[1]
         assert first["pose"]["x"] == 0.0  # the first goes out at once
-        latest = parse(await next_frame(stream))[1]
+        latest = parse(await frames.next())[1]
         assert latest["pose"]["x"] == 1.99  # then only the latest of the burst
         # A change of status is not held back.
         listener(RobotEvent(robot=view("r1", x=5.0, status=RobotStatus.ARRIVED)))
-        arrived = parse(await next_frame(stream))[1]
+        arrived = parse(await frames.next())[1]
         assert arrived["status"] == "arrived"
     finally:
         await stream.aclose()
 
 
 async def test_hub_close_ends_open_streams() -> None:
-    fleet = Source()
+    fleet = EventSource()
     hub = EventHub()
     stream = hub.stream(fleet)
     await anext(stream)
@@ -126,14 +123,51 @@ async def test_hub_close_ends_open_streams() -> None:
     assert fleet.listeners == []
 
 
-async def test_slow_client_is_disconnected_not_buffered() -> None:
-    fleet = Source()
+async def test_slow_client_is_dropped_with_a_log_line_not_buffered(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    fleet = EventSource()
     hub = EventHub(max_backlog=5)
     stream = hub.stream(fleet)
     await anext(stream)
+    # Scheduled on the loop now (call_soon_threadsafe), so all ten are accepted before the
+    # stream's next read: the client is five frames behind when the sixth comes.
     for x in range(10):
         fleet.emit(task_event(float(x)))
-    await asyncio.sleep(0.05)  # let the loop run the thread-safe callbacks
-    frames = [frame async for frame in stream]
+    chunks = [chunk async for chunk in stream]
+    frames = [f for f in "".join(chunks).split("\n\n") if f]
     assert [parse(f)[0] for f in frames] == ["task"] * 5 + ["overflow"]
     assert fleet.listeners == []
+    assert hub.active == 0
+    assert "fell 5 frames behind: dropping it" in caplog.text
+
+
+async def test_clients_beyond_the_cap_are_refused_until_one_leaves() -> None:
+    fleet = EventSource()
+    hub = EventHub(max_clients=2)
+    first, second = hub.subscribe(fleet, "a"), hub.subscribe(fleet, "b")
+    with pytest.raises(TooManyClients, match="2 event streams are open"):
+        hub.subscribe(fleet, "c")
+    assert len(fleet.listeners) == 2  # the refused one never listened
+    first.close()
+    first.close()  # idempotent
+    third = hub.subscribe(fleet, "c")
+    assert hub.active == 2
+    for stream in (second, third):
+        stream.close()
+    assert hub.active == 0 and fleet.listeners == []
+
+
+async def test_events_route_is_503_when_every_slot_is_taken(
+    client: httpx.AsyncClient, fleet: FleetService
+) -> None:
+    hub: EventHub = client._transport.app.state.events  # type: ignore[attr-defined]
+    held = [hub.subscribe(fleet, f"c{i}") for i in range(hub.max_clients)]
+    try:
+        r = await client.get("/events")
+        assert r.status_code == 503
+        assert "event streams are open" in r.json()["detail"]
+        assert int(r.headers["retry-after"]) > 0
+    finally:
+        for stream in held:
+            stream.close()

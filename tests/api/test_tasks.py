@@ -8,9 +8,11 @@ import httpx
 import pytest
 
 from fleet.core.wire import Obstacle
+from fleet.io.settings import Settings
 from fleet.service.bus import MemoryBus
 from fleet.service.fleet_service import FleetService
-from tests.api.conftest import add_robot
+from fleet.service.store import SqliteTaskStore
+from tests.api.conftest import add_robot, api_client
 
 pytestmark = pytest.mark.anyio
 
@@ -76,10 +78,57 @@ async def test_list_filters_by_status_and_robot(client: httpx.AsyncClient) -> No
     queued = (await client.get("/tasks", params={"status": "queued"})).json()
     assert [t["id"] for t in queued] == [ids[0], ids[2]]
     assert (await client.get("/tasks", params={"robot_id": "nobody"})).json() == []
-    assert [t["id"] for t in (await client.get("/tasks", params={"limit": 2})).json()] == ids[1:]
+    newest = (await client.get("/tasks", params={"order": "newest", "limit": 2})).json()
+    assert [t["id"] for t in newest] == ids[:0:-1]
     bad = await client.get("/tasks", params={"status": "sleeping"})
     assert bad.status_code == 422
     assert "status" in bad.json()["detail"]
+
+
+async def _post_goals(client: httpx.AsyncClient, n: int) -> list[str]:
+    """``n`` tasks on goals 1.5 m apart, in creation order."""
+    ids = []
+    for k in range(n):
+        r = await client.post("/tasks", json={"goal": {"x": -9.0 + 1.5 * k, "y": 0.0}})
+        assert r.status_code == 201, r.text
+        ids.append(r.json()["id"])
+    return ids
+
+
+@pytest.mark.parametrize("order", ["oldest", "newest"])
+async def test_pages_follow_the_link_header(client: httpx.AsyncClient, order: str) -> None:
+    ids = await _post_goals(client, 7)
+    url: str | None = f"/tasks?order={order}&limit=3"
+    pages = []
+    while url is not None:
+        r = await client.get(url)
+        assert r.status_code == 200
+        pages.append([t["id"] for t in r.json()])
+        url = r.links.get("next", {}).get("url")
+    assert [len(p) for p in pages] == [3, 3, 1]  # no Link after the last page
+    assert [i for page in pages for i in page] == (ids if order == "oldest" else ids[::-1])
+
+
+async def test_a_page_is_capped_by_the_setting(
+    settings: Settings, fleet: FleetService, store: SqliteTaskStore
+) -> None:
+    capped = settings.model_copy(update={"api_tasks_page_max": 2})
+    async for client in api_client(capped, fleet, store):
+        ids = await _post_goals(client, 3)
+        r = await client.get("/tasks")  # no limit given: still one capped page
+        assert [t["id"] for t in r.json()] == ids[:2]
+        assert "next" in r.links
+        too_many = await client.get("/tasks", params={"limit": 3})
+        assert too_many.status_code == 422
+        assert too_many.json()["errors"][0]["loc"] == ["query", "limit"]
+        assert "at most 2" in too_many.json()["detail"]
+
+
+@pytest.mark.parametrize("cursor", ["nope", "W10", "WzEsMl0", "eyJhIjogMX0", "WyJ4IiwgImEiXQ"])
+async def test_a_cursor_not_made_by_the_api_is_422(client: httpx.AsyncClient, cursor: str) -> None:
+    r = await client.get("/tasks", params={"cursor": cursor})
+    assert r.status_code == 422
+    assert r.json()["errors"][0]["loc"] == ["query", "cursor"]
 
 
 @pytest.mark.parametrize("field", ["x", "y", "theta"])

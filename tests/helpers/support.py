@@ -26,13 +26,15 @@ TEST_GAINS = Gains(kx=1.0, ky=2.0, ktheta=1.0)
 TEST_TOLERANCE = Tolerance(position=0.1, heading=0.1)
 
 
-def wait_for(predicate: Callable[[], bool], timeout: float, what: str) -> None:
-    """Poll ``predicate`` until true; fail the test after ``timeout`` [s] naming ``what``."""
+def wait_for(predicate: Callable[[], bool], timeout: float, what: str, poll: float = 0.01) -> None:
+    """Poll ``predicate`` every ``poll`` [s] until true; fail the test after ``timeout`` [s]
+    naming ``what``. The timeout only bounds a hung test: make it generous (the machine is
+    shared), never a measure of speed. A predicate may act too (re-send until received)."""
     end = time.monotonic() + timeout
     while not predicate():
         if time.monotonic() > end:
             raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(0.01)
+        time.sleep(poll)
 
 
 def read_line(proc: subprocess.Popen[bytes], timeout: float) -> str:
@@ -114,12 +116,12 @@ def assign_until_acked(
     session: Any, watcher: StateWatcher, message: ParkAssignment, timeout: float = 10.0
 ) -> None:
     """Re-send an assignment until the robot's state carries its task id (the protocol)."""
-    end = time.monotonic() + timeout
-    while True:
+
+    def acked() -> bool:
         state = watcher.latest(message.robot_id)
         if state is not None and state.task_id == message.task_id:
-            return
-        if time.monotonic() > end:
-            raise AssertionError(f"{message.robot_id} never acknowledged {message.task_id}")
+            return True
         session.put(Keys().assignment(message.robot_id), encode(message))
-        time.sleep(0.05)
+        return False
+
+    wait_for(acked, timeout, f"{message.robot_id} to acknowledge {message.task_id}", poll=0.05)

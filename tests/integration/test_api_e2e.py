@@ -15,13 +15,13 @@ import sqlite3
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
+from support import wait_for
 
 from fleet.io.processes import ServerProcess, running_server, sim_command, terminate
 
@@ -46,27 +46,25 @@ def start_sim(endpoint: str, robots: int, log: Path) -> subprocess.Popen[bytes]:
         return subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=out)
 
 
-def wait_for(client: httpx.Client, task_id: str, status: str, timeout: float = 90.0) -> Any:
-    deadline = time.monotonic() + timeout
+def wait_status(client: httpx.Client, task_id: str, status: str, timeout: float = 90.0) -> Any:
+    """The task once it reaches ``status`` (fails at once if it ends otherwise)."""
     task: Any = None
-    while time.monotonic() < deadline:
+
+    def reached() -> bool:
+        nonlocal task
         task = client.get(f"/tasks/{task_id}").json()
-        if task["status"] == status:
-            return task
         assert task["status"] not in {"failed", "cancelled", "succeeded"} - {status}, task
-        time.sleep(0.2)
-    raise AssertionError(f"task never reached {status}: {task}")
+        return bool(task["status"] == status)
+
+    wait_for(reached, timeout, f"task {task_id} to reach {status}", poll=0.05)
+    return task
 
 
-def wait_robots(client: httpx.Client, n: int, timeout: float = 30.0) -> list[Any]:
-    deadline = time.monotonic() + timeout
-    robots: list[Any] = []
-    while time.monotonic() < deadline:
-        robots = [r for r in client.get("/robots").json() if r["status"] != "lost"]
-        if len(robots) >= n:
-            return robots
-        time.sleep(0.1)
-    raise AssertionError(f"only {len(robots)} of {n} robots joined")
+def wait_robots(client: httpx.Client, n: int, timeout: float = 30.0) -> None:
+    def joined() -> bool:
+        return sum(r["status"] != "lost" for r in client.get("/robots").json()) >= n
+
+    wait_for(joined, timeout, f"{n} robots to join", poll=0.05)
 
 
 def test_task_reaches_succeeded_with_a_simulated_fleet(
@@ -78,7 +76,7 @@ def test_task_reaches_succeeded_with_a_simulated_fleet(
             wait_robots(client, 2)
             created = client.post("/tasks", json={"goal": {"x": 3.0, "y": 2.0, "theta": 1.57}})
             assert created.status_code == 201, created.text
-            task = wait_for(client, created.json()["id"], "succeeded")
+            task = wait_status(client, created.json()["id"], "succeeded")
             assert task["robot_id"] is not None
             assert task["law"] in ("cw", "ccw")
             robot = client.get(f"/robots/{task['robot_id']}").json()
@@ -91,7 +89,9 @@ def test_task_reaches_succeeded_with_a_simulated_fleet(
         terminate(sim)
 
 
-async def _collect_events(url: str, task_id_box: list[str], seen: list[tuple[str, Any]]) -> None:
+async def _collect_events(
+    url: str, task_id_box: list[str], seen: list[tuple[str, Any]], listening: asyncio.Event
+) -> None:
     async with (
         httpx.AsyncClient(base_url=url, timeout=None) as client,
         client.stream("GET", "/events") as response,
@@ -99,6 +99,7 @@ async def _collect_events(url: str, task_id_box: list[str], seen: list[tuple[str
         assert response.headers["content-type"].startswith("text/event-stream")
         event = ""
         async for line in response.aiter_lines():
+            listening.set()  # the first line comes after the server subscribed us
             if line.startswith("event: "):
                 event = line[7:]
             elif line.startswith("data: "):
@@ -122,8 +123,9 @@ def test_events_stream_robot_states_and_task_changes(server: ServerProcess, tmp_
         async def scenario() -> list[tuple[str, Any]]:
             seen: list[tuple[str, Any]] = []
             box: list[str] = []
-            listener = asyncio.create_task(_collect_events(server.url, box, seen))
-            await asyncio.sleep(0.5)
+            listening = asyncio.Event()
+            listener = asyncio.create_task(_collect_events(server.url, box, seen, listening))
+            await asyncio.wait_for(listening.wait(), 30)
             async with httpx.AsyncClient(base_url=server.url) as client:
                 r = await client.post("/tasks", json={"goal": {"x": -2.0, "y": 1.0}})
                 box.append(r.json()["id"])
@@ -168,7 +170,7 @@ def test_accepted_tasks_survive_a_restart_and_resume(tmp_path: Path) -> None:
         sim = start_sim(second.zenoh_endpoint, 2, tmp_path / "sim.log")
         try:
             for task_id in ids[:2]:  # resumed: robots get them after the restart
-                wait_for(client, task_id, "succeeded")
+                wait_status(client, task_id, "succeeded")
         finally:
             terminate(sim)
 
@@ -237,7 +239,7 @@ def test_demo_prints_a_working_curl_example(tmp_path: Path) -> None:
             wait_robots(client, 2)
             created = client.post("/tasks", json=json.loads(curl[2]))
             assert created.status_code == 201, created.text
-            wait_for(client, created.json()["id"], "succeeded")
+            wait_status(client, created.json()["id"], "succeeded")
         demo.send_signal(signal.SIGINT)
         assert demo.wait(20) == 0
         drain.join(5)

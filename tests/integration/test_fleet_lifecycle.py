@@ -9,7 +9,6 @@ from __future__ import annotations
 import json
 import signal
 import subprocess
-import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -102,9 +101,10 @@ def test_cancel_stops_the_robot(router_endpoint: str, tmp_path: Path) -> None:
             20,
             "the robot to hold",
         )
-        pose = service.robot("r1").pose
-        time.sleep(0.3)
-        assert service.robot("r1").pose == pose  # it stands still
+        held = service.robot("r1")
+        # It stands still: another 0.3 s of its states (1.2 s of robot time) at one pose.
+        wait_for(lambda: service.robot("r1").last_seen >= held.last_seen + 0.3, 20, "more states")
+        assert service.robot("r1").pose == held.pose
         assert service.task(task.id).status == TaskStatus.CANCELLED
 
 

@@ -38,7 +38,8 @@ _runs = itertools.count()
 # Watches the fleet from inside a namespace: prints which robots' states and liveliness
 # tokens it saw (as JSON), once it has seen all the expected ones or after 30 s.
 OBSERVER = """
-import json, sys, threading, time
+import json, sys, threading
+import zenoh
 from fleet.io.settings import load_settings
 from fleet.io.transport import open_session
 from fleet.core.wire import Keys, RobotState
@@ -46,23 +47,30 @@ from fleet.io.decoder import Decoder
 
 endpoint, expected = sys.argv[1], set(sys.argv[2].split(","))
 keys, decoder, lock, states, alive = Keys(), Decoder("observer"), threading.Lock(), {}, set()
+seen_all = threading.Event()
+
+def check():
+    if expected <= set(states) and expected <= alive:
+        seen_all.set()
 
 def on_state(sample):
     state = decoder.decode(RobotState, sample.payload.to_bytes())
     if state is not None and keys.robot_of(str(sample.key_expr)) == state.robot_id:
         with lock:
             states[state.robot_id] = state.pose.as_tuple()
+            check()
+
+def on_alive(sample):
+    robot = keys.robot_of(str(sample.key_expr))
+    with lock:
+        (alive.add if sample.kind == zenoh.SampleKind.PUT else alive.discard)(robot)
+        check()
 
 with open_session(load_settings(connect=[endpoint]), "client") as session:
     sub = session.declare_subscriber(keys.all_states, on_state)
-    end = time.monotonic() + 30.0
-    while time.monotonic() < end:
-        replies = session.liveliness().get(keys.all_alive, timeout=2.0)
-        alive = {keys.robot_of(str(r.ok.key_expr)) for r in replies if r.ok is not None}
-        with lock:
-            if expected <= set(states) and expected <= alive:
-                break
-        time.sleep(0.2)
+    tokens = session.liveliness().declare_subscriber(keys.all_alive, on_alive, history=True)
+    seen_all.wait(30.0)  # bounds a hung run; the test checks what was seen
+    tokens.undeclare()
     sub.undeclare()
 with lock:
     print(json.dumps({"states": states, "alive": sorted(a for a in alive if a)}), flush=True)

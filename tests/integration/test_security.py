@@ -12,7 +12,6 @@ import os
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -177,11 +176,14 @@ def put_until(
     session: Any, key: str, payload: bytes, done: Callable[[], bool], timeout: float = 10.0
 ) -> None:
     """Re-send (subscriptions take a moment to propagate) until ``done``."""
-    end = time.monotonic() + timeout
-    while not done():
-        assert time.monotonic() < end, f"{key} never arrived"
+
+    def sent() -> bool:
+        if done():
+            return True
         session.put(key, payload)
-        time.sleep(0.05)
+        return False
+
+    wait_for(sent, timeout, f"{key} to arrive", poll=0.05)
 
 
 def alive_tokens(session: Any) -> set[str]:
@@ -294,18 +296,33 @@ def test_robot_cannot_publish_another_robots_keys_or_send_assignments(
 
         # Forged puts go first on the same links: once the allowed ones arrived, any forged
         # put that the router let through would have arrived before them.
-        end = time.monotonic() + 10.0
-        while not (
-            own_state in at_router.seen()
-            and own_state in at_service.seen()
-            and order in r2_orders.seen()
-        ):
-            assert time.monotonic() < end, "allowed messages never arrived"
+        def allowed_arrived() -> bool:
+            if (
+                own_state in at_router.seen()
+                and own_state in at_service.seen()
+                and order in r2_orders.seen()
+            ):
+                return True
             forge_and_send()
-            time.sleep(0.05)
+            return False
+
+        wait_for(allowed_arrived, 10.0, "the allowed messages", poll=0.05)
         for _ in range(5):
             forge_and_send()
-        time.sleep(0.3)
+        # Fences after the last forged puts: r1's own state on r1's link; once the router
+        # (and the service) saw it, the router had judged every forged put before it. Then
+        # the fleet's on the router's link to r2: it comes after anything let through.
+        fences = ((KEYS.state("r1"), b"fence"), (KEYS.assignment("r2"), b"fence"))
+        r1.put(*fences[0])
+        wait_for(
+            lambda: fences[0] in at_router.seen() and fences[0] in at_service.seen(),
+            10.0, "r1's fence",
+        )  # fmt: skip
+        fleet.put(*fences[1])
+        wait_for(
+            lambda: fences[1] in r2_orders.seen() and fences[1] in at_router.seen(),
+            10.0, "the fleet's fence",
+        )  # fmt: skip
         wait_for(lambda: KEYS.alive("r1") in alive_tokens(router), 5.0, "r1's token")
         tokens = alive_tokens(router)
         own_token.undeclare()
@@ -313,9 +330,9 @@ def test_robot_cannot_publish_another_robots_keys_or_send_assignments(
         for collector in (at_router, at_service, r2_orders, r1_snoops):
             collector.sub.undeclare()
 
-    assert at_router.seen() == {own_state, order}
-    assert at_service.seen() == {own_state}
-    assert r2_orders.seen() == {order}
+    assert at_router.seen() == {own_state, order, *fences}
+    assert at_service.seen() == {own_state, fences[0]}
+    assert r2_orders.seen() == {order, fences[1]}
     assert order not in r1_snoops.seen()  # (r1's own forged puts loop back in its session)
     assert tokens == {KEYS.alive("r1")}
 
@@ -347,13 +364,16 @@ def test_meshed_routers_each_enforce_the_acl_for_their_own_robots(pki: Pki) -> N
             at_host = Collector(router_a, KEYS.all_states)
             r1_orders = Collector(r1, KEYS.assignment("r1"))
             own_state, order = (KEYS.state("r1"), b"own"), (KEYS.assignment("r1"), b"order")
-            end = time.monotonic() + 10.0
-            while not (own_state in at_host.seen() and order in r1_orders.seen()):
-                assert time.monotonic() < end, "allowed messages never crossed the mesh"
+
+            def crossed() -> bool:
+                if own_state in at_host.seen() and order in r1_orders.seen():
+                    return True
                 r1.put(KEYS.state("r2"), b"forged")
                 r1.put(*own_state)
                 fleet.put(*order)
-                time.sleep(0.05)
+                return False
+
+            wait_for(crossed, 10.0, "the allowed messages to cross the mesh", poll=0.05)
             at_host.sub.undeclare()
             r1_orders.sub.undeclare()
     assert at_host.seen() == {own_state}

@@ -11,7 +11,9 @@ import pytest
 import support
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from support import TEST_GAINS
 
+from fleet.core import reference
 from fleet.core.params import Avoidance, RobotProfile
 from fleet.core.types import FloatArray, Posture
 from fleet.core.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
@@ -127,15 +129,19 @@ def test_stale_pose_stops_the_robot(age: float) -> None:
     assert tick((0.0, 0.0, 0.0), task, age=0.49).mode is RobotMode.DRIVING
 
 
-def test_arrival_uses_the_pre_step_tolerance_and_latches() -> None:
+def test_arrival_uses_the_pre_step_tolerance_applies_that_step_and_latches() -> None:
     task = AgentTask(park(goal=(1.0, 1.0, 0.5)))
     inside = (1.0 + 0.07, 1.0 - 0.05, 0.5 - 0.09)  # 0.086 m < 0.1, 0.09 rad < 0.1
     assert within_tolerance(inside, task.assignment)
     d = tick(inside, task)
-    assert d.mode is RobotMode.ARRIVED and not d.moving
+    assert d.mode is RobotMode.ARRIVED
     assert d.task is not None and d.task.status is AgentTaskStatus.ARRIVED
-    # latched: even pushed outside the tolerance it stays arrived until a new task
-    assert tick((0.0, 0.0, 0.0), d.task).mode is RobotMode.ARRIVED
+    # the stop rule's step is still applied, as in the batch simulator and the paper
+    expected = reference.step(inside, (1.0, 1.0, 0.5), TEST_GAINS.as_tuple(), False, 0.02)
+    assert (d.u, d.omega) == (expected.u, expected.omega)
+    # latched: the next tick stops; even pushed outside the tolerance it stays arrived
+    after = tick((0.0, 0.0, 0.0), d.task)
+    assert after.mode is RobotMode.ARRIVED and not after.moving
 
 
 def test_heading_outside_tolerance_is_not_arrived() -> None:
@@ -309,3 +315,16 @@ def test_hold_stands_still_until_a_revision_releases_it() -> None:
 def test_a_waiting_robot_already_at_its_goal_reports_arrived() -> None:
     task = apply_assignment(None, park(goal=(0.0, 0.0, 0.0), start_delay_s=5.0), now=0.0)
     assert tick((0.0, 0.0, 0.0), task, now=0.0).mode is RobotMode.ARRIVED
+
+
+def test_the_control_step_is_compiled_at_import_and_ticks_never_compile() -> None:
+    """``robot_agent.logic`` imports the compiled step with explicit signatures: compiled (or
+    loaded from numba's cache) before any tick, and frozen -- a tick cannot compile."""
+    from fleet.core import step
+
+    entry = step._step_robot
+    assert len(entry.signatures) == 1 and not entry._can_compile
+    obstacles = obstacle_arrays([Obstacle(x=1.0, y=0.2, radius=1.0)])
+    for peers in (NO_PEERS, np.array([[0.3, 0.0], [2.0, 2.0]])):
+        tick((0.0, 0.0, 0.0), AgentTask(park()), peers=peers, obstacles=obstacles)
+    assert len(entry.signatures) == 1

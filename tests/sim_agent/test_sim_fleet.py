@@ -7,9 +7,11 @@ import math
 from itertools import combinations
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from fleet.core.params import Gains, Tolerance
+from fleet.core.simulate import BatchProblem, simulate
 from fleet.core.wire import ParkAssignment, Pose, RobotMode
 from fleet.io.settings import load_settings
 from sim_agent.fleet import SimFleet, Spawn, spawn_layout
@@ -88,3 +90,68 @@ def test_without_avoidance_the_same_crossing_collides() -> None:
         (ax, ay, _), (bx, by, _) = fleet.drives["a"].true_pose, fleet.drives["b"].true_pose
         closest = min(closest, math.hypot(ax - bx, ay - by))
     assert closest < 2 * settings.profile.radius
+
+
+def test_a_lockstep_fleet_among_peers_is_the_batch_simulation_of_the_same_scene() -> None:
+    """Agents on simulated drives, ticked in two phases (all sense at t, then all act), follow
+    the batch simulator step for step: the same compiled control step, peers read at the
+    same time t. The moving robots a, c and d pass within each other's influence radius;
+    a weak repulsion lets a reach the contact range of the idle robot b next to its goal,
+    where only the contact guard holds it off."""
+    settings = load_settings(avoidance={"k_avoid": 0.05})
+    avoid, period = settings.avoidance, 1.0 / settings.control_rate_hz
+    spawns = [
+        Spawn("a", -2.0, -1.0, 0.0),
+        Spawn("b", 0.0, 0.0, 0.0),  # idle: stands in a's way
+        Spawn("c", 2.0, -0.5, math.pi),
+        Spawn("d", 1.0, -2.0, math.pi / 2),
+    ]
+    goals = {"a": (0.2, -0.4, 0.0), "c": (-1.0, 1.5, math.pi), "d": (1.0, 2.0, math.pi / 2)}
+    laws = {"a": "cw", "c": "cw", "d": "cw"}
+    fleet = SimFleet(None, settings, spawns)
+    for rid, goal in goals.items():
+        fleet.agent(rid).submit(_park(rid, goal).model_copy(update={"law": laws[rid]}))
+    ticks = 2000  # 40 s: c and d arrive, a stays held off by the guard
+    poses, modes, controls = [], [], []
+    for _ in range(ticks):
+        fleet.tick()
+        poses.append([a.last.pose.as_tuple() if a.last else (0, 0, 0) for a in fleet.agents])
+        modes.append([a.last.mode if a.last else None for a in fleet.agents])
+        controls.append([(a.last.decision.u, a.last.decision.omega) if a.last else (0, 0)
+                         for a in fleet.agents])  # fmt: skip
+
+    still = Tolerance(position=1e-9, heading=1e-9)  # b: a row that is done from the start
+    problem = BatchProblem.build(
+        [(s.x, s.y, s.theta) for s in spawns],
+        [goals.get(s.robot_id, (s.x, s.y, s.theta)) for s in spawns],
+        Gains(kx=1, ky=2, ktheta=1),
+        [laws.get(s.robot_id, "ccw") for s in spawns],
+        [still if s.robot_id == "b" else TOL for s in spawns],
+        settings.profile,
+        k_avoid=avoid.k_avoid,
+        peer_radius=avoid.peer_radius,
+        min_x_oa=avoid.min_x_oa,
+    )
+    batch = simulate(problem, dt=period, max_time=ticks * period, record=True)
+    assert batch.trajectory is not None
+    np.testing.assert_allclose(np.array(poses), batch.trajectory.poses[:ticks], rtol=0, atol=1e-9)
+    # arrivals on the same tick: the stop rule's step k is reported at tick k
+    for i, rid in enumerate(s.robot_id for s in spawns):
+        arrived = [k for k, m in enumerate(modes) if m[i] is RobotMode.ARRIVED]
+        if rid in ("c", "d"):
+            assert batch.done[i] and arrived[0] == round(batch.time[i] / period) - 1
+        elif rid == "a":
+            assert not batch.done[i] and not arrived
+    # the contact guard acted: a turned on the spot next to b instead of driving into it
+    contact = 2 * settings.profile.radius + avoid.min_x_oa
+    a, b = np.array(poses)[:, 0, :2], np.array(poses)[:, 1, :2]
+    guarded = [
+        k for k in range(ticks)
+        if np.hypot(*(a[k] - b[k])) < contact and controls[k][0][0] == 0.0 and controls[k][0][1]
+    ]  # fmt: skip
+    assert guarded
+    assert np.hypot(*(a - b).T).min() > 2 * settings.profile.radius
+    # moving peers interacted (a one-phase tick, reading some peers a period late, diverges)
+    c, d = np.array(poses)[:, 2, :2], np.array(poses)[:, 3, :2]
+    assert np.hypot(*(c - d).T).min() < avoid.peer_radius
+    assert all(agent.tick_errors == 0 for agent in fleet.agents)

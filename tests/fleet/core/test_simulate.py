@@ -9,6 +9,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from fleet.core import step
 from fleet.core.control import lyapunov_p, lyapunov_v, wheel_speeds
 from fleet.core.params import Gains, RobotProfile, Tolerance
 from fleet.core.simulate import BatchProblem, simulate
@@ -276,3 +277,26 @@ def test_record_every_keeps_every_kth_step_and_the_final_pose() -> None:
     assert np.array_equal(sparse.trajectory.poses[-1], full.trajectory.poses[-1])
     with pytest.raises(ValueError, match="record_every"):
         simulate(problem, record=True, record_every=0)
+
+
+def test_a_large_batch_spread_over_threads_equals_its_robots_simulated_alone() -> None:
+    """Above ``PARALLEL_MIN_WORK`` robots run in chunks on several threads; each robot's run
+    is exactly the one it has in a small (single-threaded) batch."""
+    rng = np.random.default_rng(11)
+    n = step.PARALLEL_MIN_WORK + 100
+    starts = np.column_stack([rng.uniform(-5, 5, (n, 2)), rng.uniform(-3, 3, n)])
+    goals = np.column_stack([rng.uniform(-5, 5, (n, 2)), rng.uniform(-3, 3, n)])
+    gains = Gains(kx=1.0, ky=2.0, ktheta=1.0)
+    laws = [["ccw", "cw"][int(b)] for b in rng.integers(0, 2, n)]
+    tol = Tolerance(position=0.1, heading=0.1)
+    big = simulate(BatchProblem.build(starts, goals, gains, laws, tol), dt=0.02, max_time=30.0)
+    picked = rng.choice(n, 40, replace=False)
+    small = simulate(
+        BatchProblem.build(starts[picked], goals[picked], gains, [laws[i] for i in picked], tol),
+        dt=0.02,
+        max_time=30.0,
+    )
+    assert np.array_equal(big.final_pose[picked], small.final_pose)
+    assert np.array_equal(big.control_effort[picked], small.control_effort)
+    assert np.array_equal(big.done[picked], small.done)
+    assert big.done.any() and not big.done.all()  # some robots finish early, some do not

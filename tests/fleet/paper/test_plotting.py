@@ -14,7 +14,14 @@ import pytest
 from matplotlib.patches import Polygon
 
 from fleet.cli.main import main
-from fleet.paper.plotting import _triangle, plot_case, plot_trajectory, save_figure
+from fleet.paper.plotting import (
+    _triangle,
+    plot_case,
+    plot_compare,
+    plot_pareto,
+    plot_trajectory,
+    save_figure,
+)
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -116,3 +123,29 @@ def test_mismatched_shapes_are_rejected(
     errors = None if errors_shape is None else np.zeros(errors_shape)
     with pytest.raises(ValueError, match=match):
         plot_trajectory(poses, np.zeros(controls_shape), 0.01, (0, 0, 0), "bad", errors=errors)
+
+
+def test_compare_draws_every_controllers_path_on_one_figure(tmp_path: Path) -> None:
+    out = tmp_path / "compare.png"
+    assert main(["plot", "III", "--compare", "-o", str(out)]) == 0
+    assert png_size(out)[0] > 300
+    fig = plot_compare("III")
+    (ax,) = fig.axes
+    labels = [line.get_label() for line in ax.lines]
+    names = ["(17) ccw", "(20) cw", "VFO", "FT", "Astolfi", "Park-Kuipers"]
+    assert [label.split(":")[0] for label in labels] == names
+    start = ax.lines[0].get_xydata()[0]
+    for line in ax.lines:  # every path starts at the scenario's start
+        np.testing.assert_allclose(line.get_xydata()[0], start)
+        assert "tolerance not reached" not in str(line.get_label())
+
+
+def test_pareto_plot_marks_the_front_the_best_and_the_papers_gains() -> None:
+    from fleet.paper.tune import case_target, tune
+
+    result = tune(case_target("I", "cw"), seed=3, popsize=4, generations=2)
+    fig = plot_pareto(result)
+    (ax,) = fig.axes
+    labels = {c.get_label() for c in ax.collections} | {line.get_label() for line in ax.lines}
+    assert {"candidates", "Pareto front", "best (weighted cost)", "paper's gains"} <= labels
+    assert "tune I, law cw" in fig.get_suptitle()

@@ -1,0 +1,293 @@
+"""The one compiled control step: properties, the plain-Python oracle, one robot == N robots."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fleet.core import reference, step
+from fleet.core.types import LAWS, FloatArray, GainTriple, Law, Posture
+
+TWO_PI = 2.0 * math.pi
+R, B = 0.05, 0.135  # wheel radius and half axle [m] (Table 10)
+
+coord = st.floats(-6.0, 6.0)
+angle = st.floats(-20.0, 20.0)
+posture = st.tuples(coord, coord, angle)
+gain_triple = st.tuples(st.floats(0.3, 5.0), st.floats(0.3, 10.0), st.floats(0.3, 15.0))
+law: st.SearchStrategy[Law] = st.sampled_from(LAWS)
+point = st.tuples(coord, coord)
+peers_st = st.lists(point, max_size=6)
+obstacles_st = st.lists(st.tuples(coord, coord, st.floats(0.2, 3.0)), max_size=3)
+limits = st.sampled_from([math.inf, 4.0, 20.0])
+avoidance_st = st.builds(
+    reference.Avoidance,
+    k_avoid=st.sampled_from([0.0, 0.05, 1.0, 4.0]),
+    peer_radius=st.floats(0.3, 3.0),
+    min_x_oa=st.floats(0.01, 0.2),
+    radius=st.floats(0.05, 0.4),
+)
+
+
+def _params(
+    goal: Posture, gains: GainTriple, law_name: Law, limit: float, radius: float
+) -> FloatArray:
+    one = np.array
+    return step.robot_params(
+        one([goal]), one([gains]), one([1.0 if law_name == "cw" else 0.0]), one([0.1]),
+        one([0.1]), one([R]), one([B]), one([limit]), one([radius]),
+    )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Situation:
+    """One robot's step to take: its posture, task, wheel limit, avoidance and surroundings."""
+
+    pose: Posture
+    goal: Posture
+    gains: GainTriple
+    law: Law
+    limit: float  # [rad/s]
+    avoidance: reference.Avoidance
+    peers: list[tuple[float, float]]
+    obstacles: list[tuple[float, float, float]]
+
+    def compiled(self, limit: float | None = None) -> step.StepResult:
+        """The compiled step (``limit`` overrides the wheel limit)."""
+        wheel_limit = self.limit if limit is None else limit
+        return step.step_robot(
+            self.pose,
+            _params(self.goal, self.gains, self.law, wheel_limit, self.avoidance.radius),
+            peers=np.array(self.peers, dtype=np.float64).reshape(-1, 2).T.copy(),
+            obstacles=np.array(self.obstacles, dtype=np.float64).reshape(-1, 3).T.copy(),
+            k_avoid=self.avoidance.k_avoid,
+            peer_radius=self.avoidance.peer_radius,
+            min_x_oa=self.avoidance.min_x_oa,
+            dt=0.02,
+        )
+
+
+situations = st.builds(
+    Situation, posture, posture, gain_triple, law, limits, avoidance_st, peers_st, obstacles_st
+)
+
+
+# -- the pieces --------------------------------------------------------------------------------
+SPECIAL_ANGLES = [0.0, -0.0, 1e-300, -1e-300, -1e-17, math.pi, -math.pi, TWO_PI, -TWO_PI,
+                  math.nextafter(TWO_PI, 0.0), math.nextafter(-TWO_PI, 0.0), 7.0, -7.0,
+                  -123.4, 4 * math.pi, 6 * math.pi, -4 * math.pi, 1e6, -1e6]  # fmt: skip
+heading = st.one_of(st.sampled_from(SPECIAL_ANGLES), st.floats(-50.0, 50.0))
+
+
+@settings(max_examples=500)
+@given(heading)
+def test_the_exact_remainder_wrap_is_python_modulo_bit_for_bit(theta: float) -> None:
+    """(11.a) without ``fmod`` on the common range equals ``theta % 2pi`` exactly."""
+    got = step.wrap_to_2pi(theta)
+    expected = reference.wrap_to_2pi(theta)
+    assert got == expected and math.copysign(1.0, got) == math.copysign(1.0, expected)
+    assert 0.0 <= got < TWO_PI
+
+
+@settings(max_examples=300)
+@given(heading, heading, st.booleans())
+def test_heading_error_wraps_per_law_and_equals_the_reference(
+    theta_goal: float, theta: float, cw: bool
+) -> None:
+    got = step.heading_error(theta_goal, theta, cw)
+    assert got == reference.heading_error(theta_goal, theta, cw)
+    if cw:
+        assert -TWO_PI < got <= 0.0  # (21)
+    else:
+        assert 0.0 <= got < TWO_PI  # (11.b)
+    assert math.isclose(math.cos(got), math.cos(theta_goal - theta), abs_tol=1e-9)
+
+
+@given(posture, posture, st.booleans())
+def test_pose_error_is_the_goal_in_the_robot_frame(pose: Posture, goal: Posture, cw: bool) -> None:
+    x_e, y_e, _ = step.pose_error(*pose, *goal, cw)
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    assert math.isclose(pose[0] + c * x_e - s * y_e, goal[0], abs_tol=1e-9)
+    assert math.isclose(pose[1] + s * x_e + c * y_e, goal[1], abs_tol=1e-9)
+
+
+@given(
+    st.floats(-5, 5), st.floats(-10, 10), st.floats(0.01, 0.5), st.floats(0.05, 1.0),
+    st.floats(0.1, 50),
+)  # fmt: skip
+def test_saturation_respects_the_wheel_limit_and_keeps_the_curvature(
+    u: float, omega: float, r: float, b: float, limit: float
+) -> None:
+    us, ws = step.saturate(u, omega, r, b, limit)
+    right, left = step.wheel_speeds(us, ws, r, b)
+    assert max(abs(right), abs(left)) <= limit * (1 + 1e-12)
+    # Same direction, scaled by one factor in (0, 1]: the path curvature omega/u is kept.
+    assert us * u >= 0 and ws * omega >= 0
+    assert abs(us) <= abs(u) and abs(ws) <= abs(omega)
+    assert math.isclose(us * omega, ws * u, rel_tol=1e-9, abs_tol=1e-12)
+    r0, l0 = step.wheel_speeds(u, omega, r, b)
+    if max(abs(r0), abs(l0)) <= limit:  # below the limit nothing changes
+        assert (us, ws) == (u, omega)
+
+
+@given(st.floats(-3, 3), st.floats(-3, 3), st.floats(0.01, 0.5), st.floats(0.05, 1.0))
+def test_wheel_speeds_invert_equation_2(u: float, omega: float, r: float, b: float) -> None:
+    u2, w2 = step.body_velocities(*step.wheel_speeds(u, omega, r, b), r, b)
+    assert math.isclose(u2, u, abs_tol=1e-9) and math.isclose(w2, omega, abs_tol=1e-9)
+
+
+@given(st.floats(-3, 3), st.floats(0.1, 10), st.floats(0.01, 0.2))
+def test_repulsion_term_is_bounded_and_pushes_away(
+    x_oa: float, k_avoid: float, min_x_oa: float
+) -> None:
+    du = step.repulsion_term(x_oa, k_avoid, min_x_oa)
+    assert abs(du) <= k_avoid / min_x_oa  # the guard bounds the singular term
+    assert du < 0 if x_oa >= 0 else du > 0  # ahead (or abeam): back off; behind: go on
+    if abs(x_oa) >= min_x_oa:
+        assert du == -k_avoid / x_oa  # Eq. (27) exactly
+
+
+# -- the whole step ----------------------------------------------------------------------------
+@settings(max_examples=400, deadline=None)
+@given(situations)
+def test_compiled_step_equals_the_plain_python_reference(sit: Situation) -> None:
+    """Same order of operations and libm: error, control, repulsion and next pose agree bit
+    for bit, with and without peers, obstacles and wheel limit, for both laws."""
+    got = sit.compiled()
+    wheel = None if math.isinf(sit.limit) else reference.WheelLimit(R, B, sit.limit)
+    ref = reference.step(
+        sit.pose, sit.goal, sit.gains, sit.law == "cw", 0.02, wheel,
+        avoidance=sit.avoidance, peers=sit.peers, obstacles=sit.obstacles,
+    )  # fmt: skip
+    assert (got.x_e, got.y_e, got.theta_e) == ref.error
+    assert (got.u, got.omega, got.repulsion, got.avoiding) == (
+        ref.u, ref.omega, ref.repulsion, ref.avoiding,
+    )  # fmt: skip
+    assert (got.x, got.y, got.theta) == ref.pose
+    assert got.done == reference.within_tolerance(ref.error, 0.1, 0.1)
+
+
+@settings(max_examples=300, deadline=None)
+@given(situations)
+def test_omega_sign_wheel_limit_and_curvature_hold_for_every_step(sit: Situation) -> None:
+    got = sit.compiled()
+    assert got.omega >= 0.0 if sit.law == "ccw" else got.omega <= 0.0  # (17) / (20)
+    assert max(abs(got.right), abs(got.left)) <= sit.limit * (1 + 1e-12)
+    assert math.isclose(R / 2 * (got.right + got.left), got.u, abs_tol=1e-12)
+    assert math.isclose(R / (2 * B) * (got.right - got.left), got.omega, abs_tol=1e-12)
+    # saturation divides u + repulsion and omega by one factor: the curvature is kept
+    # (unless the contact guard zeroed u)
+    free = sit.compiled(limit=math.inf)
+    if got.u != 0.0 and free.u != 0.0:
+        assert math.isclose(got.omega * free.u, free.omega * got.u, rel_tol=1e-9, abs_tol=1e-12)
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    st.floats(-math.pi, math.pi),
+    st.floats(0.0, 2 * math.pi),
+    st.floats(0.0, 0.449),
+    posture,
+    gain_triple,
+    law,
+    st.sampled_from([0.01, 0.05, 1.0, 4.0]),
+    peers_st,
+)
+def test_the_contact_guard_never_moves_a_robot_towards_a_peer_within_contact_range(
+    heading_: float,
+    bearing: float,
+    distance: float,
+    goal: Posture,
+    gains: GainTriple,
+    law_name: Law,
+    k_avoid: float,
+    others: list[tuple[float, float]],
+) -> None:
+    """Within 2 radius + min_x_oa (0.45 m) of a peer, whatever the law, the gains and the
+    other peers: u never has the sign that closes the distance along the heading."""
+    avoidance = reference.Avoidance(k_avoid=k_avoid, peer_radius=1.0, min_x_oa=0.05, radius=0.2)
+    peer = (distance * math.cos(bearing), distance * math.sin(bearing))
+    pose = (0.0, 0.0, heading_)
+    got = Situation(pose, goal, gains, law_name, 20.0, avoidance, [*others, peer], []).compiled()
+    x_oa = math.cos(heading_) * peer[0] + math.sin(heading_) * peer[1]
+    assert got.u * x_oa <= 0.0
+    if got.u == 0.0 and got.omega != 0.0:
+        assert got.avoiding
+
+
+def test_the_contact_guard_is_off_without_avoidance() -> None:
+    off = reference.Avoidance(k_avoid=0.0, peer_radius=1.0, min_x_oa=0.05, radius=0.2)
+    got = Situation(
+        (0.0, 0.0, 0.0), (3.0, 0.0, 0.0), (1.0, 1.0, 1.0), "ccw", 20.0, off, [(0.3, 0.0)], []
+    ).compiled()
+    assert got.u > 0.0 and not got.avoiding
+
+
+def test_a_held_robot_stands_still_but_the_stop_rule_is_checked() -> None:
+    params = _params((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), "ccw", 20.0, 0.2)
+    for pose, done in (((0.0, 0.0, 0.0), True), ((1.0, 1.0, 0.0), False)):
+        got = step.step_robot(
+            pose, params, hold=True, peers=np.zeros((2, 0)), obstacles=np.zeros((3, 0)),
+            k_avoid=4.0, peer_radius=1.0, min_x_oa=0.05, dt=0.02,
+        )  # fmt: skip
+        assert (got.u, got.omega, got.right, got.left) == (0.0, 0.0, 0.0, 0.0)
+        assert (got.x, got.y, got.theta) == pose and got.done is done
+
+
+def test_compiled_entry_points_refuse_other_types_instead_of_compiling() -> None:
+    with pytest.raises(TypeError):
+        step.wrap_to_2pi("1.0")  # type: ignore[arg-type]
+    assert len(step.wrap_to_2pi.signatures) == 1
+
+
+# -- one robot == N robots -----------------------------------------------------------------------
+@settings(max_examples=60, deadline=None)
+@given(
+    st.integers(2, 7).flatmap(
+        lambda n: st.tuples(
+            st.lists(posture, min_size=n, max_size=n),
+            st.lists(posture, min_size=n, max_size=n),
+            st.lists(law, min_size=n, max_size=n),
+        )
+    ),
+    st.sampled_from([0.05, 4.0]),
+)
+def test_one_robot_step_equals_its_row_of_the_batch_step(
+    fleet: tuple[list[Posture], list[Posture], list[Law]], k_avoid: float
+) -> None:
+    """The agent's one-robot call, given the others as peers, is the batch kernel's row."""
+    starts, goals, laws = fleet
+    n = len(starts)
+    gains = (1.0, 2.0, 1.0)
+    params = np.vstack(
+        [_params(g, gains, lw, 20.0, 0.2) for g, lw in zip(goals, laws, strict=True)]
+    )
+    pose = np.array(starts, dtype=np.float64).T.copy()
+    done, metrics = np.full(n, -1, dtype=np.int64), np.zeros((2, n))
+    interaction = step.Interaction(group=n, k_avoid=k_avoid, peer_radius=2.0, min_x_oa=0.05)
+    schedule = step.Schedule(dt=0.02, first_step=0, max_steps=1)
+    step.advance_batch(pose, params, done, metrics, np.zeros((3, 0)), interaction, schedule)
+    for i in range(n):
+        others = np.array([p[:2] for j, p in enumerate(starts) if j != i]).T.copy()
+        one = step.step_robot(
+            starts[i], params[i : i + 1].copy(), peers=others, obstacles=np.zeros((3, 0)),
+            k_avoid=k_avoid, peer_radius=2.0, min_x_oa=0.05, dt=0.02,
+        )  # fmt: skip
+        assert (one.x, one.y, one.theta) == tuple(pose[:, i])
+        assert (done[i] == 0) == one.done
+        assert metrics[step.EFFORT, i] == (abs(one.omega) + abs(one.u)) * 0.02
+
+
+def test_integrate_wheels_is_the_step_euler_update() -> None:
+    params = _params((3.0, 1.0, 0.5), (1.0, 2.0, 1.0), "cw", 20.0, 0.2)
+    got = step.step_robot(
+        (0.2, -0.1, 0.3), params, peers=np.zeros((2, 0)), obstacles=np.zeros((3, 0)),
+        k_avoid=0.0, peer_radius=1.0, min_x_oa=0.05, dt=0.02,
+    )  # fmt: skip
+    x, y, theta = step.integrate_wheels(0.2, -0.1, 0.3, got.right, got.left, R, B, 0.02, 1)
+    assert (x, y, theta) == pytest.approx((got.x, got.y, got.theta), abs=1e-15)

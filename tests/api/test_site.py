@@ -34,7 +34,7 @@ async def _client(settings: Settings, db: Path) -> AsyncIterator[httpx.AsyncClie
     store = SqliteTaskStore(db)
     try:
         with FleetService(settings, MemoryBus(), store) as fleet:
-            app = create_app(settings, service=fleet)
+            app = create_app(settings, service=fleet, store=store)
             async with (
                 app.router.lifespan_context(app),
                 httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://t") as c,

@@ -23,10 +23,12 @@ COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.sim",
     "fleet.cli.serve",
     "fleet.cli.demo",
+    "fleet.cli.control",
     "fleet.cli.bench_sim",
     "fleet.cli.bench_zenoh",
     "fleet.cli.bench_api",
     "fleet.cli.bench_fleet",
+    "fleet.cli.bench_estop",
     "fleet.cli.bench_on_state",
     "fleet.cli.bench_soak",
 )

@@ -57,7 +57,9 @@ class TaskSnapshot:
 
     ``gains`` holds the gains the robot would use with each law; ``named_robot`` is the robot
     the request names (None: the fleet chooses). ``law``, ``revision``, ``hold`` and
-    ``start_delay_s`` are what was last sent (under way only).
+    ``start_delay_s`` are what was last sent (under way only); ``hold`` is also set while an
+    operator holds its robot still (it stands). ``avoid_robot``: a queued task taken from
+    this robot (it was stuck): give it to another robot if there is one.
     """
 
     task_id: str
@@ -73,6 +75,7 @@ class TaskSnapshot:
     revision: int = 0
     hold: bool = False
     start_delay_s: float = 0.0
+    avoid_robot: str | None = None
 
 
 @dataclass(frozen=True)

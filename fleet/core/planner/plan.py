@@ -4,7 +4,8 @@ This first planner keeps the service's original rules (it moved here from the se
 
 1. **Assignment.** Queued tasks that name a robot go to it first come, first served when it
    is available; the others go to available robots by the optimal assignment on predicted
-   solo arrival times (:mod:`fleet.core.assignment`).
+   solo arrival times (:mod:`fleet.core.assignment`); a task taken from a stuck robot
+   (``TaskSnapshot.avoid_robot``) goes back to that robot only if no other one can take it.
 2. **Direction.** ``auto`` tasks get cw or ccw from closed-loop rollouts of the whole
    fleet (:func:`fleet.core.direction.choose_directions`): robots under way keep their law
    unless flipping some of them is strictly safer; standing robots (idle, arrived,
@@ -32,6 +33,8 @@ from fleet.core.types import LAWS, Law
 
 #: Task statuses of a task under way (it has a robot).
 UNDER_WAY = (TaskStatus.ASSIGNED, TaskStatus.DRIVING, TaskStatus.WAITING)
+#: Added to the predicted time [s] of giving a task back to the robot it avoids.
+AVOID_COST_S = 1e6
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,11 @@ def _pairs(
             snapshot.obstacles,
             snapshot.avoidance,
         )
+        index = {r.robot_id: i for i, r in enumerate(robots)}
+        for j, t in enumerate(unnamed):
+            i = index.get(t.avoid_robot or "")
+            if i is not None:
+                cost[i, j] += AVOID_COST_S
         for i, j in optimal_assignment(cost):
             pairs.append((unnamed[j], robots[i]))
     return pairs
@@ -161,6 +169,7 @@ def plan(snapshot: PlanningSnapshot, config: PlannerConfig | None = None) -> Pla
                 robot.robot_id,
                 "assign",
                 laws[first_new + k],
+                revision=task.revision,
                 hold=hold_reason is not None,
                 reason=hold_reason,
             )

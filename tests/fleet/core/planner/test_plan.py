@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from fleet.core.params import Tolerance
 from fleet.core.planner import PlanningSnapshot, RobotSnapshot, TaskSnapshot, plan
@@ -66,3 +67,17 @@ def test_nothing_to_plan_without_an_available_robot() -> None:
     )
     result = plan(PlanningSnapshot(version=1, robots=busy, tasks=snapshot.tasks))
     assert result.decisions == () and result.safe
+
+
+def test_a_task_taken_from_a_stuck_robot_goes_to_another_one_and_keeps_its_revision() -> None:
+    near, far = robot("near", (2.0, 0.0, 0.0)), robot("far", (-4.0, 4.0, 0.0))
+    requeued = replace(task("t", (4.0, 0.0, 0.0), 1.0), revision=3)
+    snapshot = PlanningSnapshot(version=1, robots=(near, far), tasks=(requeued,), control_dt=0.05)
+    (first,) = plan(snapshot).decisions
+    assert (first.robot_id, first.revision) == ("near", 3)  # the nearer robot is cheaper
+    avoiding = replace(requeued, avoid_robot="near")
+    (moved,) = plan(replace(snapshot, tasks=(avoiding,))).decisions
+    assert (moved.robot_id, moved.action, moved.revision) == ("far", "assign", 3)
+    alone = replace(snapshot, robots=(near,), tasks=(avoiding,))
+    (back,) = plan(alone).decisions  # no other robot: it goes back rather than wait for ever
+    assert back.robot_id == "near"

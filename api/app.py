@@ -21,8 +21,20 @@ from fastapi.openapi.utils import get_openapi
 from api import errors
 from api.body_limit import BodyLimit
 from api.deps import FleetAPI
+from api.metrics import FleetMetrics
 from api.plot_cache import PlotCache
-from api.routes import dashboard, events, health, obstacles, plots, robots, tasks
+from api.routes import (
+    bays,
+    control,
+    dashboard,
+    events,
+    health,
+    metrics,
+    obstacles,
+    plots,
+    robots,
+    tasks,
+)
 from api.schemas import ValidationErrorOut
 from api.streaming import EventHub
 from fleet.core.wire import Keys
@@ -84,6 +96,8 @@ def create_app(
                 _log.info("fleet service up; Zenoh router on %s", app.state.zenoh_locators)
             else:
                 app.state.service, app.state.tasks, app.state.zenoh_locators = service, store, []
+            app.state.metrics = FleetMetrics(app.state.service)  # a registry per app
+            stack.callback(app.state.metrics.close)
             try:
                 yield
             finally:
@@ -109,9 +123,10 @@ def create_app(
     app.state.startup_error = None
     errors.install(app)
     app.add_middleware(BodyLimit, max_bytes=settings.api_max_body_bytes)
-    for module in (tasks, robots, obstacles, events, health):
+    for module in (tasks, robots, control, bays, obstacles, events, health):
         app.include_router(module.router)
     app.include_router(plots.router)
+    app.include_router(metrics.router)
     app.include_router(dashboard.router)
     _document_validation_errors(app)
     return app

@@ -15,13 +15,23 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from api.schemas import FieldError, ValidationErrorOut
-from fleet.core.tasks import FleetError, GoalRejected, RobotNotFound, TaskConflict, TaskNotFound
+from fleet.core.tasks import (
+    BayNotFound,
+    BayTaken,
+    FleetError,
+    GoalRejected,
+    RobotNotFound,
+    TaskConflict,
+    TaskNotFound,
+)
 
 _log = logging.getLogger(__name__)
 
 STATUS_OF: dict[type[FleetError], int] = {
     TaskNotFound: status.HTTP_404_NOT_FOUND,
     RobotNotFound: status.HTTP_404_NOT_FOUND,
+    BayNotFound: status.HTTP_404_NOT_FOUND,
+    BayTaken: status.HTTP_409_CONFLICT,
     GoalRejected: status.HTTP_409_CONFLICT,
     TaskConflict: status.HTTP_409_CONFLICT,
 }

@@ -12,12 +12,21 @@ import math
 from dataclasses import asdict
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from fleet.core.params import Gains, Tolerance
 from fleet.core.tasks import Direction, RobotStatus, RobotView, Task, TaskRequest, TaskStatus
 from fleet.core.types import Law
-from fleet.core.wire import Obstacle, Pose, RobotId
+from fleet.core.wire import (
+    ControlAction,
+    ControlCommand,
+    ErrorLevel,
+    Obstacle,
+    Pose,
+    RobotError,
+    RobotId,
+)
+from fleet.service.bays import BayState
 from fleet.service.stats import PlannerStats
 
 Coordinate = Annotated[
@@ -59,10 +68,30 @@ class ToleranceIn(_In):
     heading: Annotated[float, Field(ge=0.001, le=math.pi, allow_inf_nan=False)] = 0.1
 
 
-class TaskIn(_In):
-    """Park a robot (the named one, or any) at ``goal``."""
+BayName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")]
 
-    goal: PoseIn
+
+class TaskIn(_In):
+    """Park a robot (the named one, or any) at ``goal``, in the named ``bay``, or in any
+    free bay of ``bay_group``: exactly one of the three."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        frozen=True,
+        json_schema_extra={
+            "examples": [
+                {"goal": {"x": 3.0, "y": 2.0, "theta": 1.57}},
+                {"bay": "A3"},
+                {"bay_group": "charging", "robot_id": "robot-2"},
+            ]
+        },
+    )
+
+    goal: PoseIn | None = Field(default=None, description="a parking posture")
+    bay: BayName | None = Field(default=None, description="a bay of the site map (GET /bays)")
+    bay_group: BayName | None = Field(
+        default=None, description="any free bay of this group, e.g. charging"
+    )
     robot_id: RobotId | None = Field(default=None, description="a specific robot; omit for any")
     direction: Direction = Field(
         default="auto", description="auto: the fleet picks cw/ccw; cw = law (20), ccw = law (17)"
@@ -70,14 +99,41 @@ class TaskIn(_In):
     gains: GainsIn | None = Field(default=None, description="omit for the law's default gains")
     tolerance: ToleranceIn = ToleranceIn()
 
-    def to_request(self) -> TaskRequest:
+    @model_validator(mode="after")
+    def _one_target(self) -> TaskIn:
+        given = [n for n in ("goal", "bay", "bay_group") if getattr(self, n) is not None]
+        if len(given) != 1:
+            raise ValueError(f"give exactly one of goal, bay, bay_group (got {len(given)})")
+        return self
+
+    def to_request(self, goal: Pose | None = None, bay: str | None = None) -> TaskRequest:
+        """The request, at ``goal`` (a bay's pose) or else at the body's goal."""
+        if goal is None:
+            assert self.goal is not None
+            goal = Pose(x=self.goal.x, y=self.goal.y, theta=self.goal.theta)
         return TaskRequest(
-            goal=Pose(x=self.goal.x, y=self.goal.y, theta=self.goal.theta),
+            goal=goal,
             robot_id=self.robot_id,
             direction=self.direction,
             gains=None if self.gains is None else Gains(**self.gains.model_dump()),
             tolerance=Tolerance(**self.tolerance.model_dump()),
+            bay=bay,
         )
+
+
+class ControlIn(_In):
+    """Whom an operator command is for, and why."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        frozen=True,
+        json_schema_extra={"examples": [{"reason": "drill"}, {"robot_id": "robot-2"}]},
+    )
+
+    robot_id: RobotId | None = Field(default=None, description="one robot; omit for the fleet")
+    reason: Annotated[str, Field(max_length=200)] | None = Field(
+        default=None, description="shown in the robots' state (detail) and errors"
+    )
 
 
 class ObstacleIn(_In):
@@ -138,6 +194,7 @@ class TaskOut(BaseModel):
     gains: Gains | None
     tolerance: Tolerance
     reason: str | None = Field(description="why it failed or was cancelled")
+    bay: str | None = Field(default=None, description="the bay the task parks in (reserved)")
     attempts: int
     revision: int = Field(
         description="re-plans of the law while under way (0 as first sent); each one is "
@@ -160,11 +217,54 @@ class TaskOut(BaseModel):
             gains=req.gains,
             tolerance=req.tolerance,
             reason=task.reason,
+            bay=req.bay,
             attempts=task.attempts,
             revision=task.revision,
             created_at=task.created_at,
             updated_at=task.updated_at,
         )
+
+
+class TaskEventOut(BaseModel):
+    """One stored transition of a task."""
+
+    at: float = Field(description="seconds since the epoch (service clock)")
+    event: str = Field(
+        description="created, assigned, acknowledged, replanned, requeued, succeeded, failed, "
+        "cancelled, ..."
+    )
+    status: TaskStatus
+    robot_id: str | None
+    law: Law | None = Field(description="cw = (20), ccw = (17)")
+    revision: int = Field(description="re-plans of the law while under way")
+    attempts: int = Field(description="times the task was assigned (requeues and recoveries)")
+    reason: str | None
+
+    @classmethod
+    def of(cls, at: float, event: str, task: Task) -> TaskEventOut:
+        return cls(
+            at=at,
+            event=event,
+            status=task.status,
+            robot_id=task.robot_id,
+            law=task.law,
+            revision=task.revision,
+            attempts=task.attempts,
+            reason=task.reason,
+        )
+
+
+class RobotErrorOut(BaseModel):
+    """One active fault of a robot."""
+
+    code: str = Field(description="stable code: estop, pose_stale, link_lost, drive_error, ...")
+    level: ErrorLevel
+    message: str
+    since: float = Field(description="when it began, seconds since the epoch (robot clock)")
+
+    @classmethod
+    def of(cls, error: RobotError) -> RobotErrorOut:
+        return cls(code=error.code, level=error.level, message=error.message, since=error.since)
 
 
 class RobotOut(BaseModel):
@@ -180,6 +280,11 @@ class RobotOut(BaseModel):
     goal: PoseOut | None
     radius: float = Field(description="body radius [m]")
     last_seen: float = Field(description="seconds since the epoch (service clock)")
+    detail: str | None = Field(
+        default=None, description="why it stands still, e.g. 'pose stale' while holding"
+    )
+    errors: list[RobotErrorOut] = Field(default_factory=list, description="active faults")
+    in_service: bool = Field(default=True, description="false: decommissioned, gets no task")
 
     @classmethod
     def of(cls, robot: RobotView) -> RobotOut:
@@ -194,7 +299,71 @@ class RobotOut(BaseModel):
             goal=None if robot.goal is None else PoseOut.of(robot.goal),
             radius=robot.radius,
             last_seen=robot.last_seen,
+            detail=robot.detail,
+            errors=[RobotErrorOut.of(e) for e in robot.errors],
+            in_service=robot.in_service,
         )
+
+
+class ControlOut(BaseModel):
+    """The command sent to the robots (``ControlCommand`` on the Zenoh control key)."""
+
+    command: ControlAction
+    robot_id: str | None = Field(description="the robot, or null for the whole fleet")
+    issuer: str
+    seq: int
+    stamp: float = Field(description="seconds since the epoch")
+    reason: str | None
+
+    @classmethod
+    def of(cls, message: ControlCommand) -> ControlOut:
+        return cls(
+            command=message.command,
+            robot_id=message.robot_id,
+            issuer=message.issuer,
+            seq=message.seq,
+            stamp=message.stamp,
+            reason=message.reason,
+        )
+
+
+class BayOut(BaseModel):
+    """A bay of the site map and its state."""
+
+    name: str
+    group: str | None
+    pose: PoseOut
+    status: Literal["free", "reserved", "occupied"] = Field(
+        description="reserved: by an active task; occupied: a robot parked in it"
+    )
+    task_id: str | None = Field(description="the task that reserves it")
+    robot_id: str | None = Field(description="the robot driving there or parked in it")
+
+    @classmethod
+    def of(cls, state: BayState) -> BayOut:
+        bay = state.bay
+        return cls(
+            name=bay.name,
+            group=bay.group,
+            pose=PoseOut.of(bay.pose),
+            status=state.status,
+            task_id=state.task_id,
+            robot_id=state.robot_id,
+        )
+
+
+class HoldOut(BaseModel):
+    """What the operator asked of the fleet or of one robot."""
+
+    paused: bool
+    estop: bool
+
+
+class ControlStateOut(BaseModel):
+    """The operator's holds: fleet-wide, and robots with a command of their own since."""
+
+    fleet: HoldOut
+    robots: dict[str, HoldOut]
 
 
 class ObstacleOut(BaseModel):

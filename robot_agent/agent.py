@@ -9,6 +9,12 @@ wall clock). Zenoh edges:
 * liveliness token ``keys.alive(id)``;
 * subscriber on ``keys.assignment(id)`` (park / cancel, decoded by ``wire.Decoder``:
   malformed payloads are dropped and counted, never reach the loop);
+* subscribers on ``keys.control()`` (the whole fleet) and ``keys.control(id)`` (this robot):
+  an operator's pause / resume / estop / release (:mod:`robot_agent.operator`), queued with
+  the assignments and applied at the start of the next tick; while paused or e-stopped the
+  tick commands zero wheels (``drive.stop()``) whatever the task says. The e-stop takes
+  effect on the next tick (at most one control period later), not from the Zenoh callback:
+  the Drive contract keeps every drive call on the control thread;
 * a :class:`~robot_agent.world_feed.WorldFeed` filling a :class:`~robot_agent.world.WorldView`
   with peers' states (``keys.all_states``) and the
   obstacles (subscribed and queried once at start), owned or shared with other agents;
@@ -18,7 +24,9 @@ wall clock). Zenoh edges:
   that is gone while the router and peers are still visible does not stop the robot.
 
 Exceptions in callbacks are caught, counted and logged (``callback_errors``); an exception
-in a tick stops the robot and is counted (``tick_errors``), the loop goes on.
+in a tick stops the robot and is counted (``tick_errors``), the loop goes on. Each state says
+why the robot stands still (``detail``) and lists its active faults (``errors``, see
+:mod:`robot_agent.faults`).
 """
 
 from __future__ import annotations
@@ -35,9 +43,11 @@ import numpy as np
 
 from fleet.core.wire import (
     CancelAssignment,
+    ControlCommand,
     Keys,
     ParkAssignment,
     Pose,
+    RobotError,
     RobotMode,
     RobotState,
     encode,
@@ -46,13 +56,16 @@ from fleet.io.decoder import CallbackGuard, Decoder
 from fleet.io.settings import Settings
 from robot_agent.clock import Clock, MonotonicClock, run_periodic
 from robot_agent.drive import Drive
+from robot_agent.faults import FaultBook, current_faults
 from robot_agent.link import LinkMonitor
 from robot_agent.logic import AgentTask, AgentTaskStatus, TickResult, apply_assignment, decide
+from robot_agent.operator import OperatorLatch
 from robot_agent.world import WorldView
 from robot_agent.world_feed import WorldFeed
 
 _log = logging.getLogger(__name__)
 _NO_PEERS = np.zeros((0, 2))  # peers only matter while driving
+Inbound = ParkAssignment | CancelAssignment | ControlCommand
 
 
 @dataclass(frozen=True)
@@ -64,6 +77,7 @@ class AgentSnapshot:
     task_id: str | None
     seq: int
     decision: TickResult
+    errors: tuple[RobotError, ...] = ()
 
 
 class RobotAgent:
@@ -105,11 +119,14 @@ class RobotAgent:
         )
         self.decoder = Decoder(f"agent {robot_id}")
         self.guard = CallbackGuard(f"agent {robot_id}")
-        self._inbox: queue.SimpleQueue[ParkAssignment | CancelAssignment] = queue.SimpleQueue()
+        self._inbox: queue.SimpleQueue[Inbound] = queue.SimpleQueue()
         self._task: AgentTask | None = None
+        self.operator = OperatorLatch(robot_id)
+        self.faults = FaultBook()
         self._seq = 0
         self._pose = Pose(x=0.0, y=0.0, theta=0.0)
         self._reading: tuple[Pose, float, float] | None = None  # sensed (pose, stamp, now)
+        self._failure: tuple[str, str] | None = None  # (phase, message) of a failed sense
         self.tick_errors = 0
         self.last: AgentSnapshot | None = None
         self._handles: list[Any] = []
@@ -132,8 +149,21 @@ class RobotAgent:
             return
         self.submit(message)
 
-    def submit(self, message: ParkAssignment | CancelAssignment) -> None:
-        """Queue an assignment message; applied at the start of the next tick (thread-safe)."""
+    def _on_control(self, sample: Any) -> None:
+        command = self.decoder.decode(ControlCommand, sample.payload.to_bytes())
+        if command is None:
+            return
+        # A fleet-wide command comes on the fleet key, a robot's own on its key: anything
+        # else (a command for robot B on robot A's key) is dropped and counted.
+        robot = self.keys.robot_of(str(sample.key_expr))
+        if command.robot_id != robot:
+            self.decoder.drop("wrong_robot", f"{command.robot_id} on {sample.key_expr}")
+            return
+        self.submit(command)
+
+    def submit(self, message: Inbound) -> None:
+        """Queue an assignment or control message; applied at the start of the next tick
+        (thread-safe)."""
         self._inbox.put(message)
 
     def open(self) -> RobotAgent:
@@ -153,6 +183,10 @@ class RobotAgent:
                     self.keys.assignment(self.robot_id), self.guard.wrap(self._on_assignment)
                 )
             )
+            for key in (self.keys.control(), self.keys.control(self.robot_id)):
+                self._handles.append(
+                    self.session.declare_subscriber(key, self.guard.wrap(self._on_control))
+                )
             self._handles.append(
                 self.session.liveliness().declare_token(self.keys.alive(self.robot_id))
             )
@@ -168,66 +202,112 @@ class RobotAgent:
         return self.act()
 
     def sense(self) -> None:
-        """First phase of a tick: read the pose (time t), apply pending assignment messages,
-        and put the pose in the world view shared with agents on this session.
+        """First phase of a tick: apply pending control commands and assignment messages, read
+        the pose (time t) and put it in the world view shared with agents on this session.
 
         A lockstep simulation (``sim_agent.fleet``) senses every robot before any acts, so
         each decides on its peers' poses of the same time t, as the batch simulator does.
         """
         self._reading = None
+        self._failure = None
+        phase = "tick_error"
         try:
+            self._apply_inbox(self.clock.now())
+            phase = "drive_error"
             pose, stamp = self.drive.read_pose()
+            phase = "tick_error"
             now = self.clock.now()
             self._pose = pose
-            while True:
-                try:
-                    message = self._inbox.get_nowait()
-                except queue.Empty:
-                    break
-                self._task = apply_assignment(self._task, message, now)
             self.world.update_position(self.robot_id, pose.x, pose.y)
             self._reading = (pose, stamp, now)
-        except Exception:
-            self._tick_failed()
+        except Exception as exc:
+            self._failure = self._tick_failed(phase, exc)
 
     def act(self) -> AgentSnapshot | None:
-        """Second phase of a tick: decide on the sensed pose, command the wheels, publish."""
+        """Second phase of a tick: decide on the sensed pose (an operator's pause or e-stop
+        overrides the decision), command the wheels, publish the state and its faults."""
         reading, self._reading = self._reading, None
-        if reading is None:  # sensing failed (already counted and stopped)
-            return self._publish(TickResult(mode=RobotMode.HOLDING, task=self._task))
-        pose, stamp, now = reading
-        try:
-            active = self._task is not None and self._task.status is AgentTaskStatus.ACTIVE
-            decision = decide(
-                pose.as_tuple(),
-                now - stamp,
-                self._task,
-                self.world.peer_positions(exclude=self.robot_id) if active else _NO_PEERS,
-                self.world.obstacles(),
-                self.settings.profile,
-                self.settings.avoidance,
-                self.settings.pose_stale_s,
-                link_ok=self.link.ok() if active else True,
-                now=now,
+        failure = self._failure
+        pose_age = float("nan")
+        link_ok = True
+        decision: TickResult | None = None
+        if reading is not None:
+            pose, stamp, now = reading
+            pose_age = now - stamp
+            phase = "tick_error"
+            try:
+                link_ok = self.link.ok()
+                override = self.operator.mode
+                if override is not None:  # an operator's pause or e-stop: stand still, keep task
+                    decision = TickResult(
+                        mode=override, task=self._task, detail=self.operator.detail
+                    )
+                else:
+                    active = self._task is not None and self._task.status is AgentTaskStatus.ACTIVE
+                    decision = decide(
+                        pose.as_tuple(),
+                        pose_age,
+                        self._task,
+                        self.world.peer_positions(exclude=self.robot_id) if active else _NO_PEERS,
+                        self.world.obstacles(),
+                        self.settings.profile,
+                        self.settings.avoidance,
+                        self.settings.pose_stale_s,
+                        link_ok=link_ok if active else True,
+                        now=now,
+                    )
+                self._task = decision.task
+                phase = "drive_error"
+                if decision.moving:
+                    self.drive.command_wheels(decision.right, decision.left)
+                else:
+                    self.drive.stop()
+            except Exception as exc:
+                failure = self._tick_failed(phase, exc)
+                decision = None
+        if decision is None:  # sensing or acting failed (counted, logged, robot stopped)
+            drive_failed = failure is not None and failure[0] == "drive_error"
+            what = "drive error" if drive_failed else "tick error"
+            decision = TickResult(
+                mode=self.operator.mode or RobotMode.HOLDING,
+                task=self._task,
+                detail=self.operator.detail or what,
             )
-            self._task = decision.task
-            if decision.moving:
-                self.drive.command_wheels(decision.right, decision.left)
-            else:
-                self.drive.stop()
-        except Exception:
-            self._tick_failed()
-            decision = TickResult(mode=RobotMode.HOLDING, task=self._task)
-        return self._publish(decision)
+        faults = current_faults(
+            pose_age=pose_age,
+            pose_stale_s=self.settings.pose_stale_s,
+            link_ok=link_ok,
+            estop=self.operator.detail if self.operator.estop else None,
+            failure=failure,
+        )
+        wall = self._wall()
+        return self._publish(decision, self.faults.update(faults, wall), wall)
 
-    def _tick_failed(self) -> None:
-        """Count and log an exception of a tick, and stop the robot."""
+    def _tick_failed(self, phase: str, exc: Exception) -> tuple[str, str]:
+        """Count and log an exception of a tick, stop the robot; the fault to report."""
         self.tick_errors += 1
         if self.tick_errors <= 10 or self.tick_errors % 1000 == 0:
             _log.exception("%s: tick failed (%d so far)", self.robot_id, self.tick_errors)
         self._safe_stop()
+        what = "drive error" if phase == "drive_error" else "tick error"
+        return (phase, f"{what}, robot stopped: {type(exc).__name__}: {exc}")
 
-    def _publish(self, decision: TickResult) -> AgentSnapshot | None:
+    def _apply_inbox(self, now: float) -> None:
+        """Apply queued control commands and assignments, in arrival order."""
+        while True:
+            try:
+                message = self._inbox.get_nowait()
+            except queue.Empty:
+                return
+            if isinstance(message, ControlCommand):
+                if self.operator.apply(message):
+                    _log.info("%s: %s by %s", self.robot_id, message.command.value, message.issuer)
+            else:
+                self._task = apply_assignment(self._task, message, now)
+
+    def _publish(
+        self, decision: TickResult, errors: list[RobotError], wall: float
+    ) -> AgentSnapshot | None:
         task = decision.task
         a = task.assignment if task is not None else None
         snapshot = AgentSnapshot(
@@ -236,12 +316,13 @@ class RobotAgent:
             task_id=task.task_id if task is not None else None,
             seq=self._seq,
             decision=decision,
+            errors=tuple(errors),
         )
         self.last = snapshot
         state = RobotState(
             robot_id=self.robot_id,
             seq=self._seq,
-            stamp=self._wall(),
+            stamp=wall,
             pose=self._pose,
             u=decision.u,
             omega=decision.omega,
@@ -251,6 +332,8 @@ class RobotAgent:
             law=a.law if a is not None else None,
             goal=a.goal if a is not None else None,
             radius=self.settings.profile.radius,
+            detail=decision.detail,
+            errors=errors,
         )
         self._seq += 1
         self.world.update_state(state)  # agents sharing this session see it without Zenoh

@@ -22,6 +22,10 @@ Task protocol (``fleet.core.wire`` module docstring), as a pure state machine
 * own pose stale or link to the fleet network lost -> stop, ``holding``, task kept (still
   active: it resumes when the pose or the link comes back).
 
+Every stop says why (``TickResult.detail``: ``pose stale``, ``link lost``, ``task
+cancelled``, ``start delay``, ``held by the fleet``). An operator's pause or e-stop
+(:mod:`robot_agent.operator`) overrides the whole tick in the agent, before :func:`decide`.
+
 Control of an active task (:func:`decide`) is one call of the compiled control step,
 :func:`fleet.core.step.step_robot` -- the same code the batch simulator and the planner's
 rollouts run: error of Eq. (5), stop rule, law (17) ``ccw`` or (20) ``cw``, the repulsion
@@ -108,14 +112,15 @@ class TickResult:
     right: float = 0.0  # right wheel [rad/s]
     left: float = 0.0  # left wheel [rad/s]
     repulsion: float = 0.0  # Eq. (27) sum added to u before saturation [m/s]
+    detail: str | None = None  # why the robot stands still (RobotState.detail)
 
     @property
     def moving(self) -> bool:
         return self.right != 0.0 or self.left != 0.0
 
 
-def _stopped(mode: RobotMode, task: AgentTask | None) -> TickResult:
-    return TickResult(mode=mode, task=task)
+def _stopped(mode: RobotMode, task: AgentTask | None, detail: str | None = None) -> TickResult:
+    return TickResult(mode=mode, task=task, detail=detail)
 
 
 def within_tolerance(pose: Sequence[float] | FloatArray, assignment: ParkAssignment) -> bool:
@@ -203,11 +208,11 @@ def decide(
     if task.status is AgentTaskStatus.ARRIVED:
         return _stopped(RobotMode.ARRIVED, task)
     if task.status is AgentTaskStatus.CANCELLED:
-        return _stopped(RobotMode.HOLDING, task)
+        return _stopped(RobotMode.HOLDING, task, "task cancelled")
     if not pose_age <= pose_stale_s:  # also catches NaN
-        return _stopped(RobotMode.HOLDING, task)
+        return _stopped(RobotMode.HOLDING, task, "pose stale")
     if not link_ok:  # blind to its peers: stop, keep the task, resume when the link returns
-        return _stopped(RobotMode.HOLDING, task)
+        return _stopped(RobotMode.HOLDING, task, "link lost")
 
     a = task.assignment
     # The task's avoidance parameters win when the fleet sent them; else the robot's own.
@@ -230,7 +235,7 @@ def decide(
     if result.done:  # the stop rule: this step is still applied (see the module docstring)
         mode, task = RobotMode.ARRIVED, replace(task, status=AgentTaskStatus.ARRIVED)
     elif hold:
-        return _stopped(RobotMode.WAITING, task)
+        return _stopped(RobotMode.WAITING, task, "held by the fleet" if a.hold else "start delay")
     else:
         mode = RobotMode.AVOIDING if result.avoiding else RobotMode.DRIVING
     return TickResult(

@@ -41,6 +41,7 @@ class DashboardConfigOut(BaseModel):
     robot_radius: float = Field(description="robot body radius [m] (default profile)")
     peer_radius: float = Field(description="influence radius of a peer robot, Eq. (27) [m]")
     auth: bool = Field(description="POST/PUT need 'Authorization: Bearer <token>'")
+    site: bool = Field(default=False, description="a site map is loaded (GET /site, /bays)")
 
 
 def _asset(name: str) -> FileResponse:
@@ -70,4 +71,5 @@ async def dashboard_config(settings: SettingsDep) -> DashboardConfigOut:
         robot_radius=settings.profile.radius,
         peer_radius=settings.avoidance.peer_radius,
         auth=settings.api_token is not None,
+        site=settings.site is not None,
     )

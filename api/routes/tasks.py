@@ -16,7 +16,7 @@ from fastapi.exceptions import RequestValidationError
 
 from api.deps import Authorized, IdempotencyKey, ServiceDep, SettingsDep, TaskBody, TaskStoreDep
 from api.paging import decode_cursor, encode_cursor
-from api.schemas import ErrorOut, PathPointOut, TaskOut
+from api.schemas import ErrorOut, PathPointOut, TaskEventOut, TaskOut
 from fleet.core.tasks import TaskStatus
 from fleet.service.store import TaskCursor
 
@@ -34,15 +34,23 @@ DEFAULT_PAGE = 100
     dependencies=[Authorized],
     responses={
         401: {"model": ErrorOut, "description": "missing or wrong bearer token"},
-        404: {"model": ErrorOut, "description": "unknown robot"},
-        409: {"model": ErrorOut, "description": "goal rejected (obstacle zone, near a goal)"},
+        404: {"model": ErrorOut, "description": "unknown robot, bay or bay group"},
+        409: {
+            "model": ErrorOut,
+            "description": "goal rejected (obstacle or keep-out zone, near a goal), bay taken",
+        },
     },
 )
 def submit_task(
     body: TaskBody, service: ServiceDep, idempotency_key: IdempotencyKey = None
 ) -> TaskOut:
-    """Create a parking task; it is stored before the 201 is sent."""
-    return TaskOut.of(service.submit(body.to_request(), idempotency_key))
+    """Create a parking task at a goal, in a bay, or in any free bay of a group; it is
+    stored before the 201 is sent."""
+    if body.goal is not None:
+        return TaskOut.of(service.submit(body.to_request(), idempotency_key))
+    return TaskOut.of(
+        service.submit_to_bay(body.bay, body.bay_group, body.to_request, idempotency_key)
+    )
 
 
 @router.get(
@@ -115,6 +123,18 @@ def get_task(task_id: TaskId, service: ServiceDep) -> TaskOut:
 )
 def cancel_task(task_id: TaskId, service: ServiceDep) -> TaskOut:
     return TaskOut.of(service.cancel(task_id))
+
+
+#: Most transitions returned by ``/tasks/{id}/events`` (the newest).
+HISTORY_MAX = 1000
+
+
+@router.get("/{task_id}/events", responses={404: {"model": ErrorOut}})
+def task_events(task_id: TaskId, service: ServiceDep) -> list[TaskEventOut]:
+    """Every transition of the task, oldest first (at most the newest 1000): time, event,
+    status, robot, law, revision, attempts, reason."""
+    rows = service.history(task_id)[-HISTORY_MAX:]
+    return [TaskEventOut.of(at, event, task) for at, event, task in rows]
 
 
 @router.get("/{task_id}/path", responses={404: {"model": ErrorOut}})

@@ -68,6 +68,13 @@ export const api = {
     request("POST", "tasks", { body, token, headers: { "Idempotency-Key": key } }),
   cancelTask: (id, token) => request("POST", `tasks/${encodeURIComponent(id)}/cancel`, { token }),
   plotUrl: (id) => `tasks/${encodeURIComponent(id)}/plot.png?t=${Date.now()}`,
+  taskEvents: (id) => request("GET", `tasks/${encodeURIComponent(id)}/events`),
+  /** pause | resume | estop | release, for the fleet (robotId null) or one robot. */
+  control: (action, robotId, token) =>
+    request("POST", `control/${action}`, { body: robotId ? { robot_id: robotId } : {}, token }),
+  controlState: () => request("GET", "control"),
+  site: () => request("GET", "site"),
+  bays: () => request("GET", "bays"),
 };
 
 /**

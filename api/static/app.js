@@ -15,6 +15,8 @@ const TASKS_FETCHED = 200; // newest tasks loaded on (re)connection
 const TASKS_KEPT = 400; // finished tasks beyond this are forgotten (oldest first)
 const ROBOT_TABLE_MS = 250;
 const OBSTACLES_POLL_MS = 10000; // obstacles have no event: poll them
+const OPERATOR_POLL_MS = 2000; // bays and the operator's holds: polled, and after task events
+const LEVEL_ORDER = { fatal: 0, error: 1, warning: 2 };
 const SMOOTHING_S = 0.08; // display pose follows the reported one with this time constant
 const ACTIVE = new Set(["queued", "assigned", "driving", "waiting"]);
 const EQUATION = { ccw: "Eq. (17)", cw: "Eq. (20)" };
@@ -59,6 +61,9 @@ const state = {
   robots: new Map(), // id -> robot record (see applyRobot)
   tasks: new Map(), // id -> TaskOut
   obstacles: [],
+  site: null, // GET /site: yard, obstacles, keep_out, bays (null: no site map)
+  bays: [], // GET /bays: name, group, pose, status (free / reserved / occupied)
+  control: { fleet: { paused: false, estop: false }, robots: {} }, // GET /control
   connection: "connecting",
   draft: null, // {x, y, theta} [m, m, rad]
   draftKey: idempotencyKey(),
@@ -72,7 +77,15 @@ const state = {
 };
 
 const pending = { robots: new Map(), tasks: new Map() };
-const dirty = { map: true, robotTable: true, robotSet: true, tasks: new Set(), taskOrder: true };
+const dirty = {
+  map: true,
+  robotTable: true,
+  robotSet: true,
+  tasks: new Set(),
+  taskOrder: true,
+  faults: true,
+  operator: true,
+};
 
 // --- state updates -----------------------------------------------------------------
 
@@ -97,6 +110,12 @@ function applyRobot(data) {
   robot.goal = data.goal;
   robot.radius = data.radius;
   robot.last_seen = data.last_seen;
+  if (robot.detail !== data.detail || JSON.stringify(robot.errors) !== JSON.stringify(data.errors ?? [])) {
+    dirty.faults = true;
+    dirty.operator = true;
+  }
+  robot.detail = data.detail ?? null;
+  robot.errors = data.errors ?? [];
   robot.trail.push(data.pose.x, data.pose.y);
   dirty.map = true;
   dirty.robotTable = true;
@@ -170,6 +189,8 @@ async function refetchAll() {
       api.tasks(TASKS_FETCHED),
       api.obstacles(),
     ]);
+    state.site = config.site ? await api.site() : null;
+    await refreshOperator();
     applyConfig(config);
     const present = new Set(robots.map((r) => r.robot_id));
     for (const id of [...state.robots.keys()]) {
@@ -207,6 +228,34 @@ async function pollObstacles() {
   setTimeout(pollObstacles, OBSTACLES_POLL_MS);
 }
 
+/** Bays and the operator's holds (no events carry them). */
+async function refreshOperator() {
+  try {
+    const [bays, control] = await Promise.all([api.bays(), api.controlState()]);
+    state.bays = bays;
+    state.control = control;
+    dirty.map = true;
+    dirty.operator = true;
+  } catch {
+    /* the stream's indicator already shows trouble */
+  }
+}
+
+let operatorTimer = null;
+function refreshOperatorSoon() {
+  if (operatorTimer === null) {
+    operatorTimer = setTimeout(() => {
+      operatorTimer = null;
+      refreshOperator();
+    }, 250);
+  }
+}
+
+async function pollOperator() {
+  if (state.connection === "live") await refreshOperator();
+  setTimeout(pollOperator, OPERATOR_POLL_MS);
+}
+
 function setConnection(value) {
   state.connection = value;
   const el = $("conn");
@@ -222,7 +271,10 @@ const stream = new EventStream("events", {
   onEvent(type, data) {
     state.events += 1;
     if (type === "robot") pending.robots.set(data.robot_id, data);
-    else pending.tasks.set(data.id, data);
+    else {
+      pending.tasks.set(data.id, data);
+      if (data.bay) refreshOperatorSoon(); // a bay changed hands
+    }
   },
 });
 
@@ -263,6 +315,8 @@ function drawMap() {
     robots,
     goals: goalsToDraw(),
     obstacles: state.obstacles,
+    site: state.site,
+    bays: state.bays,
     draft: state.draft,
     options: state.options,
     robotRadius: state.config.robot_radius,
@@ -468,7 +522,6 @@ function renderRobots() {
         row = document.createElement("tr");
         row.dataset.robotId = id;
         row.append(...Array.from({ length: 5 }, () => document.createElement("td")));
-        row.cells[0].textContent = id;
         row.cells[0].className = "mono";
         row.cells[3].className = "mono num";
         row.cells[4].className = "mono";
@@ -488,7 +541,12 @@ function renderRobots() {
     row.dataset.status = robot.status;
     row.classList.toggle("selected", robot.id === state.highlight);
     const mode = escapeHtml(robot.status);
-    setCell(row.cells[1], `<span class="badge mode-${mode}">${mode}</span>`);
+    const why = robot.detail ? `<div class="reason" title="${escapeHtml(robot.detail)}">${escapeHtml(robot.detail)}</div>` : "";
+    setCell(row.cells[1], `<span class="badge mode-${mode}">${mode}</span>${why}`);
+    setCell(
+      row.cells[0],
+      `${escapeHtml(robot.id)}<div class="robot-control">${robotButtons(robot)}</div>`,
+    );
     setCell(row.cells[2], lawBadge(robot.law));
     setCell(row.cells[3], formatPose(robot.pose));
     setCell(row.cells[4], robot.task_id ? escapeHtml(shortId(robot.task_id)) : "—");
@@ -497,6 +555,91 @@ function renderRobots() {
   $("robots-empty").hidden = state.robots.size > 0;
   renderSummary(counts);
   dirty.robotTable = false;
+}
+
+function robotButtons(robot) {
+  const id = escapeHtml(robot.id);
+  const paused = robot.status === "paused";
+  const stopped = robot.status === "estop";
+  const button = (action, label, symbol, kind = "") =>
+    `<button type="button" class="btn btn-small btn-icon ${kind}" data-action="${action}" ` +
+    `data-robot="${id}" title="${label} ${id}" aria-label="${label} ${id}">${symbol}</button>`;
+  const hold = paused ? button("resume", "Resume", "▶") : button("pause", "Pause", "❚❚");
+  const stop = stopped
+    ? button("release", "Release the e-stop of", "⟲", "btn-release")
+    : button("estop", "Emergency stop", "■", "btn-danger");
+  return hold + stop;
+}
+
+$("robots-body").addEventListener("click", (event) => {
+  const button = event.target.closest("button[data-action]");
+  if (!button) return;
+  event.stopPropagation(); // not a row selection
+  sendControl(button.dataset.action, button.dataset.robot);
+});
+
+async function sendControl(action, robotId = null) {
+  try {
+    const sent = await api.control(action, robotId, currentToken());
+    const whom = sent.robot_id ? `robot ${sent.robot_id}` : "every robot";
+    showMessage("operator-message", `${action} sent to ${whom}.`, action === "estop" ? "error" : "ok");
+  } catch (err) {
+    if (err instanceof ApiError && err.status === 401) {
+      showMessage("operator-message", "The API needs a token: enter it at the top right.", "error");
+      $("token").focus();
+    } else {
+      showMessage("operator-message", err instanceof ApiError ? err.message : "The server is unreachable.", "error");
+    }
+  }
+  await refreshOperator();
+}
+
+$("estop").addEventListener("click", () => sendControl("estop"));
+$("estop-release").addEventListener("click", () => sendControl("release"));
+$("fleet-pause").addEventListener("click", () => sendControl("pause"));
+$("fleet-resume").addEventListener("click", () => sendControl("resume"));
+
+function renderOperator() {
+  const stopped = [...state.robots.values()].filter((r) => r.status === "estop").map((r) => r.id);
+  const latched = state.control.fleet.estop || stopped.length > 0;
+  $("estop-banner").hidden = !latched;
+  $("estop-release").hidden = !latched;
+  document.body.classList.toggle("estopped", latched);
+  $("estop-banner-text").textContent = stopped.length
+    ? `${stopped.length} robot${stopped.length === 1 ? "" : "s"} e-stopped (${stopped.sort(naturalOrder).join(", ")})`
+    : "the fleet's e-stop is latched";
+  dirty.operator = false;
+}
+
+function allFaults() {
+  const faults = [];
+  for (const robot of state.robots.values()) {
+    for (const error of robot.errors ?? []) faults.push({ robot: robot.id, ...error });
+  }
+  return faults.sort(
+    (a, b) => LEVEL_ORDER[a.level] - LEVEL_ORDER[b.level] || a.since - b.since || naturalOrder(a.robot, b.robot),
+  );
+}
+
+function renderFaults() {
+  const faults = allFaults();
+  $("faults").replaceChildren(
+    ...faults.map((f) => {
+      const li = document.createElement("li");
+      li.className = `fault fault-${f.level}`;
+      li.dataset.robot = f.robot;
+      li.dataset.code = f.code;
+      const since = new Date(f.since * 1000).toLocaleTimeString();
+      li.innerHTML =
+        `<span class="badge level-${escapeHtml(f.level)}">${escapeHtml(f.level)}</span>` +
+        `<span class="mono">${escapeHtml(f.robot)}</span> <span class="mono fault-code">${escapeHtml(f.code)}</span>` +
+        `<span class="fault-message">${escapeHtml(f.message)}</span><span class="fault-since">since ${since}</span>`;
+      return li;
+    }),
+  );
+  $("fault-count").textContent = String(faults.length);
+  $("faults-empty").hidden = faults.length > 0;
+  dirty.faults = false;
 }
 
 function renderSummary(counts) {
@@ -628,17 +771,55 @@ $("dialog-plot").addEventListener("error", () => {
   showMessage("dialog-message", "No recorded path for this task (yet).");
 });
 
+async function loadHistory() {
+  const id = dialogTaskId;
+  const body = $("dialog-history-body");
+  try {
+    const events = await api.taskEvents(id);
+    if (id !== dialogTaskId) return; // another task was opened meanwhile
+    body.replaceChildren(
+      ...events.map((e) => {
+        const row = document.createElement("tr");
+        const cells = [
+          new Date(e.at * 1000).toLocaleTimeString(),
+          e.event,
+          e.status,
+          e.robot_id ?? "—",
+          e.law ?? "—",
+          String(e.revision),
+          String(e.attempts),
+          e.reason ?? "",
+        ];
+        for (const text of cells) {
+          const td = document.createElement("td");
+          td.textContent = text;
+          row.append(td);
+        }
+        row.dataset.event = e.event;
+        return row;
+      }),
+    );
+  } catch (err) {
+    body.replaceChildren();
+    showMessage("dialog-message", err instanceof ApiError ? err.message : "The server is unreachable.", "error");
+  }
+}
+
 function openTask(id) {
   dialogTaskId = id;
   renderDialogFacts();
   loadPlot();
+  loadHistory();
   $("task-dialog").showModal();
 }
 
 $("task-dialog").addEventListener("close", () => {
   dialogTaskId = null;
 });
-$("dialog-refresh").addEventListener("click", loadPlot);
+$("dialog-refresh").addEventListener("click", () => {
+  loadPlot();
+  loadHistory();
+});
 $("dialog-cancel").addEventListener("click", async () => {
   try {
     applyTask(await api.cancelTask(dialogTaskId, currentToken()));
@@ -697,8 +878,10 @@ function frame(now) {
   }
   if ((dirty.robotTable || dirty.robotSet) && now - lastRobotTable >= ROBOT_TABLE_MS) {
     renderRobots();
+    if (dirty.faults) renderFaults();
     lastRobotTable = now;
   }
+  if (dirty.operator) renderOperator();
   if (now - lastRate.at >= 1000) {
     const rate = ((state.events - lastRate.events) * 1000) / (now - lastRate.at);
     $("rate").textContent = `${rate.toFixed(0)} ev/s`;
@@ -729,6 +912,8 @@ window.__parkfleet = {
     [...state.robots.values()].map((r) => ({
       id: r.id,
       status: r.status,
+      detail: r.detail,
+      errors: r.errors,
       x: r.pose.x,
       y: r.pose.y,
       theta: r.pose.theta,
@@ -737,6 +922,16 @@ window.__parkfleet = {
       trail: r.trail.length,
     })),
   tasks: () => [...state.tasks.values()].map((t) => ({ ...t })),
+  /** The operator's holds as last fetched (GET /control). */
+  get control() {
+    return state.control;
+  },
+  bays: () => state.bays.map((b) => ({ ...b })),
+  faults: () => allFaults(),
+  /** What the map drew last frame: keep-out zones and bays. */
+  get drawn() {
+    return { ...map.drawn };
+  },
   /** Page (CSS px) coordinates of a world point [m], e.g. to click on it. */
   worldToPage(x, y) {
     const rect = canvas.getBoundingClientRect();
@@ -750,4 +945,5 @@ map.setLegendWidth($("legend").offsetWidth + 16);
 map.resize();
 stream.start();
 pollObstacles();
+pollOperator();
 requestAnimationFrame(frame);

@@ -11,6 +11,8 @@ export const MODE_COLORS = {
   arrived: "#22c55e",
   holding: "#a855f7",
   waiting: "#14b8a6",
+  paused: "#eab308",
+  estop: "#dc2626",
   lost: "#ef4444",
 };
 
@@ -29,7 +31,12 @@ const COLORS = {
   obstacleEdge: "rgba(248, 113, 113, 0.65)",
   obstacleCore: "#f87171",
   draft: "#fde047",
+  keepOut: "rgba(250, 204, 21, 0.10)",
+  keepOutEdge: "rgba(250, 204, 21, 0.75)",
 };
+
+/** Outline colour of a bay by state (free / reserved by a task / occupied by a robot). */
+export const BAY_COLORS = { free: "#4ade80", reserved: "#f59e0b", occupied: "#60a5fa" };
 
 const MARGIN = { left: 52, right: 16, top: 14, bottom: 40 };
 const TICK_STEPS = [0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200, 500];
@@ -173,6 +180,7 @@ export class YardMap {
     ctx.fillStyle = COLORS.outside;
     ctx.fillRect(0, 0, this.width, this.height);
     this.drawYard();
+    this.drawSite(scene.site, scene.bays ?? []);
     this.drawObstacles(scene.obstacles);
     if (scene.options.trails) this.drawTrails(scene.robots);
     this.drawGoals(scene.goals, scene.robots);
@@ -257,6 +265,69 @@ export class YardMap {
     ctx.textBaseline = "middle";
     ctx.fillText("y [m]", 0, 0);
     ctx.restore();
+  }
+
+  /** Keep-out zones (hatched, named) and bays (outlined by state, named). */
+  drawSite(site, bays) {
+    this.drawn = { zones: 0, bays: 0 };
+    if (!site) return;
+    const ctx = this.ctx;
+    ctx.font = FONT_SMALL;
+    for (const zone of site.keep_out) {
+      ctx.beginPath();
+      let label;
+      if (zone.circle) {
+        const [cx, cy] = this.toCanvas(zone.circle.x, zone.circle.y);
+        ctx.arc(cx, cy, zone.circle.radius * this.scale, 0, 2 * Math.PI);
+        label = [cx, cy];
+      } else {
+        const r = zone.rect;
+        const points = zone.polygon ?? [[r.xmin, r.ymin], [r.xmax, r.ymin], [r.xmax, r.ymax], [r.xmin, r.ymax]];
+        points.forEach(([x, y], i) => {
+          const [px, py] = this.toCanvas(x, y);
+          if (i === 0) ctx.moveTo(px, py);
+          else ctx.lineTo(px, py);
+        });
+        ctx.closePath();
+        const mx = points.reduce((s, p) => s + p[0], 0) / points.length;
+        const my = points.reduce((s, p) => s + p[1], 0) / points.length;
+        label = this.toCanvas(mx, my);
+      }
+      ctx.fillStyle = COLORS.keepOut;
+      ctx.fill();
+      ctx.setLineDash([3, 3]);
+      ctx.strokeStyle = COLORS.keepOutEdge;
+      ctx.lineWidth = 1.2;
+      ctx.stroke();
+      ctx.setLineDash([]);
+      ctx.fillStyle = COLORS.keepOutEdge;
+      ctx.textAlign = "center";
+      ctx.textBaseline = "middle";
+      ctx.fillText(zone.name, label[0], label[1]);
+      this.drawn.zones += 1;
+    }
+    const states = new Map(bays.map((b) => [b.name, b.status]));
+    for (const bay of site.bays) {
+      const [cx, cy] = this.toCanvas(bay.pose.x, bay.pose.y);
+      const half = Math.max(6, 0.35 * this.scale); // a 0.7 m square
+      ctx.save();
+      ctx.translate(cx, cy);
+      ctx.rotate(-bay.pose.theta); // canvas y points down
+      ctx.strokeStyle = BAY_COLORS[states.get(bay.name) ?? "free"];
+      ctx.lineWidth = states.get(bay.name) && states.get(bay.name) !== "free" ? 2.4 : 1.2;
+      ctx.strokeRect(-half, -half, 2 * half, 2 * half);
+      ctx.beginPath(); // the nose: which way the robot parks
+      ctx.moveTo(half, -half * 0.5);
+      ctx.lineTo(half + half * 0.5, 0);
+      ctx.lineTo(half, half * 0.5);
+      ctx.stroke();
+      ctx.restore();
+      ctx.fillStyle = ctx.strokeStyle;
+      ctx.textAlign = "center";
+      ctx.textBaseline = "bottom";
+      ctx.fillText(bay.name, cx, cy - half - 2);
+      this.drawn.bays += 1;
+    }
   }
 
   drawObstacles(obstacles) {

@@ -40,7 +40,14 @@ from pathlib import Path
 from typing import Any, Literal
 
 from fleet.bench.procstat import cpu_seconds, percentile
-from fleet.core.wire import CancelAssignment, Keys, ObstacleSet, ParkAssignment, RobotState
+from fleet.core.wire import (
+    CancelAssignment,
+    ControlCommand,
+    Keys,
+    ObstacleSet,
+    ParkAssignment,
+    RobotState,
+)
 from fleet.io.processes import parkfleet_command, terminate
 from fleet.io.settings import load_settings
 from fleet.io.transport import listening_locators, open_session, tcp_endpoint
@@ -91,6 +98,9 @@ class _TimedSink:
     def on_robot_gone(self, robot_id: str) -> None:
         self._sink.on_robot_gone(robot_id)
 
+    def on_control(self, command: ControlCommand) -> None:
+        self._sink.on_control(command)
+
     def obstacles(self) -> list[Any]:
         return self._sink.obstacles()
 
@@ -110,6 +120,9 @@ class _TimedBus:
 
     def publish_obstacles(self, msg: ObstacleSet) -> None:
         self._bus.publish_obstacles(msg)
+
+    def publish_control(self, msg: ControlCommand) -> None:
+        self._bus.publish_control(msg)
 
     @property
     def counters(self) -> dict[str, int]:

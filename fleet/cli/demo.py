@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import os
 import shlex
 import subprocess
 import sys
@@ -48,14 +49,19 @@ def sim_command(endpoint: str, options: DemoOptions) -> list[str]:
     )
 
 
-def curl_examples(url: str, token: bool) -> list[str]:
+def curl_examples(url: str, token: bool, site: bool = False, zenoh: str = "") -> list[str]:
     auth = " -H 'Authorization: Bearer $PARKFLEET_API_TOKEN'" if token else ""
     body = json.dumps({"goal": {"x": 3.0, "y": 2.0, "theta": 1.57}})
+    post = f"curl -s -X POST {url}/tasks -H 'Content-Type: application/json'{auth}"
+    bays = [f"{post} -d '{json.dumps({'bay_group': 'charging'})}'   # a free charging bay"]
+    stop = [f"parkfleet estop --connect {zenoh}   # stop every robot (--release to undo)"]
     return [
-        f"curl -s -X POST {url}/tasks -H 'Content-Type: application/json'{auth} -d '{body}'",
+        f"{post} -d '{body}'",
+        *(bays if site else []),
         f"curl -s {url}/tasks/<id>        # watch it reach succeeded",
         f"curl -s {url}/robots",
         f"curl -sN {url}/events           # live robot states and task changes",
+        *(stop if zenoh else []),
     ]
 
 
@@ -118,7 +124,12 @@ async def serve_demo(settings: Settings, options: DemoOptions) -> int:
             f"                Zenoh router on {', '.join(running.zenoh)}",
             f"                data in {Path(settings.data_dir) / 'parkfleet.db'}",
             "Submit a parking task and watch it:",
-            *(f"  {line}" for line in curl_examples(running.url, settings.api_token is not None)),
+            *(
+                f"  {line}"
+                for line in curl_examples(
+                    running.url, settings.api_token is not None, settings.site is not None, endpoint
+                )
+            ),
             "Ctrl-C stops the demo.",
             "",
         ]
@@ -149,14 +160,20 @@ def register(commands: Any, bench: Any) -> None:
     )
     d.add_argument("--robots", type=int, default=4, help="number of simulated robots (default 4)")
     add_time_scale(d)
-    add_spawn(d, default="random")
-    add_server(d, default_data="./var/demo")
+    add_spawn(d, default="grid")
+    add_server(d, default_data="./var/demo", default_site="the example car park")
     d.set_defaults(func=run)
+
+
+#: The example car park (``fleet/io/sites/carpark.toml``) the demo loads unless told otherwise.
+EXAMPLE_SITE = Path(__file__).resolve().parents[1] / "io" / "sites" / "carpark.toml"
 
 
 def run(args: argparse.Namespace) -> int:
     if args.robots < 1:
         raise ValueError("--robots must be at least 1")
+    if args.site is None and not os.environ.get("PARKFLEET_SITE_FILE"):
+        args.site = str(EXAMPLE_SITE)
     settings = server_settings(args)
     if args.data_dir is None and "data_dir" not in settings.model_fields_set:
         settings = settings.model_copy(update={"data_dir": Path("var/demo")})

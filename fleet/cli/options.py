@@ -52,8 +52,11 @@ def add_spawn(p: argparse.ArgumentParser, default: str) -> None:
     p.add_argument("--seed", type=int, help="random seed (spawn places, noise)")
 
 
-def add_server(p: argparse.ArgumentParser, *, default_data: str) -> None:
-    """``--port``, ``--zenoh-listen``, ``--data-dir``, ``--config`` of the API server."""
+def add_server(
+    p: argparse.ArgumentParser, *, default_data: str, default_site: str = "none"
+) -> None:
+    """``--port``, ``--zenoh-listen``, ``--data-dir``, ``--site``, ``--config`` of the API
+    server."""
     p.add_argument("--port", type=int, help="API port (default 8000; 0: any free port)")
     p.add_argument(
         "--zenoh-listen",
@@ -64,4 +67,14 @@ def add_server(p: argparse.ArgumentParser, *, default_data: str) -> None:
     p.add_argument(
         "--data-dir", type=Path, help=f"where parkfleet.db lives (default {default_data})"
     )
+    add_site(p, default_site)
     add_config(p)
+
+
+def add_site(p: argparse.ArgumentParser, default: str = "none") -> None:
+    """``--site FILE``: the site map (TOML or JSON: yard, obstacles, keep-out zones, bays)."""
+    p.add_argument(
+        "--site",
+        metavar="FILE",
+        help=f"site map, TOML or JSON (README 'Site map'; 'none': no site; default {default})",
+    )

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+from pathlib import Path
 from typing import Any
 
 from fleet.cli.options import add_server
@@ -29,6 +30,7 @@ def server_settings(args: argparse.Namespace, **extra: Any) -> Settings:
         "api_port": args.port,
         "data_dir": args.data_dir,
         "listen": args.zenoh_listen,
+        "site_file": None if args.site in (None, "none") else Path(args.site),
         **extra,
     }
     return load_settings(args.config, **overrides)

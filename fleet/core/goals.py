@@ -6,6 +6,8 @@ it conflicts with, when it lies
 * outside the yard rectangle ``(xmin, xmax, ymin, ymax)`` [m];
 * inside (or on the edge of) a static obstacle's influence zone -- there the repulsion of
   Eq. (27) would fight the posture law for ever;
+* inside a keep-out zone of the site map (:mod:`fleet.core.site`), or so near one that the
+  parked robot's body (``margin``, its radius [m]) would reach into it;
 * within the peer influence radius [m] of another active task's goal or of a parked robot
   (two robots parked that close would push each other through Eq. (27)).
 
@@ -20,6 +22,7 @@ import math
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
+from fleet.core.site import KeepOutZone
 from fleet.core.tasks import GoalRejected
 from fleet.core.wire import Obstacle, Pose
 
@@ -41,6 +44,8 @@ def validate_goal(
     obstacles: Iterable[Obstacle],
     occupied: Iterable[Occupied],
     peer_radius: float,
+    keep_out: Iterable[KeepOutZone] = (),
+    margin: float = 0.0,
 ) -> None:
     """Raise :class:`GoalRejected` if ``goal`` is not a valid parking posture."""
     xmin, xmax, ymin, ymax = yard
@@ -57,6 +62,17 @@ def validate_goal(
             raise GoalRejected(
                 f"goal ({goal.x:.2f}, {goal.y:.2f}) lies inside the influence zone of obstacle "
                 f"{i} at ({obs.x:.2f}, {obs.y:.2f}) (radius {obs.radius:g} m, distance {d:.2f} m)"
+            )
+    for zone in keep_out:
+        d = zone.distance(goal.x, goal.y)
+        if d == 0.0:
+            raise GoalRejected(
+                f"goal ({goal.x:.2f}, {goal.y:.2f}) lies inside keep-out zone {zone.name}"
+            )
+        if d <= margin:
+            raise GoalRejected(
+                f"goal ({goal.x:.2f}, {goal.y:.2f}) is {d:.2f} m from keep-out zone {zone.name}: "
+                f"a parked robot (radius {margin:g} m) would reach into it"
             )
     for other in occupied:
         d = math.hypot(goal.x - other.x, goal.y - other.y)

@@ -13,7 +13,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from fleet.core.params import Gains, Tolerance
 from fleet.core.types import Law
-from fleet.core.wire import Pose, RobotId, RobotMode
+from fleet.core.wire import Pose, RobotError, RobotId, RobotMode
 
 Direction = Literal["auto", "cw", "ccw"]
 
@@ -52,6 +52,8 @@ class RobotStatus(StrEnum):
     ARRIVED = "arrived"
     HOLDING = "holding"
     WAITING = "waiting"
+    PAUSED = "paused"
+    ESTOP = "estop"
     LOST = "lost"
 
     @classmethod
@@ -84,6 +86,8 @@ class TaskRequest(BaseModel):
     #: Gains per law, used when ``gains`` is None (e.g. ``auto`` with the paper's per-law
     #: gains of Table 8); a law missing here falls back to DEFAULT_GAINS.
     law_gains: dict[Law, Gains] | None = None
+    #: The site's bay whose pose is ``goal`` (reserved by this task while it is active).
+    bay: str | None = None
 
     def gains_for(self, law: Law) -> Gains:
         """The gains the robot uses with ``law``: gains, else law_gains[law], else default."""
@@ -131,6 +135,9 @@ class RobotView(BaseModel):
     goal: Pose | None = None
     radius: float = 0.2
     last_seen: float  # [s since epoch], service clock
+    detail: str | None = None  # why it stands still (RobotState.detail)
+    in_service: bool = True  # False: decommissioned by an operator (gets no task)
+    errors: list[RobotError] = Field(default_factory=list)  # active faults, oldest first
 
 
 class RobotEvent(BaseModel):
@@ -170,6 +177,14 @@ class RobotNotFound(FleetError):
 
 class GoalRejected(FleetError):
     """The goal is outside the yard, inside an obstacle's zone, or too near another goal."""
+
+
+class BayNotFound(FleetError):
+    """No such bay or bay group in the site map."""
+
+
+class BayTaken(FleetError):
+    """The bay is reserved by another active task (or every bay of the group is taken)."""
 
 
 class TaskConflict(FleetError):

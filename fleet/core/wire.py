@@ -9,6 +9,8 @@ Key expressions::
 
     parkfleet/<fleet>/robot/<id>/state        robot -> all     RobotState
     parkfleet/<fleet>/robot/<id>/assignment   fleet -> robot   ParkAssignment | CancelAssignment
+    parkfleet/<fleet>/robot/<id>/control      operator -> robot ControlCommand for that robot
+    parkfleet/<fleet>/control                 operator -> all  ControlCommand for every robot
     parkfleet/<fleet>/obstacles               fleet -> all     ObstacleSet (also a queryable)
     parkfleet/<fleet>/alive/<id>              liveliness token of each robot
     parkfleet/<fleet>/alive/_service          liveliness token of the fleet service
@@ -34,11 +36,30 @@ Protocol between the fleet service and a robot agent:
   releases it (the fleet found no safe option yet).
 * ``CancelAssignment`` for the current task stops the robot: ``mode=holding``, task id kept.
 * With no assignment the robot stands still in ``mode=idle`` with ``task_id=None``.
+
+Operator control (:class:`ControlCommand`, VDA 5050's ``startPause``/``stopPause`` and its
+emergency stop), obeyed by every agent directly, so any tool can stop the fleet even when
+the fleet service is down:
+
+* ``pause`` -> the robot stops and keeps its task (``mode=paused``); ``resume`` -> it drives
+  on from where it stands (the service re-plans it as a new revision).
+* ``estop`` -> wheels to zero at the next control tick, the task kept, ``mode=estop``,
+  latched until ``release``; ``release`` clears the latch only (a robot also paused stays
+  paused until ``resume``). Pause and e-stop are independent latches; e-stop wins.
+* ``robot_id`` absent (on the fleet key) = every robot; on a robot's key it must name it.
+* ``seq`` orders the commands of one ``issuer``: a robot applies a command only if its
+  ``seq`` is above the last one it applied from that issuer, so repeats (send a command a
+  few times: delivery is best effort) and reordered copies are harmless. One-shot tools use
+  the wall clock in microseconds as ``seq``.
+* A robot says why it does not move: ``mode`` plus ``RobotState.detail`` (e.g. ``holding``
+  with ``pose stale``), and its active faults in ``RobotState.errors`` (code, level,
+  message, since).
 """
 
 from __future__ import annotations
 
 import re
+from collections import OrderedDict
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Annotated, Literal, TypeVar
@@ -87,9 +108,20 @@ class Keys:
     def assignment(self, robot_id: str) -> str:
         return f"{self.root}/robot/{validate_id(robot_id)}/assignment"
 
+    def control(self, robot_id: str | None = None) -> str:
+        """Operator control key: of one robot, or (``None``) of the whole fleet."""
+        if robot_id is None:
+            return f"{self.root}/control"
+        return f"{self.root}/robot/{validate_id(robot_id)}/control"
+
     @property
     def all_states(self) -> str:
         return f"{self.root}/robot/*/state"
+
+    @property
+    def all_robot_controls(self) -> str:
+        """Every robot's own control key (the fleet's is :meth:`control`)."""
+        return f"{self.root}/robot/*/control"
 
     @property
     def obstacles(self) -> str:
@@ -141,6 +173,32 @@ class RobotMode(StrEnum):
     ARRIVED = "arrived"
     HOLDING = "holding"
     WAITING = "waiting"  # standing still on purpose: a planned start delay or a hold
+    PAUSED = "paused"  # stopped by an operator's pause, task kept
+    ESTOP = "estop"  # emergency stop latched until an operator's release, task kept
+
+
+class ErrorLevel(StrEnum):
+    """Severity of a robot fault (VDA 5050's levels, plus ``error`` in between)."""
+
+    WARNING = "warning"  # the robot works on, degraded
+    ERROR = "error"  # the robot cannot drive until the cause goes away by itself
+    FATAL = "fatal"  # the robot cannot drive until an operator acts (e.g. e-stop release)
+
+
+class RobotError(BaseModel):
+    """One active fault of a robot: a stable ``code`` (e.g. ``pose_stale``), its level, a
+    human message and ``since`` [s since epoch, robot's wall clock] when it began."""
+
+    model_config = ConfigDict(frozen=True, extra="ignore")
+
+    code: Annotated[str, Field(pattern=r"^[a-z][a-z0-9_]{0,39}$")]
+    level: ErrorLevel
+    message: Annotated[str, Field(max_length=200)]
+    since: FiniteFloat
+
+
+#: Most faults a state carries (a robot has a handful of possible causes).
+MAX_ROBOT_ERRORS = 16
 
 
 class _Message(BaseModel):
@@ -168,6 +226,12 @@ class RobotState(_Message):
     law: Law | None = None
     goal: Pose | None = None
     radius: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 0.2  # body radius [m]
+    #: Why the robot stands still, e.g. ``pose stale`` with mode ``holding``; None if driving.
+    detail: Annotated[str, Field(max_length=200)] | None = None
+    #: Active faults, oldest first.
+    errors: Annotated[list[RobotError], Field(max_length=MAX_ROBOT_ERRORS)] = Field(
+        default_factory=list
+    )
 
 
 class ParkAssignment(_Message):
@@ -203,6 +267,95 @@ class CancelAssignment(_Message):
 
 
 Assignment = Annotated[ParkAssignment | CancelAssignment, Field(discriminator="kind")]
+
+
+class ControlAction(StrEnum):
+    """Operator commands (see the module docstring)."""
+
+    PAUSE = "pause"
+    RESUME = "resume"
+    ESTOP = "estop"
+    RELEASE = "release"
+
+
+class ControlCommand(_Message):
+    """Operator -> robots on ``control`` (fleet) or ``robot/<id>/control``; every agent obeys
+    it directly. ``seq`` is increasing per ``issuer`` (see the module docstring)."""
+
+    kind: Literal["control"] = "control"
+    command: ControlAction
+    robot_id: RobotId | None = None  # None: every robot of the fleet
+    issuer: Annotated[str, Field(pattern=_ID_RE.pattern)]
+    seq: Annotated[int, Field(ge=0)]
+    stamp: FiniteFloat  # issuer's wall clock [s since epoch]
+    reason: Annotated[str, Field(max_length=200)] | None = None
+
+
+@dataclass(frozen=True)
+class Hold:
+    """The two operator latches of a robot (or the fleet): pause and e-stop, independent;
+    :meth:`apply` is the one rule of how commands change them (module docstring)."""
+
+    paused: bool = False
+    estop: bool = False
+
+    def apply(self, action: ControlAction) -> Hold:
+        if action is ControlAction.PAUSE:
+            return Hold(True, self.estop)
+        if action is ControlAction.RESUME:
+            return Hold(False, self.estop)
+        if action is ControlAction.ESTOP:
+            return Hold(self.paused, True)
+        return Hold(self.paused, False)  # RELEASE
+
+    @property
+    def restrictive(self) -> ControlAction | None:
+        """The command a robot must obey under this hold, if any."""
+        if self.estop:
+            return ControlAction.ESTOP
+        if self.paused:
+            return ControlAction.PAUSE
+        return None
+
+
+#: Issuers whose last sequence number a receiver remembers (oldest forgotten first).
+MAX_ISSUERS = 64
+
+
+class IssuerOrder:
+    """The one ordering rule of operator commands: a command counts only if its ``seq`` is
+    above the last one taken from its issuer (repeats and reordered copies are ignored); the
+    last ``max_issuers`` issuers are remembered. Not thread-safe."""
+
+    def __init__(self, max_issuers: int = MAX_ISSUERS) -> None:
+        self.max_issuers = max_issuers
+        self._last_seq: OrderedDict[str, int] = OrderedDict()
+
+    def __len__(self) -> int:
+        return len(self._last_seq)
+
+    def accept(self, command: ControlCommand) -> bool:
+        """Whether ``command`` is newer than its issuer's last one (then it is the last)."""
+        last = self._last_seq.get(command.issuer)
+        if last is not None and command.seq <= last:
+            return False
+        self._last_seq[command.issuer] = command.seq
+        self._last_seq.move_to_end(command.issuer)
+        while len(self._last_seq) > self.max_issuers:
+            self._last_seq.popitem(last=False)
+        return True
+
+
+def obeys(action: ControlAction, mode: RobotMode) -> bool:
+    """Whether a robot reporting ``mode`` shows it has applied ``action`` (a resume leaves an
+    e-stopped robot e-stopped, and a pause an e-stopped one too)."""
+    if action is ControlAction.ESTOP:
+        return mode is RobotMode.ESTOP
+    if action is ControlAction.RELEASE:
+        return mode is not RobotMode.ESTOP
+    if action is ControlAction.PAUSE:
+        return mode in (RobotMode.PAUSED, RobotMode.ESTOP)
+    return mode is not RobotMode.PAUSED  # RESUME
 
 
 class Obstacle(BaseModel):

@@ -11,7 +11,15 @@ import os
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, SecretStr, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    SecretStr,
+    field_validator,
+    model_validator,
+)
 from pydantic_settings import (
     BaseSettings,
     PydanticBaseSettingsSource,
@@ -20,7 +28,9 @@ from pydantic_settings import (
 )
 
 from fleet.core.params import Avoidance, RobotProfile
+from fleet.core.site import Site
 from fleet.core.wire import validate_id
+from fleet.io.site_file import load_site
 
 DEFAULT_ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"
 
@@ -145,6 +155,13 @@ class Settings(BaseSettings):
     task_timeout_s: Annotated[float, Field(gt=0)] = 120.0
     on_robot_lost: Literal["fail", "requeue"] = "fail"
     safety_separation_m: Annotated[float, Field(gt=0)] = 0.5
+    # A task whose robot makes no progress towards the goal this long is stuck: recovered
+    # (flip, wait, requeue to another robot), then failed (fleet/service/stuck.py).
+    stuck_after_s: Annotated[float, Field(gt=0)] = 30.0
+    # Site map (fleet/core/site.py: yard, obstacles, keep-out zones, bays), TOML or JSON;
+    # its yard replaces ``yard``. Loaded and checked when the settings are.
+    site_file: Path | None = None
+    _site: Site | None = PrivateAttr(default=None)
     # Receding horizon: the planner runs again every replan_period_s [s], when a robot is
     # farther than replan_corridor_m [m] from its predicted path at the same robot time, and
     # when two robots (one moving) come closer than safety_separation_m + this margin [m].
@@ -181,6 +198,29 @@ class Settings(BaseSettings):
         if self.tls_cert is not None and self.tls_root_ca is None:
             raise ValueError("tls_cert needs tls_root_ca (the CA that signs the peers' certs)")
         return self
+
+    @model_validator(mode="after")
+    def _load_site(self) -> Settings:
+        if self.site_file is None:
+            return self
+        site = load_site(
+            self.site_file,
+            robot_radius=self.profile.radius,
+            peer_radius=self.avoidance.peer_radius,
+        )
+        if "yard" in self.model_fields_set and tuple(self.yard) != site.yard.as_tuple():
+            raise ValueError(
+                f"yard {self.yard} is set and so is the site file {self.site_file}'s yard "
+                f"{site.yard.as_tuple()}: set one of them"
+            )
+        self.yard = site.yard.as_tuple()
+        self._site = site
+        return self
+
+    @property
+    def site(self) -> Site | None:
+        """The site map of ``site_file`` (None without one)."""
+        return self._site
 
     @classmethod
     def settings_customise_sources(

@@ -1,9 +1,12 @@
 """The fleet service's I/O edge: what it publishes and how robot traffic reaches it.
 
-Outgoing: :meth:`FleetBus.publish_assignment` and :meth:`FleetBus.publish_obstacles`.
+Outgoing: :meth:`FleetBus.publish_assignment`, :meth:`FleetBus.publish_obstacles` and
+:meth:`FleetBus.publish_control` (operator commands).
 Incoming: the bus calls the :class:`FleetSink` given to :meth:`FleetBus.start` --
 ``on_state`` for every decoded ``RobotState``, ``on_robot_alive``/``on_robot_gone`` for
-liveliness tokens appearing/disappearing, and ``obstacles()`` to answer late joiners.
+liveliness tokens appearing/disappearing, ``on_control`` for every operator command seen on
+the control keys (from any issuer, the service's own included), and ``obstacles()`` to
+answer late joiners.
 
 :class:`MemoryBus` is the in-memory implementation for unit tests; the Zenoh one is
 :class:`fleet.service.zenoh_bus.ZenohFleetBus`.
@@ -14,7 +17,14 @@ from __future__ import annotations
 import threading
 from typing import Protocol
 
-from fleet.core.wire import CancelAssignment, Obstacle, ObstacleSet, ParkAssignment, RobotState
+from fleet.core.wire import (
+    CancelAssignment,
+    ControlCommand,
+    Obstacle,
+    ObstacleSet,
+    ParkAssignment,
+    RobotState,
+)
 
 
 class FleetSink(Protocol):
@@ -25,6 +35,8 @@ class FleetSink(Protocol):
     def on_robot_alive(self, robot_id: str) -> None: ...
 
     def on_robot_gone(self, robot_id: str) -> None: ...
+
+    def on_control(self, command: ControlCommand) -> None: ...
 
     def obstacles(self) -> list[Obstacle]: ...
 
@@ -39,6 +51,8 @@ class FleetBus(Protocol):
     def publish_assignment(self, msg: ParkAssignment | CancelAssignment) -> None: ...
 
     def publish_obstacles(self, msg: ObstacleSet) -> None: ...
+
+    def publish_control(self, msg: ControlCommand) -> None: ...
 
     @property
     def counters(self) -> dict[str, int]:
@@ -58,6 +72,7 @@ class MemoryBus:
         self.sink: FleetSink | None = None
         self.assignments: list[ParkAssignment | CancelAssignment] = []
         self.obstacle_sets: list[ObstacleSet] = []
+        self.controls: list[ControlCommand] = []
         self.closed = False
 
     def start(self, sink: FleetSink) -> None:
@@ -71,6 +86,10 @@ class MemoryBus:
     def publish_obstacles(self, msg: ObstacleSet) -> None:
         with self._lock:
             self.obstacle_sets.append(msg)
+
+    def publish_control(self, msg: ControlCommand) -> None:
+        with self._lock:
+            self.controls.append(msg)
 
     @property
     def counters(self) -> dict[str, int]:
@@ -95,6 +114,10 @@ class MemoryBus:
 
     def robot_gone(self, robot_id: str) -> None:
         self._require_sink().on_robot_gone(robot_id)
+
+    def deliver_control(self, command: ControlCommand) -> None:
+        """An operator command from another tool (e.g. ``parkfleet estop``)."""
+        self._require_sink().on_control(command)
 
     def sent(self, robot_id: str | None = None) -> list[ParkAssignment | CancelAssignment]:
         """Assignments published so far (to one robot, if given)."""

@@ -5,9 +5,12 @@ shell queues them under its lock and the outbox (:mod:`fleet.service.outbox`) ap
 after the lock is released, stored before announced:
 
 * :class:`StoreWrite` -- save a task version and its history event (durable on return);
-* :class:`Publish` -- an assignment, a cancel or the obstacle set on the bus;
+* :class:`Publish` -- an assignment, a cancel, the obstacle set or an operator's control
+  command on the bus;
 * :class:`Notify` -- an event for the listeners (SSE clients, benches);
-* :class:`PurgeFinished` -- delete finished tasks older than a wall-clock time (retention).
+* :class:`PurgeFinished` -- delete finished tasks older than a wall-clock time (retention);
+* :class:`SaveState` -- replace a state document of the service (operator holds, robots out
+  of service), so it survives a restart.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from fleet.core.tasks import FleetEvent, Task
-from fleet.core.wire import CancelAssignment, ObstacleSet, ParkAssignment
+from fleet.core.wire import CancelAssignment, ControlCommand, ObstacleSet, ParkAssignment
 
 
 @dataclass(frozen=True, slots=True)
@@ -26,7 +29,7 @@ class StoreWrite:
 
 @dataclass(frozen=True, slots=True)
 class Publish:
-    message: ParkAssignment | CancelAssignment | ObstacleSet
+    message: ParkAssignment | CancelAssignment | ObstacleSet | ControlCommand
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,5 +43,11 @@ class PurgeFinished:
     limit: int  # at most this many per call (bounded transactions)
 
 
-Effect = StoreWrite | Publish | Notify | PurgeFinished
+@dataclass(frozen=True, slots=True)
+class SaveState:
+    key: str
+    value: str  # JSON
+
+
+Effect = StoreWrite | Publish | Notify | PurgeFinished | SaveState
 Effects = list[Effect]

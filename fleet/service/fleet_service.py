@@ -33,6 +33,18 @@ removed, a robot leaves its predicted corridor by more than ``replan_corridor_m`
 come closer than ``safety_separation_m + replan_separation_margin_m``, and every
 ``replan_period_s``. Only decisions that change something are stored and sent.
 
+Operators (README "Operating the fleet"): :meth:`~FleetService.control` pauses, resumes,
+e-stops or releases robots -- the command is published through the outbox in a batch of
+its own (never delayed by a store write), the :class:`~fleet.service.control_desk.ControlDesk`
+remembers it and :meth:`~FleetService.on_state` re-sends it to a robot that does not obey;
+a robot held still (as asked, or as it reports) is an operator hold in the ledger (no
+timeout, not stuck, standing for the planner, no new task). :meth:`~FleetService.decommission`
+takes a robot out of service (roster state: no task, its task requeued, once lost no
+obstacle). :meth:`~FleetService.submit_to_bay` submits to a named bay of the site map
+(reserved under the lock, released by the ledger when the task ends). Stuck robots are
+found and recovered on the tick (:meth:`~fleet.service.ledger.TaskLedger.recover_stuck`),
+with the cause the roster shows (:func:`~fleet.service.stuck.stuck_cause`).
+
 Bounded by design: recorded paths (:mod:`~fleet.service.paths`); lost robots are removed
 ``lost_robot_retention_s`` after they were lost, or by an operator (:meth:`remove_robot`),
 and everything kept per robot goes with them (:class:`~fleet.service.roster.RobotRecord`);
@@ -51,6 +63,8 @@ from types import TracebackType
 from fleet.core.goals import Occupied, validate_goal
 from fleet.core.planner import Plan, plan
 from fleet.core.tasks import (
+    BayTaken,
+    GoalRejected,
     RobotConflict,
     RobotEvent,
     RobotNotFound,
@@ -61,20 +75,32 @@ from fleet.core.tasks import (
     TaskRequest,
     TaskStatus,
 )
-from fleet.core.wire import CancelAssignment, Obstacle, ObstacleSet, Pose, RobotMode, RobotState
+from fleet.core.wire import (
+    CancelAssignment,
+    ControlAction,
+    ControlCommand,
+    Obstacle,
+    ObstacleSet,
+    Pose,
+    RobotMode,
+    RobotState,
+)
 from fleet.io.settings import Settings
+from fleet.service.bays import BayState
 from fleet.service.bus import FleetBus
 from fleet.service.clock import Clock, SystemClock
-from fleet.service.effects import Effects, Publish, PurgeFinished
+from fleet.service.control_desk import ControlDesk, ControlState, OperatorRecord
+from fleet.service.effects import Effects, Publish, PurgeFinished, SaveState
 from fleet.service.horizon import close_pairs
 from fleet.service.ledger import LedgerConfig, Outcome, TaskLedger
 from fleet.service.outbox import Batch, Listener, Outbox
 from fleet.service.paths import PathSample
 from fleet.service.planner_worker import PlanFunction, PlannerWorker
-from fleet.service.roster import RobotRecord, Roster
+from fleet.service.roster import OPERATOR_HELD, RobotRecord, Roster
 from fleet.service.snapshot import PlanInput, RobotFacts, planning_input, worth_planning
 from fleet.service.stats import Counters, PlannerStats
 from fleet.service.store import TaskStore
+from fleet.service.stuck import stuck_cause
 
 _log = logging.getLogger(__name__)
 
@@ -125,7 +151,9 @@ class FleetService:
                 goal_cell=peer_radius,
                 corridor_m=settings.replan_corridor_m,
                 control_hz=settings.control_rate_hz,
-            )
+                stuck_after_s=settings.stuck_after_s,
+            ),
+            site=settings.site,
         )
         self._outbox = Outbox(store, bus, self._counters, self._holds_lock)
         self._planner = PlannerWorker(
@@ -136,7 +164,9 @@ class FleetService:
             self._counters,
             period_s=settings.replan_period_s,
         )
-        self._obstacles: list[Obstacle] = []
+        site = settings.site  # the site map's obstacles are the initial ones (PUT replaces)
+        self._obstacles: list[Obstacle] = [] if site is None else list(site.obstacles)
+        self._desk = ControlDesk()  # what the operator asked (pause, e-stop), held to
         self._keys_in_flight: dict[str, threading.Event] = {}  # idempotency keys being stored
         self._version = 0  # bumped by every change a plan depends on (not by poses)
         self._time_scale: float | None = None  # robot seconds per service second
@@ -165,12 +195,16 @@ class FleetService:
         ``queued`` tasks are planned as usual.
         """
         unfinished = self._store.unfinished()
+        operator = self._stored_operator_record()
         with self._lock:
             if self._started:
                 return
             self._started = True
             self._inline = not background
             n = self._ledger.recover(unfinished, self._clock.monotonic())
+            if operator is not None:
+                self._desk.restore(operator.control_state())
+                self._roster.restore_out_of_service(operator.out_of_service)
             self._version += 1
         self._counters.add("tasks_recovered", n)
         self._bus.start(self)
@@ -181,6 +215,24 @@ class FleetService:
             self._thread.start()
         if n:
             self._planner.request("recovered")
+
+    def _stored_operator_record(self) -> OperatorRecord | None:
+        """What operators asked before a restart (holds, robots out of service), if stored
+        and readable (an unreadable one is logged and counted, and ignored)."""
+        raw = self._store.load_state(OperatorRecord.KEY)
+        if raw is None:
+            return None
+        try:
+            return OperatorRecord.model_validate_json(raw)
+        except ValueError:
+            self._counters.add("operator_state_unreadable")
+            _log.exception("stored operator state unreadable: starting without it")
+            return None
+
+    def _operator_saved(self) -> SaveState:
+        """The operator record as it is now, to store (call with the lock held)."""
+        record = OperatorRecord.of(self._desk.state(), self._roster.out_of_service())
+        return SaveState(OperatorRecord.KEY, record.model_dump_json())
 
     def close(self) -> None:
         """Stop the threads and the bus, after applying the effects already queued;
@@ -248,30 +300,38 @@ class FleetService:
     # -- bus callbacks -------------------------------------------------------------------
 
     def on_state(self, state: RobotState) -> None:
-        """A robot's state: roster, acknowledgement, arrival, path, corridor (hot path:
-        O(1) under the lock; a robot event at most every ``ROBOT_EVENT_INTERVAL_S``)."""
+        """A robot's state: roster, operator commands it does not obey (re-sent),
+        acknowledgement, arrival, path, progress, corridor, operator holds (hot path: O(1)
+        under the lock; a robot event at most every ``ROBOT_EVENT_INTERVAL_S``)."""
         clock = self._clock
         now, wall = clock.monotonic(), clock.wall()
         view: RobotView | None = None
         batch: Batch | None = None
-        ask_store = False
+        ask_store = released = False
         with self._lock:
             if self._closed:
                 return
+            resend = self._desk.check(state, now, wall)
+            if resend is not None:  # first: an e-stop waits for no store write
+                batch = self._outbox.enqueue([Publish(resend)])
             known = self._roster.record(state.robot_id)
             joined = known is None or known.state is None
             rec, changed = self._roster.update(state, now, wall)
             if now - rec.rate_at >= RATE_WINDOW_S or state.seq < rec.rate_seq:
                 self._measure_rate(rec, state, now)
-            seen = self._ledger.observe(state, wall)
+            seen = self._ledger.observe(state, now, wall)
             if seen.effects:
                 batch = self._queue(seen.effects, now)
             elif changed:
                 self._version += 1
+            if changed:  # its mode changed: maybe paused or e-stopped, or no more
+                hold_effects, released = self._sync_hold(rec, now, wall)
+                batch = self._queue(hold_effects, now) or batch
             if seen.stray and now - rec.cancel_at >= RESEND_INTERVAL_S:
                 rec.cancel_at = now  # at most one cancel (or store read) per interval
-                batch = self._stop_stray(rec, state)
-                ask_store = batch is None
+                stop = self._stop_stray(rec, state)
+                ask_store = stop is None
+                batch = stop or batch
             if changed or now - rec.event_at >= ROBOT_EVENT_INTERVAL_S:
                 rec.event_at = now
                 view = Roster.view_of(rec)
@@ -281,6 +341,10 @@ class FleetService:
             self._settle()
         if ask_store:
             self._stop_stray_stored(state)
+        if resend is not None:
+            self._counters.add("control_resent")
+        if released:
+            self._planner.request("resumed")
         if seen.finished:
             self._planner.request("task_finished")
         elif seen.off_corridor:
@@ -349,6 +413,125 @@ class FleetService:
         self._settle(batch)
         self._planner.request("robot_lost")
 
+    # -- operators -----------------------------------------------------------------------
+
+    def _hold_reason(self, rec: RobotRecord) -> str | None:
+        """Why an operator holds the robot still (as it reports, or as asked), or None."""
+        state = rec.state
+        if rec.status in OPERATOR_HELD and state is not None:
+            return state.detail or state.mode.value
+        hold = self._desk.hold(rec.robot_id)
+        if hold.restrictive is None:
+            return None
+        why = "emergency stop" if hold.estop else "paused"
+        given = self._desk.reason(rec.robot_id)
+        return f"{why} by the operator" + (f": {given}" if given else "")
+
+    def _sync_hold(self, rec: RobotRecord, now: float, wall: float) -> tuple[Effects, bool]:
+        """Make the ledger's operator hold of the robot match what is asked and what it
+        reports (call with the lock held); returns the effects and whether it was released."""
+        why = self._hold_reason(rec)
+        held = rec.robot_id in self._ledger.held
+        if why is not None and not held:
+            self._version += 1
+            return self._ledger.hold_robot(rec.robot_id, why, now, wall), False
+        if why is None and held:
+            self._version += 1
+            return self._ledger.release_robot(rec.robot_id, now, wall), True
+        return [], False
+
+    def _sync_holds(self, robot_id: str | None, now: float, wall: float) -> tuple[Effects, bool]:
+        """:meth:`_sync_hold` for one robot (if known) or (``None``) every robot."""
+        if robot_id is None:
+            records = list(self._roster.records())
+        else:
+            rec = self._roster.record(robot_id)
+            records = [] if rec is None else [rec]
+        effects: Effects = []
+        released = False
+        for rec in records:
+            more, freed = self._sync_hold(rec, now, wall)
+            effects += more
+            released |= freed
+        return effects, released
+
+    def control(
+        self, action: ControlAction, robot_id: str | None = None, reason: str | None = None
+    ) -> ControlCommand:
+        """Pause, resume, e-stop or release one robot or (``None``) the whole fleet.
+
+        The command is published first, in a batch of its own (answered once it is sent);
+        paused and e-stopped robots keep their tasks (no timeout, not stuck) and take no new
+        ones; on resume the planner plans them again. Raises :class:`RobotNotFound`.
+        """
+        clock = self._clock
+        now, wall = clock.monotonic(), clock.wall()
+        with self._lock:
+            if robot_id is not None and not self._roster.known(robot_id):
+                raise RobotNotFound(f"robot {robot_id} not found")
+            message = self._desk.command(action, robot_id, reason, wall)
+            sent = self._outbox.enqueue([Publish(message)])
+            effects, released = self._sync_holds(robot_id, now, wall)
+            self._queue([*effects, self._operator_saved()], now)
+        self._counters.add("control_requests")
+        if action is ControlAction.ESTOP:
+            self._counters.add("estops_requested")
+        self._settle(sent, wait=True)
+        if released:
+            self._planner.request("resumed")
+        return message
+
+    def on_control(self, command: ControlCommand) -> None:
+        """An operator command seen on the control keys: one another tool issued (e.g.
+        ``parkfleet estop`` from another process) is taken up as if asked here -- robots
+        held or released, the record stored -- so the service re-sends a latched e-stop to
+        robots that join later, and never re-asserts one that was released elsewhere."""
+        clock = self._clock
+        now, wall = clock.monotonic(), clock.wall()
+        with self._lock:
+            if self._closed or not self._desk.adopt(command):
+                return
+            effects, released = self._sync_holds(command.robot_id, now, wall)
+            batch = self._queue([*effects, self._operator_saved()], now)
+        self._counters.add("control_adopted")
+        self._settle(batch)
+        if released:
+            self._planner.request("resumed")
+
+    def control_state(self) -> ControlState:
+        """What the operator asked: the fleet-wide hold, robots with a command of their own."""
+        with self._lock:
+            return self._desk.state()
+
+    def _set_in_service(self, robot_id: str, in_service: bool) -> RobotView:
+        clock = self._clock
+        now, wall = clock.monotonic(), clock.wall()
+        with self._lock:
+            rec = self._roster.record(robot_id)
+            view = None if rec is None else Roster.view_of(rec)
+            if rec is None or view is None:  # no pose yet: nothing to show or plan
+                raise RobotNotFound(f"robot {robot_id} not found")
+            self._roster.set_in_service(robot_id, in_service)
+            effects = [] if in_service else self._ledger.robot_decommissioned(robot_id, wall)
+            batch = self._queue([*effects, self._operator_saved()], now)
+            self._version += 1
+            view = Roster.view_of(rec)
+        assert view is not None
+        self._outbox.emit([RobotEvent(robot=view)])
+        self._settle(batch, wait=True)
+        self._planner.request("commissioned" if in_service else "decommissioned")
+        return view
+
+    def decommission(self, robot_id: str) -> RobotView:
+        """Take a robot out of service: it gets no task, its task under way is requeued (and
+        the robot told to stop it), and once lost it no longer counts as an obstacle for
+        planning and goal validation. Raises :class:`RobotNotFound`."""
+        return self._set_in_service(robot_id, False)
+
+    def commission(self, robot_id: str) -> RobotView:
+        """Put a decommissioned robot back in service. Raises :class:`RobotNotFound`."""
+        return self._set_in_service(robot_id, True)
+
     # -- background work -----------------------------------------------------------------
 
     def tick(self) -> None:
@@ -361,6 +544,7 @@ class FleetService:
                 return
             timeouts = self._ledger.timeouts(now, wall)
             self._queue(timeouts, now)
+            stuck, recovered = self._recover_stuck(now, wall)
             resends = self._ledger.resends(now)
             self._outbox.enqueue(resends)
             points = self._positions()
@@ -378,6 +562,10 @@ class FleetService:
         self._settle()
         if timeouts:
             self._planner.request("task_finished")
+        if stuck:
+            self._counters.add("stuck", stuck)
+            self._counters.add("recoveries", recovered)
+            self._planner.request("stuck")
         if removed:
             self._planner.request("robot_removed")
         self._check_separation(points)
@@ -385,6 +573,47 @@ class FleetService:
             self._planner.period_due()
             self._planner.step()
             self._settle()
+
+    def _recover_stuck(self, now: float, wall: float) -> tuple[int, int]:
+        """The next recovery of every stuck task, with the cause the roster shows (call
+        with the lock held); returns (stuck tasks, recoveries tried: the others failed)."""
+        stuck = self._ledger.stuck(now)
+        recovered = 0
+        for task in stuck:
+            cause = self._stuck_cause(task, now)
+            self._queue(self._ledger.recover_stuck(task.id, cause, now, wall), now)
+            recovered += task.id in self._ledger.active
+        return len(stuck), recovered
+
+    def _stuck_cause(self, task: Task, now: float) -> str:
+        """What the service sees around a stuck task's robot: the peers near it (robots
+        taken out of the yard excepted), the obstacles, whether it is heard."""
+        assert task.robot_id is not None
+        rec = self._roster.record(task.robot_id)
+        robot = None if rec is None else Roster.view_of(rec)
+        radius = self.settings.avoidance.peer_radius
+        peers = []
+        if robot is not None:
+            x, y = robot.pose.x, robot.pose.y
+            for other in self._roster.records():
+                s = other.state
+                if (
+                    s is not None
+                    and not other.gone_for_good
+                    and abs(s.pose.x - x) <= radius
+                    and abs(s.pose.y - y) <= radius
+                ):
+                    view = Roster.view_of(other)
+                    if view is not None:
+                        peers.append(view)
+        return stuck_cause(
+            robot,
+            self._ledger.silent(task.id, now),
+            peers,
+            self._obstacles,
+            radius,
+            self.settings.stuck_after_s,
+        )
 
     def _positions(self) -> list[tuple[str, float, float, bool]]:
         """(id, x, y, moving) of every robot with a pose when some robot is moving (else
@@ -416,20 +645,34 @@ class FleetService:
         for rid in self._roster.expired(now, self.settings.lost_robot_retention_s):
             if rid in self._ledger.robot_task:
                 continue  # a silent robot still holding a task: its timeout comes first
-            self._queue(self._ledger.robot_removed(rid, wall), now)
-            self._roster.remove(rid)
-            self._version += 1
+            self._forget_robot(rid, now, wall)
             removed.append(rid)
         return removed
+
+    def _forget_robot(self, robot_id: str, now: float, wall: float) -> Batch | None:
+        """Remove a robot and everything kept about it (call with the lock held): queued
+        tasks naming it fail; the operator record is stored again if it named the robot."""
+        effects = self._ledger.robot_removed(robot_id, wall)
+        rec = self._roster.remove(robot_id)
+        named = robot_id in self._desk.state().robots or (rec is not None and not rec.in_service)
+        self._desk.forget(robot_id)
+        if named:
+            effects.append(self._operator_saved())
+        self._version += 1
+        return self._queue(effects, now)
 
     # -- planning ----------------------------------------------------------------------
 
     def _available(self, rec: RobotRecord | None) -> bool:
+        """Whether the robot may take a new task: known pose, not lost, in service, not held
+        still by an operator, no task under way."""
         return (
             rec is not None
             and rec.state is not None
             and rec.token is not False
+            and rec.in_service
             and rec.robot_id not in self._ledger.robot_task
+            and rec.robot_id not in self._ledger.held
         )
 
     def _lead_time(self) -> float:
@@ -451,16 +694,20 @@ class FleetService:
             robots = [
                 RobotFacts(rec.state, rec.status, now - rec.seen, self._available(rec))
                 for rec in self._roster.records()
-                if rec.state is not None and rec.status is not None
+                if rec.state is not None and rec.status is not None and not rec.gone_for_good
             ]
             tasks = list(self._ledger.active.values())
+            held = set(self._ledger.held)
+            avoided = self._ledger.avoided()
             obstacles = list(self._obstacles)
             version = self._version
             lead_time = self._lead_time()
             scale = self._time_scale if self._time_scale is not None else 1.0
         if not worth_planning(robots, tasks):
             return None
-        return planning_input(version, robots, tasks, obstacles, self.settings, lead_time, scale)
+        return planning_input(
+            version, robots, tasks, obstacles, self.settings, lead_time, scale, held, avoided
+        )
 
     def _apply_plan(self, plan: Plan, work: PlanInput) -> None:
         """Apply a plan's decisions through the ledger; those on tasks that changed since
@@ -583,21 +830,57 @@ class FleetService:
             if idempotency_key is not None and idempotency_key in self._keys_in_flight:
                 return False
             rid = request.robot_id
-            if rid is not None and not self._roster.known(rid):
+            named = None if rid is None else self._roster.record(rid)
+            if rid is not None and named is None:
                 raise RobotNotFound(f"robot {rid} not found")
+            if named is not None and not named.in_service:
+                raise TaskConflict(f"robot {rid} is decommissioned: commission it first")
+            self._ledger.bays.check(task)
+            site = self.settings.site
             validate_goal(
                 goal,
                 self.settings.yard,
                 self._obstacles,
                 self._occupied(goal, rid),
                 self.settings.avoidance.peer_radius,
+                () if site is None else site.keep_out,
+                margin=self.settings.profile.radius,
             )
-            # Reserve the goal while the task is written (outside the lock, so concurrent
-            # submits share one commit): a concurrent submit near it is rejected meanwhile.
+            # Reserve the goal and bay while the task is written (outside the lock, so
+            # concurrent submits share one commit): a concurrent submit near it (or for the
+            # same bay) is rejected meanwhile.
             self._ledger.reserve(task)
             if idempotency_key is not None:
                 self._keys_in_flight[idempotency_key] = threading.Event()
         return True
+
+    def submit_to_bay(
+        self,
+        bay: str | None,
+        group: str | None,
+        make: Callable[[Pose, str], TaskRequest],
+        idempotency_key: str | None = None,
+    ) -> Task:
+        """Submit a task whose goal is a named bay, or any free bay of ``group``
+        (``make(pose, bay)`` builds the request). The bay is reserved by the task while it
+        is active. Raises :class:`BayNotFound` (404) or :class:`BayTaken` / GoalRejected
+        (409, e.g. a robot parked there)."""
+        with self._lock:
+            candidates = self._ledger.bays.candidates(bay, group)
+        refused: list[str] = []
+        for choice in candidates:
+            try:
+                return self.submit(make(choice.pose, choice.name), idempotency_key)
+            except (BayTaken, GoalRejected) as exc:
+                if bay is not None:
+                    raise
+                refused.append(f"{choice.name}: {exc}")
+        raise BayTaken(f"no free bay in group {group}: " + "; ".join(refused))
+
+    def bays(self) -> list[BayState]:
+        """Every bay of the site map with its state (free, reserved, occupied)."""
+        with self._lock:
+            return self._ledger.bays.states(self._ledger.active, self._roster.views())
 
     def cancel(self, task_id: str) -> Task:
         """Cancel a task (answered once the cancel is stored); :class:`TaskNotFound`, or
@@ -627,6 +910,15 @@ class FleetService:
         if stored is None:
             raise TaskNotFound(f"task {task_id} not found")
         return stored
+
+    def history(self, task_id: str) -> list[tuple[float, str, Task]]:
+        """Every stored transition of a task, oldest first: (time [s since epoch], event
+        such as ``assigned`` or ``recovery``, the task as stored then); read from the store,
+        so a transition shows once it is stored."""
+        rows = self._store.history(task_id)
+        if not rows and self._store.get(task_id) is None:
+            raise TaskNotFound(f"task {task_id} not found")
+        return rows
 
     def tasks(self, status: TaskStatus | None = None, robot_id: str | None = None) -> list[Task]:
         """Tasks in creation order, optionally filtered (read from the store)."""
@@ -663,9 +955,7 @@ class FleetService:
                 raise RobotConflict(
                     f"robot {robot_id} still has task {task.id} ({task.status.value})"
                 )
-            batch = self._queue(self._ledger.robot_removed(robot_id, wall), now)
-            self._roster.remove(robot_id)
-            self._version += 1
+            batch = self._forget_robot(robot_id, now, wall)
         self._counters.add("robots_removed")
         self._settle(batch, wait=True)
         self._planner.request("robot_removed")

@@ -15,7 +15,23 @@ Task life cycle::
     queued -> waiting (assigned with ``hold``: no safe option yet, ``reason`` says why)
     assigned/driving <-> waiting (a revision holds it / resumes it: assigned until acknowledged)
     assigned/driving/waiting -> queued again when the robot is lost and ``on_robot_lost ==
-    "requeue"``
+    "requeue"``, when it is decommissioned, or as the third recovery of a stuck robot
+                                (planned for another robot: :meth:`TaskLedger.avoided`)
+    driving -> driving (revision + 1) as a recovery of a stuck robot (flip the law, or wait)
+
+Operator holds (:meth:`TaskLedger.hold_robot`): while an operator holds a robot still
+(paused or e-stopped, as asked or as it reports), its task keeps its status, its timeout
+does not run (the deadline moves on by the time held), it is not stuck, and the planner
+sees it standing; the hold and its end are stored in the task's history
+(``operator_hold`` / ``operator_release``, with the reason).
+
+Stuck robots (:mod:`~fleet.service.stuck`): every state of a robot driving its task feeds
+its progress watch; :meth:`TaskLedger.stuck` lists the tasks with no progress for
+``stuck_after_s`` and :meth:`TaskLedger.recover_stuck` applies the next recovery (flip, wait,
+requeue to another robot) or fails the task, with the cause in its reason and history.
+
+Bays (:mod:`~fleet.service.bays`): a task's bay is held from its reservation until it is
+final (or the reservation is given back).
 
 The plan's decisions (:class:`fleet.core.planner.TaskDecision`) are applied by
 :meth:`TaskLedger.apply`: ``assign`` gives a queued task its robot, law, start delay or hold;
@@ -43,14 +59,19 @@ from typing import Literal
 from fleet.core.goals import GoalIndex, Occupied
 from fleet.core.params import Avoidance
 from fleet.core.planner.model import TaskDecision
+from fleet.core.site import Site
 from fleet.core.tasks import Task, TaskEvent, TaskNotFound, TaskStatus
 from fleet.core.wire import CancelAssignment, ParkAssignment, RobotMode, RobotState
+from fleet.service.bays import BayBook
 from fleet.service.effects import Effects, Notify, Publish, StoreWrite
 from fleet.service.horizon import Corridor
 from fleet.service.paths import PathRecorder
+from fleet.service.stuck import RECOVERIES, StuckWatch
 
 #: Robot modes in which a robot drives a task (a stray one is told to stop).
 _MOVING = frozenset({RobotMode.DRIVING, RobotMode.AVOIDING})
+#: Robot modes of a robot standing still on purpose (not stuck).
+_STILL_ON_PURPOSE = frozenset({RobotMode.WAITING, RobotMode.PAUSED, RobotMode.ESTOP})
 #: How many finished task ids are remembered for stray robots.
 FINISHED_REMEMBERED = 10_000
 _NEVER = float("-inf")
@@ -76,6 +97,7 @@ class LedgerConfig:
     goal_cell: float = 1.0  # [m] cell of the goal grid (the peer radius)
     corridor_m: float = 0.3  # [m] an observed pose farther than this from its prediction
     control_hz: float = 50.0  # the robots' control rate (state seq per second)
+    stuck_after_s: float = 30.0  # [s] no progress this long: stuck (recoveries, then failed)
 
 
 @dataclass(slots=True)
@@ -86,6 +108,8 @@ class _Tracking:
     sent_at: float  # last send of the current revision [s, monotonic]
     seen_revision: int = -1  # revision its robot last reported for it (-1: not this task)
     corridor: Corridor | None = None
+    held_at: float | None = None  # an operator holds its robot since [s, monotonic]
+    reason_before_hold: str | None = None  # the task's reason when the hold began
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,9 +147,15 @@ def assignment_of(task: Task, avoidance: Avoidance) -> ParkAssignment:
 class TaskLedger:
     """Active tasks and their transitions (see the module docstring)."""
 
-    def __init__(self, config: LedgerConfig, paths: PathRecorder | None = None) -> None:
+    def __init__(
+        self, config: LedgerConfig, paths: PathRecorder | None = None, site: Site | None = None
+    ) -> None:
         self.config = config
         self.paths = paths if paths is not None else PathRecorder()
+        self.bays = BayBook(site)  # bay -> the active (or reserved) task holding it
+        self.stuck_watch = StuckWatch(config.stuck_after_s)  # progress of tasks under way
+        self._held: dict[str, str] = {}  # robots an operator holds still -> why
+        self._avoid: dict[str, str] = {}  # task -> robot it was taken from (stuck)
         self._active: dict[str, Task] = {}  # every non-final task, by id
         self._queued: dict[str, Task] = {}
         self._under_way: dict[str, Task] = {}  # assigned, driving, waiting (with a robot)
@@ -172,6 +202,16 @@ class TaskLedger:
         """The final status of a recently finished task (None: unknown or still active)."""
         return self._finished.get(task_id)
 
+    @property
+    def held(self) -> Mapping[str, str]:
+        """Robots an operator holds still, with why."""
+        return self._held
+
+    def avoided(self) -> dict[str, str]:
+        """Queued tasks taken from a stuck robot -> that robot (the planner gives them to
+        another robot if it can)."""
+        return {tid: rid for tid, rid in self._avoid.items() if tid in self._queued}
+
     def sent_revision_acknowledged(self, task_id: str) -> bool:
         track = self._tracking.get(task_id)
         task = self._under_way.get(task_id)
@@ -187,6 +227,9 @@ class TaskLedger:
             "tasks_finished_remembered": len(self._finished),
             "paths": len(self.paths),
             "path_samples": self.paths.samples,
+            "bays_reserved": len(self.bays),
+            "tasks_watched_stuck": len(self.stuck_watch),
+            "robots_held": len(self._held),
         }
 
     # -- indexes -----------------------------------------------------------------------
@@ -198,6 +241,7 @@ class TaskLedger:
             self._unindex(old)
         goal = task.request.goal
         self._goals.add(task.id, Occupied(goal.x, goal.y, f"the goal of task {task.id}"))
+        self.bays.hold(task)
         self._active[task.id] = task
         if task.status is TaskStatus.QUEUED:
             self._queued[task.id] = task
@@ -225,6 +269,9 @@ class TaskLedger:
         if old is not None:
             self._unindex(old)
         self._goals.remove(task.id)
+        self.bays.release(task.id)
+        self.stuck_watch.forget(task.id)
+        self._avoid.pop(task.id, None)
         self._tracking.pop(task.id, None)
         self.paths.finish(task.id)
         self._finished[task.id] = task.status
@@ -247,14 +294,18 @@ class TaskLedger:
     # -- new tasks ---------------------------------------------------------------------
 
     def reserve(self, task: Task) -> None:
-        """Hold ``task``'s goal while it is being stored (a goal near it is rejected)."""
+        """Hold ``task``'s goal (and bay) while it is being stored (a goal near it, or a
+        task for the same bay, is rejected meanwhile). Check the bay first
+        (``bays.check``)."""
         goal = task.request.goal
         self._goals.add(task.id, Occupied(goal.x, goal.y, f"the goal of task {task.id}"))
+        self.bays.hold(task)
 
     def release(self, task_id: str) -> None:
         """Give back a reservation whose task was not stored."""
         if task_id not in self._active:
             self._goals.remove(task_id)
+            self.bays.release(task_id)
 
     def add(self, task: Task) -> Effects:
         """A new task was stored (``queued``): it may be planned from now on."""
@@ -271,13 +322,15 @@ class TaskLedger:
             if task.status.under_way and task.robot_id is not None:
                 self._tracking[task.id] = _Tracking(now + self.config.task_timeout_s, _NEVER)
                 self.paths.start(task.id)
+                self.stuck_watch.start(task.id, now)
             n += 1
         return n
 
     # -- robot reports -----------------------------------------------------------------
 
-    def observe(self, state: RobotState, wall: float) -> Observation:
-        """A robot's state: acknowledgement, arrival, path recording, corridor check."""
+    def observe(self, state: RobotState, now: float, wall: float) -> Observation:
+        """A robot's state: acknowledgement, arrival, path recording, progress (stuck),
+        corridor check."""
         task_id = self._robot_task.get(state.robot_id)
         if task_id is None or state.task_id != task_id:
             if task_id is not None:
@@ -296,6 +349,8 @@ class TaskLedger:
         self.paths.record(task_id, (wall, p.x, p.y, p.theta, state.u, state.omega))
         if state.mode is RobotMode.ARRIVED:
             return Observation(self._finish(task, TaskStatus.SUCCEEDED, None, wall, False), True)
+        still = state.mode in _STILL_ON_PURPOSE or track.held_at is not None or task.hold
+        self.stuck_watch.observe(task_id, p, task.request.goal, now, still)
         effects: Effects = []
         if task.status is TaskStatus.ASSIGNED and state.revision >= task.revision:
             driving = self._update(task, wall, status=TaskStatus.DRIVING)
@@ -410,6 +465,7 @@ class TaskLedger:
             corridor=self._corridor(assigned.revision, decision, None),
         )
         self.paths.start(task.id)
+        self.stuck_watch.start(task.id, now)
         effects.append(Publish(assignment_of(assigned, self.config.avoidance)))
         return Outcome.APPLIED, effects
 
@@ -457,6 +513,14 @@ class TaskLedger:
         reason = f"robot {robot_id} lost (liveliness token gone)"
         if self.config.on_robot_lost == "fail":
             return self._finish(task, TaskStatus.FAILED, reason, wall, False)
+        return self._requeue(task, reason + "; requeued", "requeued", wall, stop_robot=False)
+
+    def _requeue(
+        self, task: Task, reason: str, event: str, wall: float, *, stop_robot: bool
+    ) -> Effects:
+        """Put a task under way back in the queue (a task naming its robot keeps it);
+        ``stop_robot``: tell the robot to stop it. The revision goes up: a robot that still
+        holds the cancelled (or lost) version takes the task again if it is given back."""
         requeued = self._update(
             task,
             wall,
@@ -465,17 +529,118 @@ class TaskLedger:
             law=None,
             hold=False,
             start_delay_s=0.0,
-            reason=reason + "; requeued",
+            reason=reason,
+            revision=task.revision + 1,
         )
         self._tracking.pop(task.id, None)
         effects: Effects = []
-        self._transition(requeued, "requeued", effects)
+        self._transition(requeued, event, effects)
+        if stop_robot and task.robot_id is not None:
+            effects.append(Publish(CancelAssignment(robot_id=task.robot_id, task_id=task.id)))
+        return effects
+
+    def robot_decommissioned(self, robot_id: str, wall: float) -> Effects:
+        """An operator took the robot out of service: its task under way is queued again
+        (for another robot) and the robot told to stop it."""
+        task = self.task_of_robot(robot_id)
+        if task is None:
+            return []
+        reason = f"robot {robot_id} decommissioned; requeued"
+        return self._requeue(task, reason, "requeued", wall, stop_robot=True)
+
+    # -- operator holds ----------------------------------------------------------------
+
+    def hold_robot(self, robot_id: str, why: str, now: float, wall: float) -> Effects:
+        """An operator holds the robot still (paused or e-stopped): its task's timeout stops
+        and it is not stuck; stored in the task's history (``operator_hold``)."""
+        if robot_id in self._held:
+            return []
+        self._held[robot_id] = why
+        task = self.task_of_robot(robot_id)
+        if task is None:
+            return []
+        track = self._tracking[task.id]
+        track.held_at, track.reason_before_hold = now, task.reason
+        effects: Effects = []
+        self._transition(self._update(task, wall, reason=why), "operator_hold", effects)
+        return effects
+
+    def release_robot(self, robot_id: str, now: float, wall: float) -> Effects:
+        """The operator's hold on the robot ended: its task's deadline moves on by the time
+        held, its progress window restarts; stored (``operator_release``)."""
+        if self._held.pop(robot_id, None) is None:
+            return []
+        task = self.task_of_robot(robot_id)
+        if task is None:
+            return []
+        track = self._tracking[task.id]
+        if track.held_at is not None:
+            track.deadline += now - track.held_at
+        reason, track.held_at, track.reason_before_hold = track.reason_before_hold, None, None
+        self.stuck_watch.start(task.id, now)
+        effects: Effects = []
+        self._transition(self._update(task, wall, reason=reason), "operator_release", effects)
+        return effects
+
+    # -- stuck robots ------------------------------------------------------------------
+
+    def stuck(self, now: float) -> list[Task]:
+        """Tasks driving, their robot not held, with no progress for ``stuck_after_s``."""
+        watch = self.stuck_watch
+        return [
+            t
+            for t in self._under_way.values()
+            if t.status is TaskStatus.DRIVING
+            and self._tracking[t.id].held_at is None
+            and watch.stuck(t.id, now)
+        ]
+
+    def silent(self, task_id: str, now: float) -> bool:
+        """No state of the task's robot for the whole stuck window."""
+        return self.stuck_watch.silent(task_id, now)
+
+    def recover_stuck(self, task_id: str, cause: str, now: float, wall: float) -> Effects:
+        """The next recovery of a stuck task (:data:`~fleet.service.stuck.RECOVERIES`):
+        ``flip`` -- a new revision with the other law (``auto`` tasks; else it waits);
+        ``wait`` -- a new revision with a start delay of a third of the window, so a peer
+        passes; ``requeue`` -- queued again, its robot told to stop, planned for another
+        robot if there is one; after the last the task fails. ``cause`` (what the service
+        sees) goes into the reason and the history (``recovery``)."""
+        task = self._under_way[task_id]
+        assert task.robot_id is not None and task.law is not None
+        step = self.stuck_watch.next_recovery(task_id, now)
+        if step is None:
+            reason = f"stuck: {cause}; {len(RECOVERIES)} recoveries did not help"
+            return self._finish(task, TaskStatus.FAILED, reason, wall, True)
+        reason = f"stuck: {cause}; recovery {self.stuck_watch.attempts(task_id)}: {step}"
+        if step == "requeue":
+            self._avoid[task_id] = task.robot_id
+            return self._requeue(task, reason, "recovery", wall, stop_robot=True)
+        law = task.law
+        if step == "flip" and task.request.direction == "auto":
+            law = "cw" if task.law == "ccw" else "ccw"
+        delay = 0.0 if law != task.law else self.config.stuck_after_s / 3
+        revised = self._update(
+            task,
+            wall,
+            law=law,
+            start_delay_s=delay,
+            hold=False,
+            revision=task.revision + 1,
+            reason=reason,
+        )
+        effects: Effects = []
+        self._transition(revised, "recovery", effects)
+        track = self._tracking[task_id]
+        track.sent_at, track.corridor = now, None
+        effects.append(Publish(assignment_of(revised, self.config.avoidance)))
         return effects
 
     def robot_removed(self, robot_id: str, wall: float) -> Effects:
         """The robot was removed from the fleet: queued tasks naming it fail (it will not
         come back to take them). Call only when it has no task under way."""
         assert robot_id not in self._robot_task
+        self._held.pop(robot_id, None)
         effects: Effects = []
         for task in [t for t in self._queued.values() if t.request.robot_id == robot_id]:
             reason = f"robot {robot_id} was removed from the fleet"
@@ -483,9 +648,14 @@ class TaskLedger:
         return effects
 
     def timeouts(self, now: float, wall: float) -> Effects:
-        """Tasks under way past their deadline fail, and their robots are told to stop."""
+        """Tasks under way past their deadline fail, and their robots are told to stop (a
+        task whose robot an operator holds has no running deadline)."""
         effects: Effects = []
-        late = [t for t in self._under_way.values() if self._tracking[t.id].deadline <= now]
+        late = [
+            t
+            for t in self._under_way.values()
+            if self._tracking[t.id].deadline <= now and self._tracking[t.id].held_at is None
+        ]
         for task in late:
             reason = f"timeout: not arrived within {self.config.task_timeout_s:g} s"
             effects += self._finish(task, TaskStatus.FAILED, reason, wall, True)

@@ -23,9 +23,9 @@ from collections import deque
 from collections.abc import Callable
 
 from fleet.core.tasks import FleetEvent
-from fleet.core.wire import ObstacleSet
+from fleet.core.wire import ControlCommand, ObstacleSet
 from fleet.service.bus import FleetBus
-from fleet.service.effects import Effects, Notify, Publish, PurgeFinished, StoreWrite
+from fleet.service.effects import Effects, Notify, Publish, PurgeFinished, SaveState, StoreWrite
 from fleet.service.stats import Counters
 from fleet.service.store import TaskStore
 
@@ -160,6 +160,8 @@ class Outbox:
             for e in effects:
                 if isinstance(e, StoreWrite):
                     self._store.save(e.task, e.event)
+                elif isinstance(e, SaveState):
+                    self._store.save_state(e.key, e.value)
                 elif isinstance(e, PurgeFinished):
                     purged = self._store.delete_finished_before(e.before, e.limit)
                     self._counters.add("tasks_purged", purged)
@@ -173,6 +175,8 @@ class Outbox:
                     msg = e.message
                     if isinstance(msg, ObstacleSet):
                         self._bus.publish_obstacles(msg)
+                    elif isinstance(msg, ControlCommand):
+                        self._bus.publish_control(msg)
                     else:
                         self._bus.publish_assignment(msg)
                 except Exception:

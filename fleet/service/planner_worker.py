@@ -133,6 +133,7 @@ class PlannerWorker:
             last = self._plan_seconds
             self._plan_seconds = took if last is None else 0.5 * (last + took)
         self._counters.add("plans")
+        self._counters.add("plan_us", round(took * 1e6))  # total planning time [µs]
         _log.debug("planned %d decision(s) in %.3f s", len(plan.decisions), took)
         self._apply(plan, work)
         return True

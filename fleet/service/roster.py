@@ -12,8 +12,11 @@ arguments: ``now`` [s, monotonic] for every interval, ``wall`` [s since epoch] f
   robot events, rate measurement, cancel re-sends), so removing a robot forgets all of it.
   A robot lost (or silent without any token) for longer than the retention time is
   :meth:`Roster.expired`; the service removes it (:meth:`Roster.remove`), as does an operator.
-* Parked robots (arrived, holding or lost) are kept in a grid (:class:`GoalIndex`), so the
-  goal check of a new task looks at the few robots near the goal, not at the whole fleet.
+* Parked robots (arrived, holding, paused, e-stopped or lost) are kept in a grid
+  (:class:`GoalIndex`), so the goal check of a new task looks at the few robots near the
+  goal, not at the whole fleet.
+* An operator takes a robot out of service (:meth:`Roster.set_in_service`): it gets no
+  task, and once lost it is no obstacle any more (it was taken away): it leaves the grid.
 
 :meth:`Roster.update` is the hot path (every state of every robot, 50 Hz each): it stores
 the state, keeps the cached status and reports whether status or task changed, building no
@@ -32,7 +35,17 @@ from fleet.core.wire import RobotMode, RobotState
 
 _STATUS_OF_MODE: dict[RobotMode, RobotStatus] = {m: RobotStatus(m.value) for m in RobotMode}
 #: Statuses of a robot that stands where it is for good (it blocks goals near it).
-PARKED = frozenset({RobotStatus.ARRIVED, RobotStatus.HOLDING, RobotStatus.LOST})
+PARKED = frozenset(
+    {
+        RobotStatus.ARRIVED,
+        RobotStatus.HOLDING,
+        RobotStatus.PAUSED,
+        RobotStatus.ESTOP,
+        RobotStatus.LOST,
+    }
+)
+#: Statuses of a robot that an operator holds still (pause, e-stop), as it reports them.
+OPERATOR_HELD = frozenset({RobotStatus.PAUSED, RobotStatus.ESTOP})
 #: A parked robot that moved this far is moved in the grid [m].
 _PARKED_MOVE_M = 0.05
 _NEVER = -math.inf
@@ -62,10 +75,16 @@ class RobotRecord:
     cancel_at: float = _NEVER  # last cancel sent to it [s, monotonic]
     stray_at: float = _NEVER  # last check of a task it drives that is not its own
     parked_at: tuple[float, float] | None = None  # where it is in the parked grid [m]
+    in_service: bool = True  # False: decommissioned by an operator (gets no task)
 
     @property
     def task_id(self) -> str | None:
         return None if self.state is None else self.state.task_id
+
+    @property
+    def gone_for_good(self) -> bool:
+        """Lost and decommissioned: taken out of the yard, no obstacle any more."""
+        return self.token is False and not self.in_service
 
 
 class Roster:
@@ -75,6 +94,7 @@ class Roster:
         self._robots: dict[str, RobotRecord] = {}
         self._parked = GoalIndex(parked_cell)
         self._unlinked: dict[str, None] = {}  # robots lost or without a token (retention)
+        self._out_of_service_unseen: set[str] = set()  # decommissioned, not seen since start
 
     def __len__(self) -> int:
         return len(self._robots)
@@ -97,6 +117,9 @@ class Roster:
         if rec is None:
             rec = self._robots[robot_id] = RobotRecord(robot_id)
             self._unlinked[robot_id] = None
+            if robot_id in self._out_of_service_unseen:
+                self._out_of_service_unseen.discard(robot_id)
+                rec.in_service = False
         return rec
 
     def update(self, state: RobotState, now: float, wall: float) -> tuple[RobotRecord, bool]:
@@ -107,7 +130,12 @@ class Roster:
         rec.seen = now
         rec.seen_wall = wall
         status = RobotStatus.LOST if rec.token is False else _STATUS_OF_MODE[state.mode]
-        changed = before is None or status is not rec.status or (before.task_id != state.task_id)
+        changed = (
+            before is None
+            or status is not rec.status
+            or before.task_id != state.task_id
+            or before.detail != state.detail
+        )
         if status is not rec.status:
             rec.status = status
             self._place(rec)
@@ -144,9 +172,31 @@ class Roster:
             rec.status = status
             self._place(rec)
 
+    def set_in_service(self, robot_id: str, in_service: bool) -> RobotRecord | None:
+        """Decommission (False) or commission (True) a known robot; None if unknown."""
+        rec = self._robots.get(robot_id)
+        if rec is not None and rec.in_service is not in_service:
+            rec.in_service = in_service
+            self._place(rec)
+        return rec
+
+    def restore_out_of_service(self, robot_ids: list[str]) -> None:
+        """Robots decommissioned before the service restarted: out of service once seen."""
+        for rid in robot_ids:
+            rec = self._robots.get(rid)
+            if rec is None:
+                self._out_of_service_unseen.add(rid)
+            else:
+                self.set_in_service(rid, False)
+
+    def out_of_service(self) -> list[str]:
+        """Every robot decommissioned (seen since the start or not), sorted."""
+        seen = [rid for rid, rec in self._robots.items() if not rec.in_service]
+        return sorted([*seen, *self._out_of_service_unseen])
+
     def _place(self, rec: RobotRecord) -> None:
         """Put the robot in (or take it out of) the parked grid according to its status."""
-        if rec.status in PARKED and rec.state is not None:
+        if rec.status in PARKED and rec.state is not None and not rec.gone_for_good:
             p = rec.state.pose
             what = f"{rec.status.value} robot {rec.robot_id}"
             self._parked.add(rec.robot_id, ParkedRobot(p.x, p.y, what, rec.robot_id))
@@ -156,8 +206,8 @@ class Roster:
             rec.parked_at = None
 
     def parked_near(self, x: float, y: float, radius: float) -> list[ParkedRobot]:
-        """Parked robots (arrived, holding, lost) within ``radius`` [m] of (x, y), nearest
-        first."""
+        """Parked robots (arrived, holding, paused, e-stopped, lost but not decommissioned)
+        within ``radius`` [m] of (x, y), nearest first."""
         return [p for p in self._parked.near(x, y, radius) if isinstance(p, ParkedRobot)]
 
     def is_lost(self, robot_id: str) -> bool:
@@ -204,6 +254,9 @@ class Roster:
             goal=s.goal,
             radius=s.radius,
             last_seen=rec.seen_wall,
+            detail=s.detail,
+            in_service=rec.in_service,
+            errors=s.errors,
         )
 
     def view(self, robot_id: str) -> RobotView | None:

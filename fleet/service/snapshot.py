@@ -1,7 +1,9 @@
 """The planner's input, built from what the service copied under its lock (pure).
 
 The shell copies references under its lock -- one :class:`RobotFacts` per robot with a known
-pose, the active tasks, the obstacles -- and :func:`planning_input` turns them into the
+pose (not those taken out of the yard: lost and decommissioned), the active tasks, the
+obstacles, the robots an operator holds still and the tasks taken from stuck robots -- and
+:func:`planning_input` turns them into the
 immutable :class:`fleet.core.planner.PlanningSnapshot` *outside* the lock. It also keeps,
 per robot, the state sequence number at which the plan's time starts (``origin_seqs``: the
 snapshot's seq plus the lead time in control ticks), so the service can compare observed
@@ -10,7 +12,7 @@ poses with the predicted corridors at the same robot time.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
@@ -27,7 +29,7 @@ class RobotFacts:
     state: RobotState
     status: RobotStatus
     age_s: float  # since its state arrived [s, service clock]
-    available: bool  # may take a new task (not lost, no task under way)
+    available: bool  # may take a new task (not lost, no task, in service, not held)
 
 
 @dataclass(frozen=True)
@@ -53,8 +55,9 @@ def worth_planning(robots: Sequence[RobotFacts], tasks: Sequence[Task]) -> bool:
     )
 
 
-def _task_snapshot(task: Task) -> TaskSnapshot:
+def _task_snapshot(task: Task, held: Collection[str], avoided: Mapping[str, str]) -> TaskSnapshot:
     request = task.request
+    under_way = task.status.under_way
     return TaskSnapshot(
         task_id=task.id,
         goal=request.goal.as_tuple(),
@@ -64,11 +67,12 @@ def _task_snapshot(task: Task) -> TaskSnapshot:
         status=task.status,
         created_at=task.created_at,
         named_robot=request.robot_id,
-        robot_id=task.robot_id if task.status.under_way else None,
+        robot_id=task.robot_id if under_way else None,
         law=task.law,
         revision=task.revision,
-        hold=task.hold,
+        hold=task.hold or (under_way and task.robot_id in held),
         start_delay_s=task.start_delay_s,
+        avoid_robot=avoided.get(task.id),
     )
 
 
@@ -80,8 +84,12 @@ def planning_input(
     settings: Settings,
     lead_time_s: float,
     time_scale: float,
+    held: Collection[str] = (),
+    avoided: Mapping[str, str] | None = None,
 ) -> PlanInput:
-    """The planner's snapshot (robots sorted by id, tasks oldest first)."""
+    """The planner's snapshot (robots sorted by id, tasks oldest first). ``held``: robots an
+    operator holds still (their tasks stand, ``hold``); ``avoided``: queued task -> the
+    stuck robot it was taken from."""
     hz = settings.control_rate_hz
     robot_snaps = []
     origins: dict[str, float] = {}
@@ -103,7 +111,10 @@ def planning_input(
     snapshot = PlanningSnapshot(
         version=version,
         robots=tuple(robot_snaps),
-        tasks=tuple(_task_snapshot(t) for t in sorted(tasks, key=lambda t: t.created_at)),
+        tasks=tuple(
+            _task_snapshot(t, held, avoided or {})
+            for t in sorted(tasks, key=lambda t: t.created_at)
+        ),
         obstacles=tuple(obstacles),
         profile=settings.profile,
         avoidance=settings.avoidance,

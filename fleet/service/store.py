@@ -5,7 +5,9 @@ Two implementations of :class:`TaskStore`:
 * :class:`SqliteTaskStore` -- one SQLite file in WAL mode with ``synchronous=FULL``, so a
   ``save`` has reached the disk when it returns (durable against a process crash *and* a
   power loss); a ``tasks`` table (latest version of each task, unique idempotency key) and
-  an append-only ``task_history`` table (one row per transition, with its event name).
+  an append-only ``task_history`` table (one row per transition, with its event name),
+  and a small ``service_state`` table (named JSON documents the service keeps across
+  restarts: what operators asked, robots out of service).
   Writes use **group commit**: concurrent ``save``/``save_new`` calls are queued, and one
   caller (the leader) runs every queued write in one transaction -- each in its own
   savepoint, so one failing write does not undo the others -- and commits once, i.e. one
@@ -59,6 +61,10 @@ CREATE TABLE IF NOT EXISTS task_history (
     body TEXT NOT NULL
 );
 CREATE INDEX IF NOT EXISTS task_history_task ON task_history (task_id);
+CREATE TABLE IF NOT EXISTS service_state (
+    key TEXT PRIMARY KEY,
+    value TEXT NOT NULL
+);
 """
 
 
@@ -133,6 +139,14 @@ class TaskStore(Protocol):
         before ``before`` [s since epoch], with their history; returns how many went."""
         ...
 
+    def save_state(self, key: str, value: str) -> None:
+        """Replace the service's state document ``key``; durable on return."""
+        ...
+
+    def load_state(self, key: str) -> str | None:
+        """The state document ``key`` last saved (None: never)."""
+        ...
+
     def close(self) -> None: ...
 
 
@@ -144,6 +158,15 @@ class MemoryTaskStore:
         self._tasks: dict[str, Task] = {}
         self._keys: dict[str, str] = {}
         self._history: builtins.list[tuple[float, str, Task]] = []
+        self._state: dict[str, str] = {}
+
+    def save_state(self, key: str, value: str) -> None:
+        with self._lock:
+            self._state[key] = value
+
+    def load_state(self, key: str) -> str | None:
+        with self._lock:
+            return self._state.get(key)
 
     def save(self, task: Task, event: str) -> None:
         with self._lock:
@@ -325,6 +348,22 @@ class SqliteTaskStore:
 
     def save(self, task: Task, event: str) -> None:
         self._write(lambda db: self._upsert(db, task, None, event))
+
+    def save_state(self, key: str, value: str) -> None:
+        self._write(
+            lambda db: db.execute(
+                "INSERT INTO service_state (key, value) VALUES (?, ?)"
+                " ON CONFLICT(key) DO UPDATE SET value=excluded.value",
+                (key, value),
+            )
+        )
+
+    def load_state(self, key: str) -> str | None:
+        with self._lock:
+            row = self._conn.execute(
+                "SELECT value FROM service_state WHERE key = ?", (key,)
+            ).fetchone()
+        return None if row is None else str(row[0])
 
     def get(self, task_id: str) -> Task | None:
         with self._lock:

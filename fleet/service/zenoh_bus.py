@@ -7,6 +7,9 @@ On :meth:`ZenohFleetBus.start` it declares
 * a liveliness subscriber on ``alive/*`` *with history* (robots already up are reported at
   once) -> ``sink.on_robot_alive`` / ``sink.on_robot_gone``; the service's own token is
   skipped;
+* subscribers on the fleet's and every robot's ``control`` key -> ``sink.on_control`` (a
+  robot's key must carry a command for that robot), so the service knows the e-stops and
+  pauses other tools (``parkfleet estop``) latched;
 * a queryable on ``obstacles`` answering late joiners with the current ``ObstacleSet``;
 * the service's liveliness token ``alive/_service``.
 
@@ -29,6 +32,7 @@ import zenoh
 from fleet.core.wire import (
     SERVICE_TOKEN,
     CancelAssignment,
+    ControlCommand,
     Keys,
     ObstacleSet,
     ParkAssignment,
@@ -36,6 +40,7 @@ from fleet.core.wire import (
     encode,
 )
 from fleet.io.decoder import Decoder
+from fleet.io.operator import put_control
 from fleet.service.bus import FleetSink
 
 _log = logging.getLogger(__name__)
@@ -61,6 +66,19 @@ class ZenohFleetBus:
 
     def publish_obstacles(self, msg: ObstacleSet) -> None:
         self._put(self._keys.obstacles, encode(msg), "obstacle_sets_sent")
+
+    def publish_control(self, msg: ControlCommand) -> None:
+        """An operator command, never dropped (``fleet.io.operator.put_control``)."""
+        with self._lock:
+            if self._closed:
+                return
+        try:
+            put_control(self._session, self._keys, msg)
+        except zenoh.ZError:
+            self._count("publish_errors")
+            _log.exception("could not publish control command %s", msg.command.value)
+            return
+        self._count("controls_sent")
 
     def _put(self, key: str, payload: bytes, counter: str) -> None:
         with self._lock:
@@ -91,6 +109,10 @@ class ZenohFleetBus:
                 keys.all_alive, self._guard("liveliness", self._on_alive), history=True
             )
         )
+        for key in (keys.control(), keys.all_robot_controls):
+            self._declared.append(
+                session.declare_subscriber(key, self._guard("control", self._on_control))
+            )
         self._declared.append(
             session.declare_queryable(keys.obstacles, self._guard("query", self._on_query))
         )
@@ -117,6 +139,18 @@ class ZenohFleetBus:
             self._count("state_key_mismatch")
             return
         sink.on_state(state)
+
+    def _on_control(self, sample: zenoh.Sample) -> None:
+        sink = self._sink
+        if sink is None:
+            return
+        command = self._decoder.decode(ControlCommand, sample.payload.to_bytes())
+        if command is None:
+            return
+        if self._keys.robot_of(str(sample.key_expr)) != command.robot_id:
+            self._count("control_key_mismatch")
+            return
+        sink.on_control(command)
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
         sink = self._sink

@@ -20,7 +20,7 @@ from support import wait_for
 
 from api.app import create_app
 from api.server import bind_socket
-from fleet.core.tasks import FleetEvent, RobotView
+from fleet.core.tasks import FleetEvent, RobotView, Task, TaskStatus
 from fleet.core.wire import Pose, RobotMode, RobotState
 from fleet.io.settings import Settings, load_settings
 from fleet.service.bus import MemoryBus
@@ -100,7 +100,8 @@ async def auth_client(
 
 
 class EventSource:
-    """Just what the event hub uses of the service: listeners and a robot snapshot."""
+    """Just what the event hub (and the metrics at start) use of the service: listeners, a
+    robot snapshot, no tasks."""
 
     def __init__(self, robots: list[RobotView] = []) -> None:  # noqa: B006
         self.listeners: list[Callable[[FleetEvent], None]] = []
@@ -108,6 +109,9 @@ class EventSource:
 
     def robots(self) -> list[RobotView]:
         return self._robots
+
+    def tasks(self, status: TaskStatus | None = None, robot_id: str | None = None) -> list[Task]:
+        return []  # the app's metrics read the active tasks at start: none here
 
     def add_listener(self, listener: Callable[[FleetEvent], None]) -> Callable[[], None]:
         self.listeners.append(listener)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import select
 import subprocess
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -12,7 +13,8 @@ from typing import Any
 
 from fleet.core.params import Gains, Tolerance
 from fleet.core.types import Law, Posture
-from fleet.core.wire import Keys, ParkAssignment, Pose
+from fleet.core.wire import Keys, ParkAssignment, Pose, RobotState, encode
+from fleet.io.decoder import Decoder
 from fleet.io.settings import Settings
 from fleet.io.transport import open_session
 from fleet.service.fleet_service import FleetService
@@ -80,3 +82,46 @@ def zenoh_fleet_service(settings: Settings, db: Path) -> Iterator[FleetService]:
                 service.close()
     finally:
         store.close()
+
+
+class StateWatcher:
+    """Records every RobotState seen on the fleet's state keys (from a separate session)."""
+
+    def __init__(self, session: Any) -> None:
+        self.decoder = Decoder("watcher")
+        self.lock = threading.Lock()
+        self.history: dict[str, list[RobotState]] = {}
+        self.sub = session.declare_subscriber(Keys().all_states, self._on)
+
+    def _on(self, sample: Any) -> None:
+        state = self.decoder.decode(RobotState, sample.payload.to_bytes())
+        if state is not None:
+            with self.lock:
+                self.history.setdefault(state.robot_id, []).append(state)
+
+    def latest(self, rid: str) -> RobotState | None:
+        with self.lock:
+            states = self.history.get(rid)
+            return states[-1] if states else None
+
+    def since(self, rid: str, seq: int) -> list[RobotState]:
+        with self.lock:
+            return [s for s in self.history.get(rid, []) if s.seq > seq]
+
+    def close(self) -> None:
+        self.sub.undeclare()
+
+
+def assign_until_acked(
+    session: Any, watcher: StateWatcher, message: ParkAssignment, timeout: float = 10.0
+) -> None:
+    """Re-send an assignment until the robot's state carries its task id (the protocol)."""
+
+    def acked() -> bool:
+        state = watcher.latest(message.robot_id)
+        if state is not None and state.task_id == message.task_id:
+            return True
+        session.put(Keys().assignment(message.robot_id), encode(message))
+        return False
+
+    wait_for(acked, timeout, f"{message.robot_id} to acknowledge {message.task_id}", poll=0.05)

@@ -15,7 +15,7 @@ from typing import Any
 
 import pytest
 import zenoh
-from support import park, read_line, wait_for
+from support import StateWatcher, assign_until_acked, park, read_line, wait_for
 
 from fleet.core.params import Gains, Tolerance
 from fleet.core.step import pose_error
@@ -23,13 +23,10 @@ from fleet.core.wire import (
     Keys,
     Obstacle,
     ObstacleSet,
-    ParkAssignment,
     Pose,
     RobotMode,
-    RobotState,
     encode,
 )
-from fleet.io.decoder import Decoder
 from fleet.io.settings import Settings
 from fleet.io.transport import open_session
 from sim_agent.fleet import SimFleet, Spawn
@@ -41,34 +38,6 @@ PARKFLEET = Path(sys.executable).with_name("parkfleet")
 CLI = [str(PARKFLEET)] if PARKFLEET.exists() else [sys.executable, "-m", "fleet.cli"]
 GAINS = Gains(kx=1.0, ky=2.0, ktheta=1.0)
 TOL = Tolerance(position=0.1, heading=0.1)
-
-
-class StateWatcher:
-    """Records every RobotState seen on the fleet's state keys (from a separate session)."""
-
-    def __init__(self, session: Any) -> None:
-        self.decoder = Decoder("watcher")
-        self.lock = threading.Lock()
-        self.history: dict[str, list[RobotState]] = {}
-        self.sub = session.declare_subscriber(KEYS.all_states, self._on)
-
-    def _on(self, sample: Any) -> None:
-        state = self.decoder.decode(RobotState, sample.payload.to_bytes())
-        if state is not None:
-            with self.lock:
-                self.history.setdefault(state.robot_id, []).append(state)
-
-    def latest(self, rid: str) -> RobotState | None:
-        with self.lock:
-            states = self.history.get(rid)
-            return states[-1] if states else None
-
-    def since(self, rid: str, seq: int) -> list[RobotState]:
-        with self.lock:
-            return [s for s in self.history.get(rid, []) if s.seq > seq]
-
-    def close(self) -> None:
-        self.sub.undeclare()
 
 
 @pytest.fixture
@@ -110,21 +79,6 @@ def start_cli(procs: list[subprocess.Popen[bytes]], *args: str) -> subprocess.Po
     )
     procs.append(proc)
     return proc
-
-
-def assign_until_acked(
-    session: Any, watcher: StateWatcher, message: ParkAssignment, timeout: float = 10.0
-) -> None:
-    """Re-send an assignment until the robot's state carries its task id (the protocol)."""
-
-    def acked() -> bool:
-        state = watcher.latest(message.robot_id)
-        if state is not None and state.task_id == message.task_id:
-            return True
-        session.put(KEYS.assignment(message.robot_id), encode(message))
-        return False
-
-    wait_for(acked, timeout, f"{message.robot_id} to acknowledge {message.task_id}", poll=0.05)
 
 
 # (a) -------------------------------------------------------------------------------------

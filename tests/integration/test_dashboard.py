@@ -9,135 +9,37 @@ the console goes to ``artifacts/dashboard.png``.
 from __future__ import annotations
 
 import math
-import os
-import shutil
-import subprocess
 from collections.abc import Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import httpx
 import pytest
+from chromium import Console, Fleet, console_page, served_fleet
 
-from fleet.io.processes import ServerProcess, running_server, sim_command, terminate
+from fleet.io.processes import running_server
 
 if TYPE_CHECKING:
-    from playwright.sync_api import Browser, ConsoleMessage, Error, Page
+    from playwright.sync_api import Browser, Page
 
 pytestmark = pytest.mark.integration
 
-CHROMIUM = "/usr/bin/chromium"
-#: The network is closed here: without these Chromium hangs trying to reach Google.
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
 ARTIFACTS = Path(__file__).resolve().parents[2] / "artifacts"
 TIME_SCALE = "5"
-#: This module tests the page, not liveliness under CPU starvation: on a loaded two-core
-#: box (chromium, server, 50 Hz sim) a robot can miss the default 1 s lease and be declared
-#: lost, which fails its task. A longer lease and re-queueing keep that noise out.
-FLEET_ENV = {"PARKFLEET_LEASE_MS": "5000", "PARKFLEET_ON_ROBOT_LOST": "requeue"}
 TASK_TIMEOUT_MS = 90_000
-
-
-def _chromium() -> str | None:
-    if os.access(CHROMIUM, os.X_OK):
-        return CHROMIUM
-    return shutil.which("chromium")
-
-
-def _missing() -> str | None:
-    """Why the browser tests cannot run here, or None."""
-    try:
-        import playwright.sync_api  # noqa: F401
-    except ImportError:
-        return "the playwright package is missing: pip install -e '.[test]'"
-    if _chromium() is None:
-        return f"chromium is missing ({CHROMIUM}): apt-get install chromium"
-    return None
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Browser]:
-    reason = _missing()
-    if reason is not None:
-        if os.environ.get("CI") == "true":
-            pytest.fail(f"browser tests cannot run in CI: {reason}")
-        pytest.skip(reason)
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        launched = playwright.chromium.launch(executable_path=_chromium(), args=CHROMIUM_ARGS)
-        try:
-            yield launched
-        finally:
-            launched.close()
-
-
-@dataclass
-class Fleet:
-    server: ServerProcess
-    http: httpx.Client
 
 
 @pytest.fixture(scope="module")
 def fleet(browser: Browser, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
     """``parkfleet serve`` plus ``parkfleet sim --robots 2`` connected to its router."""
-    tmp = tmp_path_factory.mktemp("dashboard")
-    with (
-        (tmp / "serve.log").open("w") as serve_log,
-        (tmp / "sim.log").open("w") as sim_log,
-        running_server(tmp / "data", env=FLEET_ENV, stderr=serve_log) as server,
-    ):
-        sim = subprocess.Popen(
-            sim_command(server.zenoh_endpoint, 2, time_scale=float(TIME_SCALE)),
-            stdin=subprocess.DEVNULL,
-            stdout=sim_log,
-            env={**os.environ, **FLEET_ENV},
-            stderr=sim_log,
-        )
-        try:
-            with httpx.Client(base_url=server.url, timeout=10) as http:
-                yield Fleet(server, http)
-        finally:
-            terminate(sim)
-
-
-@dataclass
-class Console:
-    """Errors the page reported: console.error calls, failed loads, uncaught exceptions."""
-
-    errors: list[str] = field(default_factory=list)
-
-    def on_message(self, message: ConsoleMessage) -> None:
-        if message.type == "error":
-            self.errors.append(message.text)
-
-    def on_page_error(self, error: Error) -> None:
-        self.errors.append(f"uncaught: {error}")
+    with served_fleet(tmp_path_factory.mktemp("dashboard"), 2, float(TIME_SCALE)) as fleet:
+        yield fleet
 
 
 @pytest.fixture
 def page(browser: Browser, fleet: Fleet) -> Iterator[tuple[Page, Console]]:
-    context = browser.new_context(viewport={"width": 1600, "height": 950})
-    try:
-        opened = context.new_page()
-        console = Console()
-        opened.on("console", console.on_message)
-        opened.on("pageerror", console.on_page_error)
-        opened.goto(fleet.server.url + "/")
-        opened.wait_for_function("window.__parkfleet?.connection === 'live'")
-        yield opened, console
-    finally:
-        context.close()
+    with console_page(browser, fleet.server.url) as opened:
+        yield opened
 
 
 def _wait_for_robots(page: Page, n: int) -> list[dict[str, Any]]:
@@ -160,7 +62,7 @@ def test_page_loads_without_console_errors(page: tuple[Page, Console]) -> None:
     # The table is drawn on animation frames (throttled), after the state holds the robots:
     # wait for the rows rather than reading them once.
     expect(browser_page.locator("#robots-body tr")).to_have_count(2)
-    expect(browser_page.locator("#legend-modes li")).to_have_count(7)  # one per robot status
+    expect(browser_page.locator("#legend-modes li")).to_have_count(9)  # one per robot status
     assert console.errors == []
 
 

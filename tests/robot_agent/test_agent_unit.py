@@ -10,6 +10,8 @@ import pytest
 
 from fleet.core.params import Gains, Tolerance
 from fleet.core.wire import (
+    ControlAction,
+    ControlCommand,
     Keys,
     ObstacleSet,
     ParkAssignment,
@@ -172,3 +174,77 @@ def test_callback_guard_counts_exceptions() -> None:
 def test_agent_rejects_unsafe_ids() -> None:
     with pytest.raises(ValueError, match="invalid robot id"):
         RobotAgent("robot/*", FakeDrive(SteppedClock()), None, load_settings())
+
+
+def control(action: str, seq: int, robot_id: str | None = None) -> ControlCommand:
+    return ControlCommand(
+        command=ControlAction(action), robot_id=robot_id, issuer="ops", seq=seq, stamp=1.0
+    )
+
+
+def test_estop_stops_the_wheels_on_the_next_tick_and_holds_the_task_until_release() -> None:
+    agent, drive, _ = make_agent()
+    agent.submit(ASSIGNMENT)
+    assert agent.tick().mode is RobotMode.DRIVING  # type: ignore[union-attr]
+    moving = len(drive.commands)
+    agent._on_control(FakeSample(Keys().control(), Payload(encode(control("estop", 1)))))
+    snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.ESTOP and snap.task_id == "t1"
+    assert len(drive.commands) == moving and drive.stops >= 1  # wheels to zero, no command
+    assert snap.decision.detail == "emergency stop by ops"
+    assert [(e.code, e.level.value) for e in snap.errors] == [("estop", "fatal")]
+    # A new assignment does not move an e-stopped robot; a resume does not release it.
+    agent.submit(ASSIGNMENT.model_copy(update={"task_id": "t2"}))
+    agent.submit(control("resume", 2))
+    snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.ESTOP and snap.task_id == "t2"
+    assert len(drive.commands) == moving
+    agent._on_control(
+        FakeSample(Keys().control("r1"), Payload(encode(control("release", 3, "r1"))))
+    )
+    snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.DRIVING and snap.errors == ()
+    assert len(drive.commands) == moving + 1
+
+
+def test_pause_reports_why_and_resume_drives_on() -> None:
+    agent, drive, _ = make_agent()
+    agent.submit(ASSIGNMENT)
+    agent.submit(control("pause", 1))
+    snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.PAUSED and not drive.commands
+    assert snap.decision.detail == "paused by ops" and snap.errors == ()
+    agent.submit(control("resume", 2))
+    assert agent.tick().mode is RobotMode.DRIVING  # type: ignore[union-attr]
+
+
+def test_control_on_the_wrong_key_or_malformed_is_dropped_and_counted() -> None:
+    agent, _, _ = make_agent()
+    keys = Keys()
+    agent._on_control(FakeSample(keys.control("r1"), Payload(encode(control("estop", 1)))))
+    agent._on_control(FakeSample(keys.control(), Payload(encode(control("estop", 2, "r1")))))
+    agent._on_control(FakeSample(keys.control("r1"), Payload(encode(control("estop", 3, "r2")))))
+    agent._on_control(FakeSample(keys.control(), Payload(b'{"kind": "control"}')))
+    snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.IDLE
+    assert agent.decoder.dropped["wrong_robot"] == 3 and agent.decoder.dropped["invalid"] == 1
+
+
+def test_states_say_why_the_robot_holds_and_list_its_faults() -> None:
+    agent, drive, clock = make_agent()
+    agent.submit(ASSIGNMENT)
+    clock.advance(1.0)
+    drive.stamp_lag = 0.6
+    snap = agent.tick()
+    assert snap is not None and snap.decision.detail == "pose stale"
+    assert [e.code for e in snap.errors] == ["pose_stale"]
+    drive.fail = True
+    snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.HOLDING
+    assert snap.decision.detail == "drive error"
+    assert [e.code for e in snap.errors] == ["drive_error"]
+    assert "encoder unplugged" in snap.errors[0].message
+    drive.fail = False
+    drive.stamp_lag = 0.0
+    snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.DRIVING and snap.errors == ()

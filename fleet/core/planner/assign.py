@@ -7,7 +7,8 @@ nearest tasks are priced by rollout, ``PlannerConfig.assignment_candidates``). A
 straight run passes within ``separation + STUCK_MARGIN_M`` of a robot that stays there (or
 of the goal of a task under way: a robot will park there) costs ``BLOCKED_S`` more, so
 another robot takes the task when one can: the blocked one could wait for ever. The planner
-also passes the pairs whose solo paths turned out blocked (``avoid``).
+also passes the pairs whose solo paths turned out blocked (``avoid``), and a task taken
+from a stuck robot (``TaskSnapshot.avoid_robot``) avoids that robot the same way.
 """
 
 from __future__ import annotations
@@ -93,7 +94,7 @@ def pair_queued(
         blocked = _blocked(snapshot, robots, unnamed)
         for i, r in enumerate(robots):
             for j, t in enumerate(unnamed):
-                blocked[i, j] |= (t.task_id, r.robot_id) in avoid
+                blocked[i, j] |= (t.task_id, r.robot_id) in avoid or t.avoid_robot == r.robot_id
         cost = cost + BLOCKED_S * blocked
         for i, j in optimal_assignment(cost):
             pairs.append((unnamed[j], robots[i]))

@@ -73,11 +73,14 @@ class TaskSnapshot:
 
     ``gains`` holds the gains the robot would use with each law; ``named_robot`` is the robot
     the request names (None: the fleet chooses). ``law``, ``revision``, ``hold`` and
-    ``start_delay_s`` are what was last sent (under way only). ``start_delay_left_s`` is how
+    ``start_delay_s`` are what was last sent (under way only); ``hold`` is also set while an
+    operator holds its robot still (it stands). ``start_delay_left_s`` is how
     much of that start delay the robot still has to wait at the snapshot [s, robot time]
     (the service: ``max(0, start_delay_s - time since the revision was sent)``); None means
     unknown: the whole delay while the task is ``assigned`` or its robot reports
     ``waiting``, none otherwise.
+    ``avoid_robot``: a queued task taken from this robot (it was stuck): give it to another
+    robot if there is one.
     """
 
     task_id: str
@@ -94,6 +97,7 @@ class TaskSnapshot:
     hold: bool = False
     start_delay_s: float = 0.0
     start_delay_left_s: float | None = None
+    avoid_robot: str | None = None
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from fleet.service.bus import MemoryBus
 from fleet.service.clock import FakeClock
 from fleet.service.fleet_service import FleetService
 from fleet.service.planner_worker import PlanFunction
-from fleet.service.store import MemoryTaskStore
+from fleet.service.store import MemoryTaskStore, TaskStore
 
 Decide = Callable[[PlanningSnapshot], list[TaskDecision]]
 
@@ -64,13 +64,13 @@ class Fleet:
 
     def __init__(
         self,
-        store: MemoryTaskStore | None = None,
+        store: TaskStore | None = None,
         planner: PlanFunction | None = None,
         **settings: Any,
     ) -> None:
         self.clock = FakeClock()
         self.bus = MemoryBus()
-        self.store = store or MemoryTaskStore()
+        self.store: TaskStore = store or MemoryTaskStore()
         self.settings = Settings(**settings)
         self.service = FleetService(
             self.settings, self.bus, self.store, clock=self.clock, planner=planner

@@ -85,11 +85,11 @@ def test_a_task_goes_queued_assigned_driving_succeeded_with_its_effects(ledger: 
     )
     assert ledger.task_of_robot("r1") == t and not ledger.queued
 
-    seen = ledger.observe(state("r1", "t1", RobotMode.WAITING), WALL)
+    seen = ledger.observe(state("r1", "t1", RobotMode.WAITING), 0.0, WALL)
     assert kinds(seen.effects) == ["store:acknowledged", "notify:driving"]
     assert ledger.sent_revision_acknowledged("t1")
 
-    seen = ledger.observe(state("r1", "t1", RobotMode.ARRIVED, seq=2, x=3.0), WALL + 1)
+    seen = ledger.observe(state("r1", "t1", RobotMode.ARRIVED, seq=2, x=3.0), 0.0, WALL + 1)
     assert seen.finished
     assert kinds(seen.effects) == ["store:succeeded", "notify:succeeded"]
     assert not ledger.active and not ledger.robot_task and len(ledger.goals) == 0
@@ -106,7 +106,7 @@ def test_a_hold_makes_the_task_wait_with_the_reason_and_a_resume_assigns_it_agai
     assert held.status is TaskStatus.WAITING and held.reason == "waiting: r2 in the way"
     park = next(e.message for e in effects if isinstance(e, Publish))
     assert isinstance(park, ParkAssignment) and park.hold
-    ledger.observe(state("r1", "t1", RobotMode.WAITING), WALL)
+    ledger.observe(state("r1", "t1", RobotMode.WAITING), 0.0, WALL)
     assert ledger.active["t1"].status is TaskStatus.WAITING  # acknowledged, still waiting
 
     resume = TaskDecision("t1", "r1", "revise", "cw", revision=0)
@@ -120,15 +120,15 @@ def test_a_hold_makes_the_task_wait_with_the_reason_and_a_resume_assigns_it_agai
         None,
     )
     # A state of the old revision does not acknowledge the resume; the new one does.
-    assert not ledger.observe(state("r1", "t1", RobotMode.WAITING, seq=2), WALL).effects
-    seen = ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=3, revision=1), WALL)
+    assert not ledger.observe(state("r1", "t1", RobotMode.WAITING, seq=2), 0.0, WALL).effects
+    seen = ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=3, revision=1), 0.0, WALL)
     assert kinds(seen.effects) == ["store:acknowledged", "notify:driving"]
 
 
 def test_a_flip_keeps_the_status_and_sends_the_next_revision(ledger: TaskLedger) -> None:
     ledger.add(task("t1"))
     applied(ledger, assign("t1", "r1", law="ccw"))
-    ledger.observe(state("r1", "t1", RobotMode.DRIVING), WALL)
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING), 0.0, WALL)
     effects = applied(ledger, TaskDecision("t1", "r1", "revise", "cw", revision=0))
     assert kinds(effects) == ["store:replanned", "notify:driving", "publish:park"]
     t = ledger.active["t1"]
@@ -186,9 +186,9 @@ def test_resends_until_acknowledged_and_timeouts_stop_the_robot(ledger: TaskLedg
     assert ledger.resends(0.1) == []
     assert kinds(ledger.resends(0.2)) == ["publish:park"]
     assert ledger.resends(0.3) == []
-    ledger.observe(state("r1", "t1", RobotMode.DRIVING), WALL)
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING), 0.0, WALL)
     assert ledger.resends(10.0) == []
-    ledger.observe(state("r1", None, RobotMode.IDLE, seq=2), WALL)  # restarted: forgot it
+    ledger.observe(state("r1", None, RobotMode.IDLE, seq=2), 0.0, WALL)  # restarted: forgot it
     assert kinds(ledger.resends(10.0)) == ["publish:park"]
 
     assert ledger.timeouts(29.9, WALL) == []
@@ -207,8 +207,8 @@ def test_a_state_of_a_finished_task_is_a_stray_to_stop(ledger: TaskLedger) -> No
     applied(ledger, assign("t1", "r1"))
     _, effects = ledger.cancel("t1", WALL)
     assert kinds(effects) == ["store:cancelled", "notify:cancelled", "publish:cancel"]
-    assert ledger.observe(state("r1", "t1", RobotMode.DRIVING), WALL).stray
-    assert not ledger.observe(state("r1", "t1", RobotMode.HOLDING), WALL).stray
+    assert ledger.observe(state("r1", "t1", RobotMode.DRIVING), 0.0, WALL).stray
+    assert not ledger.observe(state("r1", "t1", RobotMode.HOLDING), 0.0, WALL).stray
     with pytest.raises(TaskNotFound):
         ledger.cancel("t1", WALL)
 
@@ -248,12 +248,12 @@ def test_a_robot_leaving_its_corridor_trips_it_once(ledger: TaskLedger) -> None:
     corridor = ((0.0, 0.0, 0.0), (1.0, 1.0, 0.0), (2.0, 2.0, 0.0))
     applied(ledger, assign("t1", "r1", corridor=corridor))
     # The first acknowledging state (seq 100) is t = 0; 50 states later t = 1 s.
-    assert not ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=100), WALL).off_corridor
-    on = ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=150, x=1.2), WALL)
+    assert not ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=100), 0.0, WALL).off_corridor
+    on = ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=150, x=1.2), 0.0, WALL)
     assert not on.off_corridor  # 0.2 m <= 0.3 m
-    off = ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=175, x=1.0), WALL)
+    off = ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=175, x=1.0), 0.0, WALL)
     assert off.off_corridor  # predicted 1.5 m at t = 1.5 s: 0.5 m away
-    again = ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=176, x=1.0), WALL)
+    again = ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=176, x=1.0), 0.0, WALL)
     assert not again.off_corridor  # one departure, one re-plan
     # A kept decision brings a new corridor, anchored at the snapshot (origin seq given).
     keep = TaskDecision("t1", "r1", "keep", "cw", revision=0, corridor=((0.0, 1.0, 0.0),))
@@ -261,7 +261,9 @@ def test_a_robot_leaving_its_corridor_trips_it_once(ledger: TaskLedger) -> None:
         keep, robot_available=False, plan_safe=True, origin_seq=176.0, now=0.0, wall=WALL
     )
     assert outcome is Outcome.UNCHANGED
-    assert ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=200, x=1.5), WALL).off_corridor
+    assert ledger.observe(
+        state("r1", "t1", RobotMode.DRIVING, seq=200, x=1.5), 0.0, WALL
+    ).off_corridor
 
 
 def test_recovered_tasks_under_way_are_resent_at_once(ledger: TaskLedger) -> None:
@@ -273,3 +275,91 @@ def test_recovered_tasks_under_way_are_resent_at_once(ledger: TaskLedger) -> Non
     assert isinstance(park, ParkAssignment) and (park.task_id, park.revision) == ("t1", 2)
     assert list(ledger.queued) == ["t2"]
     assert ledger.timeouts(34.9, WALL) == [] and ledger.timeouts(35.0, WALL)
+
+
+def test_an_operator_hold_stops_the_timeout_and_is_stored_with_the_reason(
+    ledger: TaskLedger,
+) -> None:
+    ledger.add(task("t1"))
+    applied(ledger, assign("t1", "r1"), now=0.0)  # deadline 30 s
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING), 1.0, WALL)
+    effects = ledger.hold_robot("r1", "emergency stop by cli: drill", 10.0, WALL + 10)
+    assert kinds(effects) == ["store:operator_hold", "notify:driving"]
+    assert ledger.active["t1"].reason == "emergency stop by cli: drill"
+    assert ledger.hold_robot("r1", "again", 11.0, WALL) == []  # held once
+    assert ledger.timeouts(100.0, WALL + 100) == []  # no deadline while held
+    effects = ledger.release_robot("r1", 100.0, WALL + 100)
+    assert kinds(effects) == ["store:operator_release", "notify:driving"]
+    assert ledger.active["t1"].reason is None and dict(ledger.held) == {}
+    assert ledger.release_robot("r1", 101.0, WALL) == []
+    # 10 s ran before the hold: the deadline moved on by the 90 s held, to 120 s.
+    assert ledger.timeouts(119.9, WALL) == [] and ledger.timeouts(120.0, WALL)
+
+
+def test_a_held_robot_without_a_task_is_remembered_until_removed(ledger: TaskLedger) -> None:
+    assert ledger.hold_robot("r1", "paused", 0.0, WALL) == []
+    assert dict(ledger.held) == {"r1": "paused"} and ledger.sizes()["robots_held"] == 1
+    ledger.robot_removed("r1", WALL)
+    assert dict(ledger.held) == {}
+
+
+def test_a_decommissioned_robots_task_is_requeued_as_a_new_revision_and_it_is_stopped(
+    ledger: TaskLedger,
+) -> None:
+    ledger.add(task("t1"))
+    applied(ledger, assign("t1", "r1"))
+    effects = ledger.robot_decommissioned("r1", WALL)
+    assert kinds(effects) == ["store:requeued", "notify:queued", "publish:cancel"]
+    t = ledger.queued["t1"]
+    assert (t.robot_id, t.revision, t.reason) == (None, 1, "robot r1 decommissioned; requeued")
+    assert ledger.robot_decommissioned("r1", WALL) == []
+
+
+def test_a_stuck_task_is_recovered_in_order_then_failed() -> None:
+    ledger = TaskLedger(LedgerConfig(task_timeout_s=1e6, stuck_after_s=30.0))
+    ledger.add(task("t1"))
+    applied(ledger, assign("t1", "r1", law="ccw"), now=0.0)
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING), 0.0, WALL)
+    assert ledger.stuck(29.0) == [] and [t.id for t in ledger.stuck(30.0)] == ["t1"]
+
+    effects = ledger.recover_stuck("t1", "a peer in the way", 30.0, WALL)
+    assert kinds(effects) == ["store:recovery", "notify:driving", "publish:park"]
+    t = ledger.active["t1"]
+    assert (t.law, t.revision, t.start_delay_s) == ("cw", 1, 0.0)
+    assert t.reason == "stuck: a peer in the way; recovery 1: flip"
+    ledger.observe(state("r1", "t1", RobotMode.WAITING, seq=2, revision=1), 45.0, WALL)
+    assert ledger.stuck(74.0) == []  # standing still on purpose restarts the window
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=3, revision=1), 46.0, WALL)
+    (stuck,) = ledger.stuck(76.0)
+    ledger.recover_stuck(stuck.id, "no progress", 76.0, WALL)
+    assert ledger.active["t1"].start_delay_s == 10.0  # wait: a third of the window
+
+    effects = ledger.recover_stuck("t1", "no progress", 106.0, WALL)
+    assert kinds(effects) == ["store:recovery", "notify:queued", "publish:cancel"]
+    assert ledger.avoided() == {"t1": "r1"}
+    applied(ledger, assign("t1", "r2", revision=3), now=107.0)
+    assert ledger.avoided() == {}  # under way again: nothing to avoid in a plan
+    ledger.hold_robot("r2", "paused", 108.0, WALL)
+    assert ledger.stuck(1000.0) == []  # held: not stuck
+    ledger.release_robot("r2", 1000.0, WALL)
+    ledger.observe(state("r2", "t1", RobotMode.DRIVING, seq=4, revision=3), 1000.0, WALL)
+    (stuck,) = ledger.stuck(1030.0)
+    effects = ledger.recover_stuck(stuck.id, "no progress", 1030.0, WALL)
+    assert kinds(effects) == ["store:failed", "notify:failed", "publish:cancel"]
+    failed = next(e.task for e in effects if isinstance(e, StoreWrite))
+    assert failed.reason == "stuck: no progress; 3 recoveries did not help"
+    assert ledger.sizes()["tasks_watched_stuck"] == 0
+
+
+def test_a_bay_is_held_from_the_reservation_until_the_task_ends(ledger: TaskLedger) -> None:
+    t1 = task("t1", bay="A1")
+    ledger.reserve(t1)
+    assert ledger.bays.holder("A1") == "t1"
+    ledger.release("t1")  # not stored after all
+    assert ledger.bays.holder("A1") is None
+    ledger.reserve(t1)
+    ledger.add(t1)
+    ledger.release("t1")  # stored: the reservation stays with the active task
+    assert ledger.bays.holder("A1") == "t1"
+    ledger.cancel("t1", WALL)
+    assert ledger.bays.holder("A1") is None and ledger.sizes()["bays_reserved"] == 0

@@ -49,6 +49,14 @@ def test_save_get_list_and_history(store: TaskStore) -> None:
     assert events == [("created", TaskStatus.QUEUED), ("acknowledged", TaskStatus.DRIVING)]
 
 
+def test_service_state_documents_are_replaced_by_key(store: TaskStore) -> None:
+    assert store.load_state("operator") is None
+    store.save_state("operator", '{"v": 1}')
+    store.save_state("other", "[]")
+    store.save_state("operator", '{"v": 2}')
+    assert (store.load_state("operator"), store.load_state("other")) == ('{"v": 2}', "[]")
+
+
 def test_idempotency_key_returns_the_first_task(store: TaskStore) -> None:
     first = store.save_new(_task("a"), "key-1")
     again = store.save_new(_task("b"), "key-1")

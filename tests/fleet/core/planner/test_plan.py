@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from dataclasses import replace
 
 import pytest
 from planning import TOL, idle, moved_on, queued, replay, scene, swap2
@@ -236,3 +237,17 @@ def test_static_obstacles_are_avoided_and_known_to_the_prediction() -> None:
     run = replay(snapshot, result)
     assert run.result.done.all()
     assert float(run.result.time[0]) == pytest.approx(d.predicted_arrival_s, abs=1e-6)
+
+
+def test_a_task_taken_from_a_stuck_robot_goes_to_another_one_and_keeps_its_revision() -> None:
+    near, far = idle("near", (2.0, 0.0, 0.0)), idle("far", (-4.0, 4.0, 0.0))
+    requeued = replace(queued("t", (4.0, 0.0, 0.0), None, 1.0), revision=3)
+    snapshot = PlanningSnapshot(version=1, robots=(near, far), tasks=(requeued,), control_dt=0.05)
+    (first,) = plan(snapshot).decisions
+    assert (first.robot_id, first.revision) == ("near", 3)  # the nearer robot is cheaper
+    avoiding = replace(requeued, avoid_robot="near")
+    (moved,) = plan(replace(snapshot, tasks=(avoiding,))).decisions
+    assert (moved.robot_id, moved.action, moved.revision) == ("far", "assign", 3)
+    alone = replace(snapshot, robots=(near,), tasks=(avoiding,))
+    (back,) = plan(alone).decisions  # no other robot: it goes back rather than wait for ever
+    assert back.robot_id == "near"

@@ -1,0 +1,210 @@
+"""``parkfleet bench estop``: e-stop latency, from the request to zero wheel speed.
+
+A router runs in this process; ``parkfleet sim --robots N`` (real time, 50 Hz agents)
+runs in a child process connected to it; an operator session of this process gives every
+robot a far goal, then, once all are driving, repeats: publish a fleet-wide ``estop``
+(``fleet.io.operator.put_control``: the same call as ``parkfleet estop``), note for each
+robot when its first ``estop`` state arrives (``u = omega = 0``: the agent publishes that
+state right after ``drive.stop()`` in the same tick), ``release``, wait until all drive
+again. Robots that arrive are sent back across the yard. Each e-stop waits a random 0-2
+control periods after the robots drive again, so it lands at a random phase of their ticks;
+the first comes after a one-second warm-up.
+
+Reported per N, over N x trials samples, p50 / p99 / max [ms]:
+
+* ``tick``: from the command's stamp to the stamp of the robot's first e-stop state (both
+  wall clocks of this host): request -> the tick that zeroed the wheels;
+* ``received``: from the publish to that state's arrival here (monotonic clock): an upper
+  bound, it adds the state's trip back (encode, router, decode: ~0.3 ms here).
+
+The 1-minute load average is printed with each row: on a shared machine the tail is the
+sim process waiting for a CPU. The agents apply commands at
+the start of their next tick, so about half a control period (10 ms at 50 Hz) is expected
+on average and one period at worst, plus delivery.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import subprocess
+import threading
+import time
+from typing import Any
+
+import numpy as np
+
+from fleet.core.params import Gains
+from fleet.core.wire import (
+    ControlAction,
+    Keys,
+    ParkAssignment,
+    Pose,
+    RobotMode,
+    RobotState,
+    encode,
+)
+from fleet.io import operator
+from fleet.io.decoder import Decoder
+from fleet.io.processes import sim_command, terminate
+from fleet.io.settings import load_settings
+from fleet.io.transport import listening_locators, open_session, tcp_endpoint
+
+DEFAULT_SIZES = (10, 100)
+_DRIVING = (RobotMode.DRIVING, RobotMode.AVOIDING)
+_GAINS = Gains(kx=1.0, ky=2.0, ktheta=1.0)
+GOAL_X = 9.0  # [m]: robots drive across the yard, to +-GOAL_X
+
+
+class _States:
+    """Latest state of every robot and, once armed, the first e-stop state's arrival."""
+
+    def __init__(self, keys: Keys) -> None:
+        self.keys = keys
+        self.decoder = Decoder("bench estop")
+        self.lock = threading.Lock()
+        self.changed = threading.Condition(self.lock)
+        self.latest: dict[str, RobotState] = {}
+        self.stopped_at: dict[str, float] = {}  # monotonic arrival of the first e-stop state
+        self.stopped_stamp: dict[str, float] = {}  # its stamp (robot's wall clock)
+        self.armed = False
+        self.moving_estop = 0  # e-stop states with nonzero speeds (must stay 0)
+
+    def __call__(self, sample: Any) -> None:
+        received = time.monotonic()
+        state = self.decoder.decode(RobotState, sample.payload.to_bytes())
+        if state is None:
+            return
+        with self.lock:
+            self.latest[state.robot_id] = state
+            if state.mode is RobotMode.ESTOP:
+                if state.u != 0.0 or state.omega != 0.0:
+                    self.moving_estop += 1
+                if self.armed and state.robot_id not in self.stopped_at:
+                    self.stopped_at[state.robot_id] = received
+                    self.stopped_stamp[state.robot_id] = state.stamp
+            self.changed.notify_all()
+
+    def wait(self, predicate: Any, timeout: float, what: str) -> None:
+        with self.lock:
+            if not self.changed.wait_for(predicate, timeout):
+                raise TimeoutError(f"bench estop: timed out waiting for {what}")
+
+
+def _assign(session: Any, keys: Keys, state: RobotState, task: str) -> None:
+    goal_x = -GOAL_X if state.pose.x > 0 else GOAL_X
+    theta = 0.0 if goal_x > 0 else np.pi
+    session.put(
+        keys.assignment(state.robot_id),
+        encode(
+            ParkAssignment(
+                robot_id=state.robot_id,
+                task_id=task,
+                goal=Pose(x=goal_x, y=state.pose.y, theta=float(theta)),
+                law="ccw",
+                gains=_GAINS,
+            )
+        ),
+    )
+
+
+def _all_driving(session: Any, keys: Keys, states: _States, robots: int, trial: int) -> None:
+    """(Re)assign robots that are not driving until all of them are (resent every 0.2 s)."""
+    deadline = time.monotonic() + 60.0
+    while True:
+        with states.lock:
+            idle = [s for s in states.latest.values() if s.mode not in _DRIVING]
+            ready = len(states.latest) >= robots and not idle
+        if ready:
+            return
+        if time.monotonic() > deadline:
+            raise TimeoutError("bench estop: robots do not drive")
+        for state in idle:
+            if state.mode in (RobotMode.IDLE, RobotMode.ARRIVED):
+                _assign(session, keys, state, f"bench-{trial}-{state.robot_id}")
+        with states.lock:
+            states.changed.wait(0.2)
+
+
+def _measure(endpoint: str, robots: int, trials: int) -> dict[str, Any]:
+    keys = Keys()
+    states = _States(keys)
+    settings = load_settings(connect=[endpoint])
+    cmd = sim_command(endpoint, robots, time_scale=1.0, spawn="grid")
+    with open_session(settings, "client") as session:
+        sub = session.declare_subscriber(keys.all_states, states)
+        proc = subprocess.Popen(
+            cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
+        latencies: list[float] = []
+        tick_latencies: list[float] = []
+        try:
+            states.wait(lambda: len(states.latest) >= robots, 60.0, f"{robots} robots")
+            issuer = operator.default_issuer("bench")
+            period = 1.0 / settings.control_rate_hz
+            _all_driving(session, keys, states, robots, -1)
+            time.sleep(1.0)  # warm-up
+            rng = random.Random(7)
+            for trial in range(trials):
+                _all_driving(session, keys, states, robots, trial)
+                time.sleep(rng.uniform(0.0, 2.0 * period))  # a random phase of the ticks
+                with states.lock:
+                    states.stopped_at.clear()
+                    states.stopped_stamp.clear()
+                    states.armed = True
+                estop = operator.command(ControlAction.ESTOP, issuer=issuer)
+                t0 = time.monotonic()
+                operator.put_control(session, keys, estop)
+                states.wait(lambda: len(states.stopped_at) >= robots, 10.0, "every e-stop")
+                with states.lock:
+                    states.armed = False
+                    latencies.extend(t - t0 for t in states.stopped_at.values())
+                    tick_latencies.extend(s - estop.stamp for s in states.stopped_stamp.values())
+                release = operator.command(ControlAction.RELEASE, issuer=issuer)
+                operator.put_control(session, keys, release)
+        finally:
+            terminate(proc)
+            sub.undeclare()  # type: ignore[no-untyped-call]
+    ms = np.asarray(latencies) * 1e3
+    tick_ms = np.asarray(tick_latencies) * 1e3
+    period_ms = 1e3 / settings.control_rate_hz
+    return {
+        "robots": robots,
+        "trials": trials,
+        "samples": int(ms.size),
+        "tick_p50_ms": float(np.percentile(tick_ms, 50)),
+        "tick_p99_ms": float(np.percentile(tick_ms, 99)),
+        "tick_max_ms": float(tick_ms.max()),
+        "received_p50_ms": float(np.percentile(ms, 50)),
+        "received_p99_ms": float(np.percentile(ms, 99)),
+        "received_max_ms": float(ms.max()),
+        "control_period_ms": period_ms,
+        "load_average_1min": os.getloadavg()[0],
+        "estop_states_with_speed": states.moving_estop,
+        "dropped": states.decoder.dropped_total,
+    }
+
+
+def run(sizes: list[int], trials: int, as_json: bool = False) -> int:
+    """Measure each robot count in ``sizes`` and print the rows (table or JSON)."""
+    rows = []
+    with open_session(load_settings(listen=["tcp/127.0.0.1:0"]), "router") as router:
+        endpoint = tcp_endpoint(listening_locators(router))
+        for n in sizes:
+            row = _measure(endpoint, n, trials)
+            rows.append(row)
+            if not as_json:
+                print(
+                    f"{n:>5} robots x {trials} e-stops (control period "
+                    f"{row['control_period_ms']:g} ms, load {row['load_average_1min']:.1f}):\n"
+                    f"      request -> zeroing tick  p50 {row['tick_p50_ms']:6.1f} ms  "
+                    f"p99 {row['tick_p99_ms']:6.1f} ms  max {row['tick_max_ms']:6.1f} ms\n"
+                    f"      request -> state back    p50 {row['received_p50_ms']:6.1f} ms  "
+                    f"p99 {row['received_p99_ms']:6.1f} ms  max {row['received_max_ms']:6.1f} ms\n"
+                    f"      e-stop states with nonzero speed: {row['estop_states_with_speed']}",
+                    flush=True,
+                )
+    if as_json:
+        print(json.dumps({"rows": rows}))
+    return 0

@@ -1,0 +1,249 @@
+"""The site map: the yard, static obstacles, keep-out zones and named parking bays (pure).
+
+A :class:`Site` is what an operator writes in a site file (TOML or JSON, loaded by
+:mod:`fleet.io.site_file`, which names the line of every error). Frame: the world frame of
+the fleet, x and y in metres, theta in radians counter-clockwise from +x.
+
+* ``yard`` -- the rectangle goals must lie in (replaces ``Settings.yard``);
+* ``obstacles`` -- static circular obstacles with their influence radius (the paper's
+  Section 6; robots are repelled by Eq. (27) inside it, goals must lie outside it);
+* ``keep_out`` -- named zones (polygon, rectangle or circle) where no goal may lie, nor a
+  parked robot's body. They restrict goals; robots are not steered around them (the control
+  law of the paper knows only circular obstacles): put an obstacle where robots must not
+  drive through;
+* ``bays`` -- named parking postures, optionally in a ``group`` such as ``charging``; a
+  task may ask for a bay by name or for any free bay of a group.
+
+:meth:`Site.problems` checks what needs the fleet's settings (robot radius, peer
+influence radius): every bay a valid goal, and bays far enough apart to be used together.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Self
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from fleet.core.wire import Obstacle, Pose
+
+Coordinate = Annotated[float, Field(allow_inf_nan=False)]
+Name = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")]
+Point = tuple[Coordinate, Coordinate]
+
+Loc = tuple[str | int, ...]
+
+
+class SiteError(ValueError):
+    """A site inconsistency, with the location (``loc``, as pydantic's) of what causes it;
+    the file loader turns it into a line number."""
+
+    def __init__(self, message: str, loc: Loc = ()) -> None:
+        super().__init__(message)
+        self.loc = loc
+
+
+#: Bounds that keep a site file from growing without limit.
+MAX_BAYS = 10_000
+MAX_ZONES = 1_000
+MAX_VERTICES = 256
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class Rect(_Strict):
+    """An axis-aligned rectangle [m]."""
+
+    xmin: Coordinate
+    xmax: Coordinate
+    ymin: Coordinate
+    ymax: Coordinate
+
+    @model_validator(mode="after")
+    def _not_empty(self) -> Self:
+        if not (self.xmin < self.xmax and self.ymin < self.ymax):
+            raise ValueError("a rectangle needs xmin < xmax and ymin < ymax")
+        return self
+
+    def as_tuple(self) -> tuple[float, float, float, float]:
+        return (self.xmin, self.xmax, self.ymin, self.ymax)
+
+    def contains(self, x: float, y: float) -> bool:
+        return self.xmin <= x <= self.xmax and self.ymin <= y <= self.ymax
+
+
+class Yard(Rect):
+    """The yard rectangle [m]: every goal lies in it."""
+
+
+class Circle(_Strict):
+    x: Coordinate
+    y: Coordinate
+    radius: Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+
+class KeepOutZone(_Strict):
+    """A named zone where no goal may lie: exactly one of ``polygon`` (vertices in order,
+    at least 3), ``rect`` or ``circle``."""
+
+    name: Name
+    polygon: Annotated[list[Point], Field(min_length=3, max_length=MAX_VERTICES)] | None = None
+    rect: Rect | None = None
+    circle: Circle | None = None
+
+    @model_validator(mode="after")
+    def _one_shape(self) -> Self:
+        given = [s for s in (self.polygon, self.rect, self.circle) if s is not None]
+        if len(given) != 1:
+            raise ValueError("a keep-out zone needs exactly one of polygon, rect or circle")
+        if self.polygon is not None and _polygon_area(self.polygon) == 0.0:
+            raise ValueError("the polygon has no area (collinear or repeated vertices)")
+        return self
+
+    def vertices(self) -> list[tuple[float, float]]:
+        """The outline as a polygon (a circle has none: empty)."""
+        if self.polygon is not None:
+            return [(float(x), float(y)) for x, y in self.polygon]
+        if self.rect is not None:
+            r = self.rect
+            return [(r.xmin, r.ymin), (r.xmax, r.ymin), (r.xmax, r.ymax), (r.xmin, r.ymax)]
+        return []
+
+    def distance(self, x: float, y: float) -> float:
+        """Distance [m] from (x, y) to the zone; 0 inside or on its edge."""
+        if self.circle is not None:
+            c = self.circle
+            return max(0.0, math.hypot(x - c.x, y - c.y) - c.radius)
+        vertices = self.vertices()
+        if _inside_polygon(vertices, x, y):
+            return 0.0
+        return min(
+            _segment_distance(x, y, a, b)
+            for a, b in zip(vertices, vertices[1:] + vertices[:1], strict=True)
+        )
+
+
+class Bay(_Strict):
+    """A named parking posture, optionally in a group (e.g. ``charging``)."""
+
+    name: Name
+    pose: Pose
+    group: Name | None = None
+
+
+class Site(_Strict):
+    """The site map (see the module docstring)."""
+
+    name: Annotated[str, Field(max_length=200)] = "site"
+    yard: Yard
+    obstacles: Annotated[list[Obstacle], Field(max_length=1000)] = Field(default_factory=list)
+    keep_out: Annotated[list[KeepOutZone], Field(max_length=MAX_ZONES)] = Field(
+        default_factory=list
+    )
+    bays: Annotated[list[Bay], Field(max_length=MAX_BAYS)] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Self:
+        names: list[tuple[str, str, list[str]]] = [
+            ("bays", "bay", [b.name for b in self.bays]),
+            ("keep_out", "keep-out zone", [z.name for z in self.keep_out]),
+        ]
+        for field, what, items in names:
+            seen: set[str] = set()
+            for i, name in enumerate(items):
+                if name in seen:
+                    raise SiteError(f"two {what}s are named {name!r}", (field, i, "name"))
+                seen.add(name)
+        for i, bay in enumerate(self.bays):
+            if not self.yard.contains(bay.pose.x, bay.pose.y):
+                p = bay.pose
+                raise SiteError(
+                    f"bay {bay.name} at ({p.x:g}, {p.y:g}) is outside the yard", ("bays", i, "pose")
+                )
+        return self
+
+    def bay(self, name: str) -> Bay | None:
+        return next((b for b in self.bays if b.name == name), None)
+
+    def group(self, group: str) -> list[Bay]:
+        return [b for b in self.bays if b.group == group]
+
+    def keep_out_at(self, x: float, y: float, margin: float = 0.0) -> KeepOutZone | None:
+        """The first keep-out zone within ``margin`` [m] of (x, y), or None."""
+        return next((z for z in self.keep_out if z.distance(x, y) <= margin), None)
+
+    def problems(self, robot_radius: float, peer_radius: float) -> list[SiteError]:
+        """What makes some bays unusable with these radii [m] (empty: none).
+
+        A bay must lie outside every obstacle's influence zone, more than ``robot_radius``
+        from every keep-out zone, and more than ``peer_radius`` from every other bay (two
+        robots parked closer would push each other away by Eq. (27)).
+        """
+        out: list[SiteError] = []
+        for i, bay in enumerate(self.bays):
+            x, y = bay.pose.x, bay.pose.y
+            for obstacle in self.obstacles:
+                d = math.hypot(x - obstacle.x, y - obstacle.y)
+                if d <= obstacle.radius:
+                    out.append(
+                        SiteError(
+                            f"bay {bay.name} lies inside the influence zone of the obstacle at "
+                            f"({obstacle.x:g}, {obstacle.y:g}) (distance {d:.2f} m, radius "
+                            f"{obstacle.radius:g} m)",
+                            ("bays", i, "pose"),
+                        )
+                    )
+            zone = self.keep_out_at(x, y, robot_radius)
+            if zone is not None:
+                out.append(
+                    SiteError(
+                        f"bay {bay.name} is within {robot_radius:g} m of keep-out zone {zone.name}",
+                        ("bays", i, "pose"),
+                    )
+                )
+        ordered = sorted(enumerate(self.bays), key=lambda ib: ib[1].pose.x)
+        for k, (_, a) in enumerate(ordered):  # sweep on x: only bays within peer_radius in x
+            for j, b in ordered[k + 1 :]:
+                if b.pose.x - a.pose.x > peer_radius:
+                    break
+                d = math.hypot(a.pose.x - b.pose.x, a.pose.y - b.pose.y)
+                if d <= peer_radius:
+                    out.append(
+                        SiteError(
+                            f"bays {a.name} and {b.name} are {d:.2f} m apart: bays must be more "
+                            f"than the peer influence radius {peer_radius:g} m apart",
+                            ("bays", j, "pose"),
+                        )
+                    )
+        return out
+
+
+def _polygon_area(points: list[Point]) -> float:
+    return 0.5 * abs(
+        sum(
+            x0 * y1 - x1 * y0
+            for (x0, y0), (x1, y1) in zip(points, points[1:] + points[:1], strict=True)
+        )
+    )
+
+
+def _inside_polygon(vertices: list[tuple[float, float]], x: float, y: float) -> bool:
+    """Even-odd rule (a point on an edge may fall either way: callers also use distance)."""
+    inside = False
+    j = len(vertices) - 1
+    for i, (xi, yi) in enumerate(vertices):
+        xj, yj = vertices[j]
+        if (yi > y) != (yj > y) and x < (xj - xi) * (y - yi) / (yj - yi) + xi:
+            inside = not inside
+        j = i
+    return inside
+
+
+def _segment_distance(x: float, y: float, a: tuple[float, float], b: tuple[float, float]) -> float:
+    ax, ay = a
+    dx, dy = b[0] - ax, b[1] - ay
+    length2 = dx * dx + dy * dy
+    t = 0.0 if length2 == 0.0 else max(0.0, min(1.0, ((x - ax) * dx + (y - ay) * dy) / length2))
+    return math.hypot(x - (ax + t * dx), y - (ay + t * dy))

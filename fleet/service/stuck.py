@@ -1,0 +1,144 @@
+"""Stuck robots: no progress towards the goal for ``Settings.stuck_after_s`` (pure).
+
+:class:`StuckWatch` keeps, per task under way, the smallest *remaining distance* seen --
+position error plus heading error times ``heading_arm`` [m] (a robot turning on the spot
+near its goal is making progress too) -- and when it last shrank by ``min_progress_m``.
+A task whose robot is held on purpose (paused, e-stopped, waiting for the planner) has its
+window restarted: standing still then is not being stuck. :meth:`StuckWatch.observe` runs
+for every state of a robot under way (the service's hot path): it measures the distance at
+most every ``check_interval_s`` [s], and otherwise only notes that the robot was heard.
+
+:func:`stuck_cause` names what the service can see: no pose (no state for the whole
+window), a peer within the peer influence radius, a static obstacle within its influence
+zone. :data:`RECOVERIES` is the order the service tries (each attempt stored in the task's
+history and counted): re-plan with the other law (flip), wait a while (a start delay, so
+the peer passes), requeue to another robot; after the last the task fails.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from fleet.core.tasks import RobotView
+from fleet.core.wire import Obstacle, Pose
+
+RECOVERIES = ("flip", "wait", "requeue")
+
+
+@dataclass(slots=True)
+class _Progress:
+    best: float
+    since: float  # [s, monotonic] when ``best`` last shrank by min_progress_m
+    seen: float  # [s, monotonic] last state of the task's robot
+    checked: float = -math.inf  # [s, monotonic] last distance measured
+    attempts: int = 0
+
+
+def remaining(pose: Pose, goal: Pose, heading_arm: float) -> float:
+    """Position error [m] plus the wrapped heading error [rad] times ``heading_arm`` [m]."""
+    dtheta = math.atan2(math.sin(goal.theta - pose.theta), math.cos(goal.theta - pose.theta))
+    return math.hypot(goal.x - pose.x, goal.y - pose.y) + heading_arm * abs(dtheta)
+
+
+class StuckWatch:
+    """Progress of every task under way (see the module docstring)."""
+
+    def __init__(
+        self,
+        stuck_after_s: float,
+        min_progress_m: float = 0.05,
+        heading_arm: float = 0.2,
+        check_interval_s: float = 0.25,
+    ) -> None:
+        self.stuck_after_s = stuck_after_s
+        self.min_progress_m = min_progress_m
+        self.heading_arm = heading_arm
+        self.check_interval_s = check_interval_s
+        self._tasks: dict[str, _Progress] = {}
+
+    def __len__(self) -> int:
+        return len(self._tasks)
+
+    def observe(self, task_id: str, pose: Pose, goal: Pose, now: float, held: bool) -> None:
+        """A state of the task's robot at ``now`` [s, monotonic]; ``held``: it stands still
+        on purpose (the window restarts)."""
+        progress = self._tasks.get(task_id)
+        if progress is None:
+            progress = self._tasks[task_id] = _Progress(math.inf, now, now)
+        progress.seen = now
+        if held:
+            progress.best, progress.since = math.inf, now
+            return
+        if now - progress.checked < self.check_interval_s:
+            return
+        progress.checked = now
+        left = remaining(pose, goal, self.heading_arm)
+        if left < progress.best - self.min_progress_m:
+            progress.best, progress.since = left, now
+
+    def start(self, task_id: str, now: float) -> None:
+        """The task got (again) a robot at ``now``: a fresh window, attempts kept."""
+        progress = self._tasks.get(task_id)
+        if progress is None:
+            self._tasks[task_id] = _Progress(math.inf, now, now)
+        else:
+            progress.best, progress.since, progress.seen = math.inf, now, now
+            progress.checked = -math.inf
+
+    def stuck(self, task_id: str, now: float) -> bool:
+        progress = self._tasks.get(task_id)
+        return progress is not None and now - progress.since >= self.stuck_after_s
+
+    def silent(self, task_id: str, now: float) -> bool:
+        """No state of the task's robot for the whole window."""
+        progress = self._tasks.get(task_id)
+        return progress is not None and now - progress.seen >= self.stuck_after_s
+
+    def next_recovery(self, task_id: str, now: float) -> str | None:
+        """Record an attempt and return it (``RECOVERIES`` in order), or None: give up."""
+        progress = self._tasks[task_id]
+        progress.since = now  # the next attempt after another full window
+        progress.best, progress.checked = math.inf, -math.inf
+        if progress.attempts >= len(RECOVERIES):
+            return None
+        progress.attempts += 1
+        return RECOVERIES[progress.attempts - 1]
+
+    def attempts(self, task_id: str) -> int:
+        progress = self._tasks.get(task_id)
+        return 0 if progress is None else progress.attempts
+
+    def forget(self, task_id: str) -> None:
+        self._tasks.pop(task_id, None)
+
+
+def stuck_cause(
+    robot: RobotView | None,
+    silent: bool,
+    peers: Iterable[RobotView],
+    obstacles: Iterable[Obstacle],
+    peer_radius: float,
+    window_s: float,
+) -> str:
+    """What the service sees around a stuck robot (see the module docstring)."""
+    if robot is None or silent:
+        return f"no pose: nothing heard from the robot for {window_s:g} s"
+    if robot.detail == "pose stale":
+        return "no pose: the robot's own pose is stale"
+    p = robot.pose
+    near = [
+        (math.hypot(o.pose.x - p.x, o.pose.y - p.y), o.robot_id)
+        for o in peers
+        if o.robot_id != robot.robot_id
+    ]
+    near = [(d, rid) for d, rid in near if d <= peer_radius]
+    if near:
+        d, rid = min(near)
+        return f"a peer in the way: {rid} at {d:.2f} m"
+    for o in obstacles:
+        d = math.hypot(o.x - p.x, o.y - p.y)
+        if d <= o.radius:
+            return f"an obstacle in the way: the one at ({o.x:g}, {o.y:g}), {d:.2f} m"
+    return f"no progress for {window_s:g} s (no peer or obstacle near)"

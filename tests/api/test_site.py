@@ -1,0 +1,128 @@
+"""The site map through the API: keep-out zones reject goals (409 with the reason); the
+site's obstacles are the fleet's initial obstacles."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from pathlib import Path
+
+import httpx
+import pytest
+
+from api.app import create_app
+from fleet.io.settings import Settings, load_settings
+from fleet.service.bus import MemoryBus
+from fleet.service.fleet_service import FleetService
+from fleet.service.store import SqliteTaskStore
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "fleet" / "io" / "sites" / "carpark.toml"
+
+pytestmark = pytest.mark.anyio
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+@pytest.fixture
+def site_settings() -> Settings:
+    return load_settings(site_file=EXAMPLE)
+
+
+async def _client(settings: Settings, db: Path) -> AsyncIterator[httpx.AsyncClient]:
+    store = SqliteTaskStore(db)
+    try:
+        with FleetService(settings, MemoryBus(), store) as fleet:
+            app = create_app(settings, service=fleet, store=store)
+            async with (
+                app.router.lifespan_context(app),
+                httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://t") as c,
+            ):
+                yield c
+    finally:
+        store.close()
+
+
+@pytest.fixture
+async def client(site_settings: Settings, tmp_path: Path) -> AsyncIterator[httpx.AsyncClient]:
+    async for c in _client(site_settings, tmp_path / "parkfleet.db"):
+        yield c
+
+
+@pytest.fixture
+async def client_no_site(tmp_path: Path) -> AsyncIterator[httpx.AsyncClient]:
+    async for c in _client(load_settings(), tmp_path / "parkfleet.db"):
+        yield c
+
+
+async def test_goals_in_keep_out_zones_are_409_with_the_zone_named(
+    client: httpx.AsyncClient,
+) -> None:
+    inside = await client.post("/tasks", json={"goal": {"x": -11.0, "y": 0.0}})
+    assert inside.status_code == 409
+    assert inside.json()["detail"] == "goal (-11.00, 0.00) lies inside keep-out zone ramp"
+    near = await client.post("/tasks", json={"goal": {"x": 8.0, "y": -3.9}})
+    assert near.status_code == 409 and "from keep-out zone hydrant" in near.json()["detail"]
+    ok = await client.post("/tasks", json={"goal": {"x": 0.0, "y": 0.0}})
+    assert ok.status_code == 201, ok.text
+
+
+async def test_the_site_sets_the_yard_and_the_initial_obstacles(client: httpx.AsyncClient) -> None:
+    obstacles = (await client.get("/obstacles")).json()
+    assert {(o["x"], o["y"]) for o in obstacles} == {(-5, 3), (5, 3), (-5, -3), (5, -3)}
+    assert (await client.get("/config")).json()["yard"] == [-12.0, 12.0, -8.0, 8.0]
+    outside = await client.post("/tasks", json={"goal": {"x": 0.0, "y": 9.0}})
+    assert outside.status_code == 422
+
+
+async def test_a_bay_is_reserved_by_exactly_one_active_task(client: httpx.AsyncClient) -> None:
+    first = await client.post("/tasks", json={"bay": "A3"})
+    assert first.status_code == 201, first.text
+    task = first.json()
+    assert task["bay"] == "A3" and task["goal"] == {"x": -3.0, "y": 6.0, "theta": 1.5708}
+    taken = await client.post("/tasks", json={"bay": "A3"})
+    assert taken.status_code == 409
+    assert taken.json()["detail"] == f"bay A3 is taken by task {task['id']}"
+    states = {b["name"]: b for b in (await client.get("/bays")).json()}
+    assert states["A3"]["status"] == "reserved" and states["A3"]["task_id"] == task["id"]
+    assert states["A4"]["status"] == "free" and states["C1"]["group"] == "charging"
+    await client.post(f"/tasks/{task['id']}/cancel")
+    assert (await client.post("/tasks", json={"bay": "A3"})).status_code == 201
+
+
+async def test_a_group_gives_each_task_a_free_bay_until_none_is_left(
+    client: httpx.AsyncClient,
+) -> None:
+    chosen = []
+    for _ in range(3):
+        created = await client.post("/tasks", json={"bay_group": "charging"})
+        assert created.status_code == 201, created.text
+        chosen.append(created.json()["bay"])
+    assert chosen == ["C1", "C2", "C3"]
+    full = await client.post("/tasks", json={"bay_group": "charging"})
+    assert full.status_code == 409
+    assert full.json()["detail"] == "every bay of group charging is taken"
+
+
+async def test_unknown_bays_and_groups_are_404_and_ambiguous_bodies_422(
+    client: httpx.AsyncClient,
+) -> None:
+    unknown = await client.post("/tasks", json={"bay": "Z9"})
+    assert unknown.status_code == 404 and unknown.json()["detail"] == "bay Z9 not found"
+    group = await client.post("/tasks", json={"bay_group": "valet"})
+    assert group.status_code == 404 and group.json()["detail"] == "bay group valet not found"
+    both = await client.post("/tasks", json={"bay": "A1", "goal": {"x": 0, "y": 0}})
+    assert both.status_code == 422 and "exactly one of goal, bay, bay_group" in both.text
+    assert (await client.post("/tasks", json={})).status_code == 422
+    site = (await client.get("/site")).json()
+    assert site["name"] == "example car park" and len(site["bays"]) == 17
+
+
+async def test_without_a_site_bays_are_404_with_the_reason(
+    client_no_site: httpx.AsyncClient,
+) -> None:
+    missing = await client_no_site.post("/tasks", json={"bay": "A1"})
+    assert missing.status_code == 404 and "no site map" in missing.json()["detail"]
+    assert (await client_no_site.get("/bays")).json() == []
+    assert (await client_no_site.get("/site")).status_code == 404

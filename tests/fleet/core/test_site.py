@@ -1,0 +1,107 @@
+"""The site map: keep-out zone geometry, bays, consistency checks; goals in keep-out zones."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from pydantic import ValidationError
+
+from fleet.core.goals import validate_goal
+from fleet.core.site import Bay, KeepOutZone, Rect, Site, Yard
+from fleet.core.tasks import GoalRejected
+from fleet.core.wire import Obstacle, Pose
+
+YARD = Yard(xmin=-10, xmax=10, ymin=-10, ymax=10)
+SQUARE = KeepOutZone(name="sq", rect=Rect(xmin=0, xmax=2, ymin=0, ymax=2))
+SQUARE_POLY = KeepOutZone(name="sqp", polygon=[(0, 0), (2, 0), (2, 2), (0, 2)])
+
+coords = st.floats(-5, 5, allow_nan=False)
+
+
+@given(coords, coords)
+def test_a_rectangle_and_the_same_polygon_measure_the_same_distance(x: float, y: float) -> None:
+    dx = max(0.0 - x, 0.0, x - 2.0)
+    dy = max(0.0 - y, 0.0, y - 2.0)
+    expected = math.hypot(dx, dy)
+    assert SQUARE.distance(x, y) == pytest.approx(expected, abs=1e-9)
+    assert SQUARE_POLY.distance(x, y) == pytest.approx(expected, abs=1e-9)
+
+
+@given(coords, coords)
+def test_circle_distance_is_the_gap_to_the_rim(x: float, y: float) -> None:
+    zone = KeepOutZone.model_validate({"name": "c", "circle": {"x": 1, "y": -1, "radius": 0.5}})
+    assert zone.distance(x, y) == pytest.approx(max(0.0, math.hypot(x - 1, y + 1) - 0.5))
+
+
+def test_concave_polygon_inside_and_outside() -> None:
+    ell = KeepOutZone(name="L", polygon=[(0, 0), (3, 0), (3, 1), (1, 1), (1, 3), (0, 3)])
+    assert ell.distance(0.5, 2.5) == 0.0 and ell.distance(2.5, 0.5) == 0.0
+    assert ell.distance(2.0, 2.0) == pytest.approx(1.0)  # in the notch: 1 m from both arms
+
+
+@pytest.mark.parametrize(
+    "zone",
+    [
+        {"name": "none"},
+        {"name": "two", "circle": {"x": 0, "y": 0, "radius": 1}, "rect": [0, 1, 0, 1]},
+        {"name": "flat", "polygon": [[0, 0], [1, 1], [2, 2]]},
+        {"name": "bad name!", "circle": {"x": 0, "y": 0, "radius": 1}},
+        {"name": "r", "rect": {"xmin": 1, "xmax": 0, "ymin": 0, "ymax": 1}},
+    ],
+)
+def test_invalid_zones_are_rejected(zone: dict[str, object]) -> None:
+    with pytest.raises(ValidationError):
+        KeepOutZone.model_validate(zone)
+
+
+def bay(name: str, x: float, y: float, group: str | None = None) -> Bay:
+    return Bay(name=name, pose=Pose(x=x, y=y), group=group)
+
+
+def test_site_rejects_duplicate_names_and_bays_outside_the_yard() -> None:
+    with pytest.raises(ValidationError, match="two bays are named 'A1'"):
+        Site(yard=YARD, bays=[bay("A1", 0, 0), bay("A1", 5, 5)])
+    with pytest.raises(ValidationError, match="bay Z at \\(11, 0\\) is outside the yard"):
+        Site(yard=YARD, bays=[bay("Z", 11, 0)])
+    with pytest.raises(ValidationError, match="xmin < xmax"):
+        Yard(xmin=1, xmax=1, ymin=0, ymax=1)
+
+
+def test_problems_name_bays_too_close_in_obstacles_or_near_zones() -> None:
+    site = Site(
+        yard=YARD,
+        obstacles=[Obstacle(x=-5, y=-5, radius=1.0)],
+        keep_out=[SQUARE],
+        bays=[bay("ok", 8, 8), bay("near1", 5, 0), bay("near2", 5.5, 0.5), bay("pillar", -5, -4.5),
+              bay("edge", 2.1, 1)],
+    )  # fmt: skip
+    problems = [(p.loc, str(p)) for p in site.problems(robot_radius=0.2, peer_radius=1.0)]
+    pillar = "bay pillar lies inside the influence zone of the obstacle at (-5, -5) "
+    assert (("bays", 3, "pose"), pillar + "(distance 0.50 m, radius 1 m)") in problems
+    assert (("bays", 4, "pose"), "bay edge is within 0.2 m of keep-out zone sq") in problems
+    assert any(
+        loc == ("bays", 2, "pose") and "near1 and near2 are 0.71 m apart" in m
+        for loc, m in problems
+    )
+    assert len(problems) == 3
+    assert site.bay("ok") == bay("ok", 8, 8) and site.bay("nope") is None
+
+
+def test_group_lists_the_bays_of_a_group() -> None:
+    site = Site(yard=YARD, bays=[bay("C1", 5, 5, "charging"), bay("A1", 0, 0)])
+    assert [b.name for b in site.group("charging")] == ["C1"]
+    assert site.group("none") == []
+
+
+def test_goals_inside_or_too_near_a_keep_out_zone_are_rejected_with_the_reason() -> None:
+    def check(x: float, y: float) -> None:
+        validate_goal(Pose(x=x, y=y), YARD.as_tuple(), [], [], 1.0, [SQUARE], margin=0.2)
+
+    with pytest.raises(GoalRejected, match=r"goal \(1.00, 1.00\) lies inside keep-out zone sq"):
+        check(1.0, 1.0)
+    with pytest.raises(GoalRejected, match=r"0\.10 m from keep-out zone sq: a parked robot"):
+        check(2.1, 1.0)
+    check(2.3, 1.0)  # clear of the zone by more than the robot's radius

@@ -1,0 +1,119 @@
+"""Stuck robots: detection with the cause, recoveries in order (flip, wait, requeue to
+another robot) each stored in the task's history and counted, then failure."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+
+from fleet.core.planner import Plan, PlanningSnapshot, plan
+from fleet.core.tasks import RobotStatus, RobotView, TaskStatus
+from fleet.core.wire import Obstacle, Pose, RobotMode
+from fleet.service.stuck import StuckWatch, remaining, stuck_cause
+from tests.fleet.service.conftest import Fleet, req
+
+WINDOW = 30.0
+
+
+def test_progress_restarts_the_window_and_holding_is_not_being_stuck() -> None:
+    watch = StuckWatch(10.0)
+    goal = Pose(x=5, y=0)
+    watch.start("t", 0.0)
+    watch.observe("t", Pose(x=0, y=0), goal, 1.0, held=False)
+    watch.observe("t", Pose(x=1, y=0), goal, 9.0, held=False)  # progress: window restarts
+    assert not watch.stuck("t", 18.0) and watch.stuck("t", 19.0)
+    watch.observe("t", Pose(x=1, y=0), goal, 19.5, held=True)  # waiting on purpose
+    assert not watch.stuck("t", 29.0)
+    assert [watch.next_recovery("t", 30.0) for _ in range(4)] == ["flip", "wait", "requeue", None]
+    assert remaining(Pose(x=0, y=0, theta=0.0), Pose(x=0, y=0, theta=3.0), 0.2) == pytest.approx(
+        0.6
+    )
+
+
+def test_the_cause_is_what_the_service_can_see() -> None:
+    me = RobotView(robot_id="a", status=RobotStatus.DRIVING, pose=Pose(x=0, y=0), last_seen=0)
+    peer = me.model_copy(update={"robot_id": "b", "pose": Pose(x=0.7, y=0)})
+    pillar = Obstacle(x=0.5, y=0.5, radius=1.0)
+    assert stuck_cause(me, False, [me, peer], [pillar], 1.0, 30) == "a peer in the way: b at 0.70 m"
+    assert stuck_cause(me, False, [me], [pillar], 1.0, 30).startswith("an obstacle in the way")
+    assert (
+        stuck_cause(me, True, [me], [], 1.0, 30) == "no pose: nothing heard from the robot for 30 s"
+    )
+    assert stuck_cause(me, False, [me], [], 1.0, 30).startswith("no progress for 30 s")
+    stale = me.model_copy(update={"status": RobotStatus.HOLDING, "detail": "pose stale"})
+    assert (
+        stuck_cause(stale, False, [stale], [], 1.0, 30) == "no pose: the robot's own pose is stale"
+    )
+
+
+class RecordingPlanner:
+    """The real planner, keeping the snapshots it was given."""
+
+    def __init__(self) -> None:
+        self.snapshots: list[PlanningSnapshot] = []
+
+    def __call__(self, snapshot: PlanningSnapshot) -> Plan:
+        self.snapshots.append(snapshot)
+        return plan(snapshot)
+
+
+@pytest.fixture
+def planner() -> RecordingPlanner:
+    return RecordingPlanner()
+
+
+@pytest.fixture
+def fleet(planner: RecordingPlanner) -> Iterator[Fleet]:
+    f = Fleet(planner=planner, task_timeout_s=1000.0, stuck_after_s=WINDOW)
+    yield f
+    f.service.close()
+
+
+def test_a_stuck_task_is_flipped_then_delayed_then_requeued_to_another_robot_then_failed(
+    fleet: Fleet, planner: RecordingPlanner
+) -> None:
+    fleet.join("r1", 0.0, 0.0)
+    task = fleet.service.submit(req(5.0, 0.0))
+    fleet.service.tick()
+    assigned = fleet.service.task(task.id)
+    assert assigned.robot_id == "r1"
+    fleet.join("r2", -0.8, 0.0)  # a robot stops right by r1 (farther from the goal)
+
+    def stand_still(rid: str, revision: int, seconds: float = WINDOW) -> None:
+        for _ in range(3):
+            fleet.robot(rid, 0.0, 0.0, mode=RobotMode.DRIVING, task_id=task.id, revision=revision)
+            fleet.clock.advance(seconds / 2)
+        fleet.service.tick()
+
+    stand_still("r1", 0)
+    flipped = fleet.service.task(task.id)
+    assert flipped.law != assigned.law and flipped.revision == 1
+    assert flipped.reason == "stuck: a peer in the way: r2 at 0.80 m; recovery 1: flip"
+    assert fleet.parks("r1")[-1].revision == 1 and fleet.parks("r1")[-1].start_delay_s == 0.0
+
+    stand_still("r1", 1)
+    waited = fleet.service.task(task.id)
+    assert waited.law == flipped.law and waited.revision == 2
+    assert fleet.parks("r1")[-1].start_delay_s == pytest.approx(WINDOW / 3)
+
+    fleet.robot("r2", 0.0, 4.0)  # the peer moved on, out of r1's way
+    stand_still("r1", 2)
+    fleet.service.tick()  # planned: to the other robot, although r1 is free again
+    (seen,) = [t for t in planner.snapshots[-1].tasks if t.task_id == task.id]
+    assert seen.avoid_robot == "r1"  # a planner input: give it to another robot if any
+    moved = fleet.service.task(task.id)
+    assert moved.robot_id == "r2" and moved.status is TaskStatus.ASSIGNED
+    assert moved.attempts == 2 and moved.revision == 3  # a requeue is a new revision
+    assert fleet.cancels("r1")[-1].task_id == task.id
+
+    for _ in range(3):
+        fleet.robot("r2", 0.0, 4.0, mode=RobotMode.DRIVING, task_id=task.id, revision=3)
+        fleet.clock.advance(WINDOW / 2)
+    fleet.service.tick()
+    failed = fleet.service.task(task.id)
+    assert failed.status is TaskStatus.FAILED
+    assert failed.reason is not None and failed.reason.endswith("3 recoveries did not help")
+    events = [event for _, event, _ in fleet.service.history(task.id)]
+    assert events.count("recovery") == 3
+    assert fleet.service.counters["recoveries"] == 3 and fleet.service.counters["stuck"] == 4

@@ -699,6 +699,7 @@ class FleetService:
             tasks = list(self._ledger.active.values())
             held = set(self._ledger.held)
             avoided = self._ledger.avoided()
+            acknowledged = {t: now - at for t, at in self._ledger.acknowledged_at().items()}
             obstacles = list(self._obstacles)
             version = self._version
             lead_time = self._lead_time()
@@ -706,7 +707,16 @@ class FleetService:
         if not worth_planning(robots, tasks):
             return None
         return planning_input(
-            version, robots, tasks, obstacles, self.settings, lead_time, scale, held, avoided
+            version,
+            robots,
+            tasks,
+            obstacles,
+            self.settings,
+            lead_time,
+            scale,
+            held,
+            avoided,
+            acknowledged,
         )
 
     def _apply_plan(self, plan: Plan, work: PlanInput) -> None:

@@ -107,6 +107,7 @@ class _Tracking:
     deadline: float  # [s, monotonic]
     sent_at: float  # last send of the current revision [s, monotonic]
     seen_revision: int = -1  # revision its robot last reported for it (-1: not this task)
+    acked: tuple[int, float] | None = None  # (revision, first report of it [s, monotonic])
     corridor: Corridor | None = None
     held_at: float | None = None  # an operator holds its robot since [s, monotonic]
     reason_before_hold: str | None = None  # the task's reason when the hold began
@@ -211,6 +212,16 @@ class TaskLedger:
         """Queued tasks taken from a stuck robot -> that robot (the planner gives them to
         another robot if it can)."""
         return {tid: rid for tid, rid in self._avoid.items() if tid in self._queued}
+
+    def acknowledged_at(self) -> dict[str, float]:
+        """Tasks under way whose robot reports their current revision -> when it first did
+        [s, monotonic] (its start delay counts from about then)."""
+        out = {}
+        for task_id, track in self._tracking.items():
+            task = self._under_way.get(task_id)
+            if task is not None and track.acked is not None and track.acked[0] == task.revision:
+                out[task_id] = track.acked[1]
+        return out
 
     def sent_revision_acknowledged(self, task_id: str) -> bool:
         track = self._tracking.get(task_id)
@@ -345,6 +356,10 @@ class TaskLedger:
         task = self._under_way[task_id]
         track = self._tracking[task_id]
         track.seen_revision = state.revision
+        if state.revision == task.revision and (
+            track.acked is None or track.acked[0] != task.revision
+        ):
+            track.acked = (task.revision, now)  # the robot's start delay began about now
         p = state.pose
         self.paths.record(task_id, (wall, p.x, p.y, p.theta, state.u, state.omega))
         if state.mode is RobotMode.ARRIVED:

@@ -55,7 +55,9 @@ def worth_planning(robots: Sequence[RobotFacts], tasks: Sequence[Task]) -> bool:
     )
 
 
-def _task_snapshot(task: Task, held: Collection[str], avoided: Mapping[str, str]) -> TaskSnapshot:
+def _task_snapshot(
+    task: Task, held: Collection[str], avoided: Mapping[str, str], running_s: Mapping[str, float]
+) -> TaskSnapshot:
     request = task.request
     under_way = task.status.under_way
     return TaskSnapshot(
@@ -73,6 +75,9 @@ def _task_snapshot(task: Task, held: Collection[str], avoided: Mapping[str, str]
         hold=task.hold or (under_way and task.robot_id in held),
         start_delay_s=task.start_delay_s,
         avoid_robot=avoided.get(task.id),
+        start_delay_left_s=(
+            max(0.0, task.start_delay_s - running_s[task.id]) if task.id in running_s else None
+        ),
     )
 
 
@@ -86,11 +91,15 @@ def planning_input(
     time_scale: float,
     held: Collection[str] = (),
     avoided: Mapping[str, str] | None = None,
+    acknowledged_s: Mapping[str, float] | None = None,
 ) -> PlanInput:
     """The planner's snapshot (robots sorted by id, tasks oldest first). ``held``: robots an
     operator holds still (their tasks stand, ``hold``); ``avoided``: queued task -> the
-    stuck robot it was taken from."""
+    stuck robot it was taken from; ``acknowledged_s``: task under way -> how long ago [s,
+    monotonic] its robot first reported the current revision (so the planner knows how much
+    of the start delay is left, in robot time)."""
     hz = settings.control_rate_hz
+    running = {tid: ago * time_scale for tid, ago in (acknowledged_s or {}).items()}
     robot_snaps = []
     origins: dict[str, float] = {}
     for r in sorted(robots, key=lambda r: r.state.robot_id):
@@ -112,7 +121,7 @@ def planning_input(
         version=version,
         robots=tuple(robot_snaps),
         tasks=tuple(
-            _task_snapshot(t, held, avoided or {})
+            _task_snapshot(t, held, avoided or {}, running)
             for t in sorted(tasks, key=lambda t: t.created_at)
         ),
         obstacles=tuple(obstacles),

@@ -12,7 +12,8 @@
 - :mod:`~fleet.core.tasks`: task and robot models of the fleet service, its errors.
 - :mod:`~fleet.core.goals`: goal validation (yard, obstacle zones, other goals).
 - :mod:`~fleet.core.assignment`: optimal assignment of tasks to robots.
-- :mod:`~fleet.core.direction`: cw/ccw choice by closed-loop fleet rollouts.
+- :mod:`~fleet.core.planner`: who takes which task, with which law, when -- and who waits
+  (clustered closed-loop rollouts of the control step).
 
 Submodules are imported explicitly (``from fleet.core.step import step_robot``).
 """

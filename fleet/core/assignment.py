@@ -4,7 +4,7 @@ Cost of robot i taking task j: the **predicted time to arrival** [s] of robot i 
 alone to goal j in a closed-loop rollout of the batch simulator (``fleet.core.simulate``, the
 control code the robots run: law (17) and/or (20) with the task's gains and tolerance, the
 robot profile's wheel limits, static obstacles with the Eq. (27) repulsion; peers are left
-out -- their interaction is the direction choice's job, ``fleet.core.direction``). For an
+out -- their interaction is the planner's job, ``fleet.core.planner``). For an
 ``auto`` task the faster of the two laws counts. A rollout that does not arrive within the
 horizon costs ``horizon + remaining distance / top speed``, so unreachable pairs rank last
 but still rank by how far off they end.

@@ -62,6 +62,9 @@ class PlannerConfig:
     merge_rounds: int = 2
     #: rollouts of a cluster searched again after the check (conflict repair only)
     recheck_budget: int = 24
+    #: whole-fleet checks of the chosen plan (module docstring of plan.py, 6); each failed
+    #: one holds the robots it would start into a conflict and checks again
+    verify_rounds: int = 4
     corridor_period_s: float = 0.5
     corridor_radius_m: float = 0.5
     corridor_slack_s: float = 2.0

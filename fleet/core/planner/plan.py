@@ -22,7 +22,13 @@
    within ``recheck_budget``, ``merge_rounds`` times, then with the baseline and the safety
    net only, and after that whatever still meets is merged -- until no plan meets what its
    cluster did not see.
-   The recordings give the corridors.
+6. **Verify**: one rollout of the whole fleet -- every mover with its chosen option, every
+   standing robot, no phantoms -- is exactly what the robots will do (phantoms stand for a
+   robot of another cluster during the whole rollout, so a cluster's own prediction is
+   conservative, not exact). Its recording gives the corridors, arrivals and separations the
+   decisions carry. Should it bring a pair closer than ``separation_m``, the robots it would
+   start or keep moving into that pair hold (new ones first) and the fleet is verified
+   again, ``verify_rounds`` times at most.
 
 Never unsafe: a cluster's chosen plan keeps ``separation_m`` for every pair involving a
 moving robot (the search's safety net holds robots until it does); robots held carry the
@@ -52,7 +58,7 @@ from fleet.core.planner.corridor import sample_corridor
 from fleet.core.planner.cost import Limits, Score, score
 from fleet.core.planner.model import Action, Plan, PlanningSnapshot, TaskDecision
 from fleet.core.planner.reserve import reservation
-from fleet.core.planner.rollout import Live, Outcome, advance
+from fleet.core.planner.rollout import Live, Outcome, advance, roll_out
 from fleet.core.planner.scene import (
     NEW,
     Candidate,
@@ -317,6 +323,15 @@ def _decisions(
             )
             action: Action = "assign" if kind == NEW else "keep" if same else "revise"
             arrival = s.best.arrival[pos] if o.done[pos] else math.nan
+            # the corridor ends where the robot stops: where it holds, or at its arrival
+            # (then it stands at its final pose), else at the end of the rollout
+            times, xy = o.times, o.xy[:, pos]
+            if hold:
+                times, xy = times[:1], xy[:1]
+            elif o.done[pos]:
+                before = int(np.searchsorted(times, float(o.time[pos]) - 1e-9))
+                times = np.append(times[:before], o.time[pos])
+                xy = np.vstack([xy[:before], o.final[pos, :2]])
             out.append(
                 TaskDecision(
                     task_id=task.task_id,
@@ -330,11 +345,70 @@ def _decisions(
                     predicted_arrival_s=None
                     if hold or not np.isfinite(arrival)
                     else round(float(arrival), 3),
-                    corridor=sample_corridor(o.times, o.xy[:, pos], every),
+                    corridor=sample_corridor(times, xy, every),
                     predicted_min_separation_m=float(s.best.separation[pos]),
                 )
             )
     return out
+
+
+def _whole(fleet: Fleet, settled: Sequence[_Settled]) -> tuple[Candidate, dict[int, str]]:
+    """The clusters' chosen options as one candidate over every mover, and their hold
+    reasons by mover index."""
+    k = fleet.movers.size
+    cand = fleet.keep(range(k))
+    reasons: dict[int, str] = {}
+    for s in settled:
+        c = s.best.candidate
+        for pos, i in enumerate(s.cluster.movers):
+            cand.law[i], cand.delay[i], cand.hold[i] = c.law[pos], c.delay[pos], c.hold[pos]
+            if pos in s.reasons:
+                reasons[i] = s.reasons[pos]
+    return cand, reasons
+
+
+def _verify(
+    fleet: Fleet, settled: Sequence[_Settled], config: PlannerConfig
+) -> tuple[_Settled, int]:
+    """The chosen plan rolled out for the whole fleet at once (module docstring, 6): the
+    settled whole, and the rollouts it took."""
+    k = fleet.movers.size
+    cluster = Cluster(tuple(range(k)), tuple(range(fleet.standing_xy.shape[0])))
+    cand, reasons = _whole(fleet, settled)
+    solo = np.where(np.isfinite(fleet.solo_time), fleet.solo_time, config.max_horizon_s)
+    span = max((s.outcome.steps for s in settled), default=0) * fleet.dt
+    horizon = min(config.max_horizon_s, span + config.sample_period_s)
+    ids = row_names(fleet, cluster)
+    kind = fleet.movers.kind
+    rounds = 0
+    while True:
+        rows = scene_rows(fleet, cluster, cand)
+        (outcome,) = roll_out(
+            [rows],
+            fleet.world,
+            dt=fleet.dt,
+            max_time=horizon,
+            record_every=_record_every(fleet, config),
+            max_rows=config.max_rows_per_call,
+        )
+        rounds += 1
+        best = score(
+            fleet, cluster.movers, cand, rows, outcome, horizon, config.change_penalty_s, solo
+        )
+        if best.safe or rounds > config.verify_rounds:
+            break
+        for v in best.violations:  # hold a robot it moves into each conflict (new first)
+            moving = [r for r in (v.a, v.b) if r < k and not cand.hold[r]]
+            if not moving:
+                continue
+            r = min(moving, key=lambda i: (kind[i] != NEW, -i))
+            other = ids[v.b] if r == v.a else ids[v.a]
+            cand.hold[r] = True
+            reasons[r] = (
+                f"waiting: the whole fleet's rollout brought {other} within "
+                f"{v.distance:.2f} m (< {v.allowed:.2f} m) of {ids[r]}"
+            )
+    return _Settled(cluster, best, outcome, reasons), rounds
 
 
 def plan(snapshot: PlanningSnapshot, config: PlannerConfig | None = None) -> Plan:
@@ -376,14 +450,17 @@ def plan(snapshot: PlanningSnapshot, config: PlannerConfig | None = None) -> Pla
         todo = [(cluster, [seed]) for cluster, seed in regrouped]
         round_ += 1
     settled.sort(key=lambda s: s.cluster.movers[0])
-    decisions = _decisions(fleet, settled, config)
+    whole, verified = _verify(fleet, settled, config)
+    rollouts += verified
+    decisions = _decisions(fleet, [whole], config)
     waiting = sum(d.hold for d in decisions)
-    plan_min = min((s.best.min_separation for s in settled), default=float("inf"))
-    min_sep = min(plan_min, fleet.lead_min_separation)
-    safe = all(s.best.safe for s in settled) and fleet.lead_min_separation >= fleet.separation
+    min_sep = min(whole.best.min_separation, fleet.lead_min_separation)
+    safe = whole.best.safe and fleet.lead_min_separation >= fleet.separation
     notes = [
         f"clusters: {sorted((len(s.cluster.movers) for s in settled), reverse=True)}",
     ]
+    if verified > 1:
+        notes.append(f"held robots after {verified - 1} whole-fleet check(s) found conflicts")
     if merges:
         notes.append(f"searched {merges} cluster(s) again after checking the chosen plans")
     if fleet.lead_min_separation < fleet.separation:

@@ -392,10 +392,11 @@ def mirrored(scenario: Scenario) -> Scenario:
     )
 
 
-def yard(n: int, seed: int, density: float = 0.1) -> Scenario:
-    """``n`` robots and ``n`` unnamed goals at random in a square yard of ``density`` robots
-    per m^2 (10 robots: the fleet bench's 10 m x 10 m yard)."""
-    return random_yard(n, seed, half=0.5 * math.sqrt(n / density))
+def yard(n: int, seed: int) -> Scenario:
+    """``n`` robots and ``n`` unnamed goals at random in a square yard of one robot per
+    10 m^2, within the service's 20 m x 20 m yard (10 robots: 10 m x 10 m; 50 robots:
+    19 m x 19 m, one per 7.2 m^2): the fleet bench's random yards."""
+    return random_yard(n, seed)
 
 
 def arrival_times(n: int, seed: int, mean_gap_s: float) -> list[float]:

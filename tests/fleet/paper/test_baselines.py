@@ -59,25 +59,28 @@ class PaperLaw:
 def test_harness_runs_the_simulators_loop(
     start: tuple[float, float, float], goal: tuple[float, float, float], cw: bool, limited: bool
 ) -> None:
-    # Same Euler step, stop rule, metrics and wheel limit as fleet.core.simulate: a law run
-    # through the harness ends where the simulator ends. The harness judges the heading in
-    # (-pi, pi], the simulator in the law's wrap; they agree once the robot has arrived.
+    # Same Euler step, metrics and wheel limit as fleet.core.simulate: a law run through the
+    # harness passes through the simulator's poses. The harness judges the heading in
+    # (-pi, pi], the simulator in the law's wrap (Eqs. 11, 21), which is stricter: a small
+    # negative theta_e is near 2 pi there and law (17) turns once more (Hypothesis found
+    # 0.24 s against 23.29 s). So the harness stops first, where the simulator also is.
     gains = Gains(kx=1.0, ky=2.0, ktheta=1.5)
     profile = RobotProfile() if limited else UNLIMITED
     tol = Tolerance(position=0.1, heading=0.1)
     law = "cw" if cw else "ccw"
+    problem = BatchProblem.build(start, goal, gains, law, tolerance=tol, profile=profile)
     ours = closed_loop(PaperLaw(gains, cw), start, goal, tol, max_time=30.0, profile=profile)
-    theirs = simulate(
-        BatchProblem.build(start, goal, gains, law, tolerance=tol, profile=profile),
-        dt=0.01,
-        max_time=30.0,
-    )
-    assert ours.done[0] == theirs.done[0]
-    if theirs.done[0]:
+    full = simulate(problem, dt=0.01, max_time=30.0)
+    assert ours.done[0] or not full.done[0]
+    if not ours.done[0]:
+        return
+    assert not full.done[0] or ours.time[0] <= full.time[0] + 1e-9
+    theirs = simulate(problem, dt=0.01, max_time=ours.time[0])  # the same number of steps
+    np.testing.assert_allclose(ours.final_pose, theirs.final_pose, atol=1e-9)
+    assert ours.distance[0] == pytest.approx(theirs.distance[0], rel=1e-9)
+    assert ours.control_effort[0] == pytest.approx(theirs.control_effort[0], rel=1e-9)
+    if theirs.done[0]:  # both stop rules held at this step
         assert ours.time[0] == pytest.approx(theirs.time[0])
-        assert ours.distance[0] == pytest.approx(theirs.distance[0], rel=1e-9)
-        assert ours.control_effort[0] == pytest.approx(theirs.control_effort[0], rel=1e-9)
-        np.testing.assert_allclose(ours.final_pose, theirs.final_pose, atol=1e-9)
 
 
 def test_body_error_is_eq_5_with_the_heading_in_minus_pi_pi() -> None:

@@ -10,15 +10,16 @@ API client would, each at its ``arrival_s`` of simulated time (read from the rob
 sequence numbers). The run ends when every task succeeded or at the scenario's
 :attr:`~fleet.bench.scenarios.Scenario.end_s`; the bench, not the service, is the judge of
 time (the service's own task timeout is pushed out of the way). ``auto`` lets the service
-choose each law; ``cw`` / ``ccw`` fix it; ``none`` is ``ccw`` with K_avoid = 0 -- no
-repulsion, no contact guard, no planning: the baseline without any avoidance.
+choose each law; ``cw`` / ``ccw`` fix it; ``none`` is ``ccw`` with K_avoid = 0 and a
+separation of 1 µm to keep -- no repulsion, no contact guard, no start delays or holds:
+the baseline without any avoidance.
 
 Peer policies (``orca``, ``hrvo``, ``hl``, ``socialforce``): navground in this process
 (:mod:`fleet.bench.peers`), same robots, step, tolerances and time limit, no noise.
 
 Every run is measured by the same code (:mod:`fleet.bench.metrics`) on time-aligned true
 poses. Planning latency (fleet policies): the wall time of each of the service's plans,
-from its cumulative counters ``plans`` and ``plan_wall_ms`` sampled while the run goes
+from its cumulative counters ``plans`` and ``plan_us`` sampled while the run goes
 (a sample covering k plans counts as k plans of the mean time).
 """
 
@@ -275,15 +276,15 @@ class _SimClock:
 
 
 class _PlanLatency:
-    """Per-plan wall times [ms] from the service's cumulative ``plans``/``plan_wall_ms``."""
+    """Per-plan wall times [ms] from the service's cumulative ``plans``/``plan_us``."""
 
     def __init__(self) -> None:
         self.samples: list[float] = []
         self._plans = 0
-        self._wall_ms = 0
+        self._wall_ms = 0.0
 
     def sample(self, counters: dict[str, int]) -> None:
-        plans, wall = counters.get("plans", 0), counters.get("plan_wall_ms", 0)
+        plans, wall = counters.get("plans", 0), counters.get("plan_us", 0) / 1000.0
         if plans > self._plans:
             k = plans - self._plans
             self.samples.extend([(wall - self._wall_ms) / k] * k)
@@ -307,14 +308,10 @@ def run_fleet_policy(
     """One run of ``scenario`` through a fresh service and fresh ``parkfleet sim`` robots."""
     began = time.monotonic()
     base = options.settings
-    avoidance = Avoidance(k_avoid=0.0) if policy == "none" else base.avoidance
-    settings = base.model_copy(
-        update={
-            "fleet_name": fleet_name,
-            "task_timeout_s": _SERVICE_TIMEOUT_S,
-            "avoidance": avoidance,
-        }
-    )
+    update: dict[str, Any] = {"fleet_name": fleet_name, "task_timeout_s": _SERVICE_TIMEOUT_S}
+    if policy == "none":  # no repulsion, and 1 µm to keep: the planner never holds anyone
+        update |= {"avoidance": Avoidance(k_avoid=0.0), "safety_separation_m": 1e-6}
+    settings = base.model_copy(update=update)
     ids = scenario.robot_ids
     spawn = workdir / f"{fleet_name}.json"
     spawn.write_text(
@@ -337,7 +334,7 @@ def run_fleet_policy(
 
     env = dict(os.environ)
     env["PARKFLEET_FLEET_NAME"] = fleet_name
-    env["PARKFLEET_AVOIDANCE__K_AVOID"] = str(avoidance.k_avoid)
+    env["PARKFLEET_AVOIDANCE__K_AVOID"] = str(settings.avoidance.k_avoid)
     env["PARKFLEET_CONTROL_RATE_HZ"] = str(settings.control_rate_hz)
     command = sim_command(
         endpoint,

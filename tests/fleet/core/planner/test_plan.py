@@ -78,6 +78,19 @@ def test_when_no_option_is_safe_the_new_robots_hold_with_the_reason() -> None:
     assert result.replan_in_s is not None  # held robots are planned again
 
 
+def test_robots_under_way_that_no_option_keeps_apart_part_at_the_contact_guards_reach() -> None:
+    first = swap2()
+    under_way = moved_on(first, plan(first), 0.5)  # both driving, 6 m apart
+    strict = dataclasses.replace(under_way, separation_m=5.0)  # no way round keeps 5 m
+    result = plan(strict)
+    floor = 2 * strict.profile.radius + strict.avoidance.min_x_oa + 0.02
+    assert any(not d.hold for d in result.decisions)  # a standstill would last for ever
+    assert result.safe and result.min_separation_m >= floor
+    assert any(n.startswith("standstill") for n in result.notes)
+    run = replay(under_way, result)
+    assert run.worst_shortfall(floor) <= 1e-9
+
+
 def test_nothing_to_plan_without_an_available_robot() -> None:
     snapshot = swap2()
     busy = tuple(

@@ -12,6 +12,11 @@
   force on the same robots), :mod:`~fleet.bench.plots` (a PNG per run),
   :mod:`~fleet.bench.report` (the README's tables).
 - :mod:`~fleet.bench.soak`: a long random load; the server's memory, fds and store.
+- :mod:`~fleet.bench.plan`: the planner's latency per decision and, offline, its plans'
+  quality (:mod:`~fleet.bench.closed_loop`: an offline fleet on the batch simulator that
+  calls the planner as the service does).
+- :mod:`~fleet.bench.estop`: e-stop latency, request to the tick that zeroed the wheels.
+- :mod:`~fleet.bench.on_state`: states per CPU second through the service's hot path.
 - :mod:`~fleet.bench.procstat`: what a process costs and holds (``/proc``), for the others.
 """
 

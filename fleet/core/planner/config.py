@@ -65,7 +65,7 @@ class PlannerConfig:
     #: whole-fleet checks of the chosen plan (module docstring of plan.py, 6); each failed
     #: one holds the robots it would start into a conflict and checks again
     verify_rounds: int = 4
-    #: [m] a standstill is planned again keeping the contact guard's reach plus this
+    #: [m] a standstill (every robot held) is planned again keeping contact distance + this
     standstill_margin_m: float = 0.02
     corridor_period_s: float = 0.5
     corridor_radius_m: float = 0.5

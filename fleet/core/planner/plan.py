@@ -29,12 +29,12 @@
    decisions carry. Should it bring a pair closer than ``separation_m``, the robots it would
    start or keep moving into that pair hold (new ones first) and the fleet is verified
    again, ``verify_rounds`` times at most.
-7. **Standstill**: when that holds every robot it decides, robots under way among them
-   (none would move: nothing changes until a task does), the plan is made again keeping
-   only the contact guard's reach plus ``standstill_margin_m`` (0.47 m by default) instead
-   of ``separation_m``, and taken if it moves someone (noted in ``Plan.notes``): robots
-   pressed together by disturbances part instead of waiting for ever. New robots alone
-   are not relaxed for: they wait.
+7. **Standstill**: when that holds every robot it decides (none would move, so nothing
+   would ever change: a swap whose goals are the others' starts, robots pressed together by
+   disturbances), the plan is made again keeping contact distance (two body radii) plus
+   ``standstill_margin_m`` (0.42 m by default) instead of ``separation_m``, and taken if it
+   moves someone (noted in ``Plan.notes``). Robots whose every way comes closer than that
+   still wait, with the reason.
 """
 
 from __future__ import annotations
@@ -417,19 +417,17 @@ def plan(snapshot: PlanningSnapshot, config: PlannerConfig | None = None) -> Pla
     """Decide the queued and under-way tasks of ``snapshot`` (see the module docstring)."""
     config = config or PlannerConfig()
     strict = _plan(snapshot, config)
-    floor = 2 * snapshot.profile.radius + snapshot.avoidance.min_x_oa + config.standstill_margin_m
+    floor = 2 * snapshot.profile.radius + config.standstill_margin_m
     if floor >= snapshot.separation_m or not strict.decisions:
         return strict
-    if not all(d.hold for d in strict.decisions) or all(
-        d.action == "assign" for d in strict.decisions
-    ):
-        return strict  # someone moves; or only new robots wait (nothing under way is stuck)
+    if not all(d.hold for d in strict.decisions):
+        return strict  # someone moves: the scene changes, the held are tried again
     relaxed = _plan(dataclasses.replace(snapshot, separation_m=floor), config)
     if all(d.hold for d in relaxed.decisions):
         return dataclasses.replace(strict, rollouts=strict.rollouts + relaxed.rollouts)
     note = (
         f"standstill: no robot could move keeping {snapshot.separation_m:.2f} m; planned "
-        f"keeping {floor:.2f} m (the contact guard's reach + {config.standstill_margin_m} m)"
+        f"keeping {floor:.2f} m (contact + {config.standstill_margin_m} m)"
     )
     return dataclasses.replace(
         relaxed, rollouts=strict.rollouts + relaxed.rollouts, notes=(*relaxed.notes, note)

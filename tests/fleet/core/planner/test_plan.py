@@ -12,6 +12,7 @@ from planning import TOL, idle, moved_on, queued, replay, scene, swap2
 
 from fleet.core.planner import (
     Plan,
+    PlannerConfig,
     PlanningSnapshot,
     RobotSnapshot,
     TaskDecision,
@@ -69,7 +70,8 @@ def test_a_robot_waits_for_a_peer_to_pass_when_it_must() -> None:
 
 
 def test_when_no_option_is_safe_the_new_robots_hold_with_the_reason() -> None:
-    result = plan(swap2(separation=5.0))  # no way round keeps 5 m on a 6 m swap
+    no_relaxing = PlannerConfig(standstill_margin_m=10.0)  # the standstill rule stays out
+    result = plan(swap2(separation=5.0), no_relaxing)  # no way round keeps 5 m on a 6 m swap
     assert result.safe and result.waiting == 2  # safe: it moves nobody
     for d in result.decisions:
         assert d.action == "assign" and d.hold
@@ -78,12 +80,21 @@ def test_when_no_option_is_safe_the_new_robots_hold_with_the_reason() -> None:
     assert result.replan_in_s is not None  # held robots are planned again
 
 
+def test_a_standstill_of_new_robots_is_planned_at_contact_distance_plus_a_margin() -> None:
+    strict = swap2(separation=5.0)  # no way round keeps 5 m on a 6 m swap
+    result = plan(strict)
+    floor = 2 * strict.profile.radius + 0.02
+    assert result.waiting == 0 and result.safe and result.min_separation_m >= floor
+    assert any(n.startswith("standstill") for n in result.notes)
+    assert replay(strict, result).worst_shortfall(floor) <= 1e-9
+
+
 def test_robots_under_way_that_no_option_keeps_apart_part_at_the_contact_guards_reach() -> None:
     first = swap2()
     under_way = moved_on(first, plan(first), 0.5)  # both driving, 6 m apart
     strict = dataclasses.replace(under_way, separation_m=5.0)  # no way round keeps 5 m
     result = plan(strict)
-    floor = 2 * strict.profile.radius + strict.avoidance.min_x_oa + 0.02
+    floor = 2 * strict.profile.radius + 0.02
     assert any(not d.hold for d in result.decisions)  # a standstill would last for ever
     assert result.safe and result.min_separation_m >= floor
     assert any(n.startswith("standstill") for n in result.notes)
@@ -162,10 +173,15 @@ def test_a_lost_robot_beside_the_way_is_an_obstacle() -> None:
     assert replay(snapshot, result).worst_shortfall(0.5) <= 0
 
 
-def test_a_robot_with_a_lost_robot_straight_ahead_holds() -> None:
-    """Neither law bends a straight run: no option passes the lost robot safely."""
-    (d,) = plan(with_lost(0.0)).decisions
-    assert d.hold and d.reason is not None and "gone" in d.reason
+def test_a_robot_with_a_lost_robot_straight_ahead_waits_unless_it_is_a_standstill() -> None:
+    """Neither law bends a straight run: no option passes the lost robot at 0.5 m. It is the
+    only robot, so holding it changes nothing: it passes at contact distance + 2 cm."""
+    (held,) = plan(with_lost(0.0), PlannerConfig(standstill_margin_m=10.0)).decisions
+    assert held.hold and held.reason is not None and "gone" in held.reason
+    result = plan(with_lost(0.0))
+    (d,) = result.decisions
+    assert not d.hold and d.predicted_min_separation_m >= 0.42
+    assert any(n.startswith("standstill") for n in result.notes)
 
 
 def test_the_corridor_follows_the_predicted_path_and_is_left_elsewhere() -> None:

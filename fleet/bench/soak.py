@@ -45,6 +45,8 @@ from fleet.io.processes import ServerProcess, running_server, sim_command, termi
 YARD = (-10.0, 10.0, -10.0, 10.0)
 FINAL = tuple(s.value for s in TaskStatus if s.final)
 DB_FILE = "parkfleet.db"
+#: A request unanswered this long [s] is counted as a timeout (``Tally.timeouts``).
+REQUEST_TIMEOUT_S = 30.0
 
 
 @dataclass
@@ -104,6 +106,7 @@ class Tally:
     kills: int = 0
     server_errors: int = 0  # any 5xx
     unexpected: dict[str, int] = field(default_factory=dict)
+    timeouts: dict[str, int] = field(default_factory=dict)  # no answer in REQUEST_TIMEOUT_S
 
     def saw(self, response: httpx.Response, *expected: int) -> None:
         if response.status_code >= 500:
@@ -111,6 +114,22 @@ class Tally:
         if response.status_code not in expected:
             key = f"{response.request.method} {response.status_code}"
             self.unexpected[key] = self.unexpected.get(key, 0) + 1
+
+    def timed_out(self, method: str, route: str) -> None:
+        key = f"{method} {route}"
+        self.timeouts[key] = self.timeouts.get(key, 0) + 1
+
+
+async def call(
+    client: httpx.AsyncClient, tally: Tally, method: str, url: str, route: str, **kwargs: Any
+) -> httpx.Response | None:
+    """One request; None, counted in ``tally`` under ``route``, if the server gave no answer
+    within the client's timeout: a soak reports a stalled server, it does not die of it."""
+    try:
+        return await client.request(method, url, **kwargs)
+    except httpx.TimeoutException:
+        tally.timed_out(method, route)
+        return None
 
 
 def spawn_files(folder: Path, robots: int, groups: int) -> list[Path]:
@@ -208,12 +227,13 @@ class Soak:
                 "y": self.rng.uniform(YARD[2] + 0.5, YARD[3] - 0.5),
                 "theta": self.rng.uniform(-math.pi, math.pi),
             }
-            r = await client.post("/tasks", json={"goal": goal})
-            self.tally.saw(r, 201, 409)
-            if r.status_code == 201:
-                self.tally.accepted.append(r.json()["id"])
-            elif r.status_code == 409:
-                self.tally.refused += 1
+            r = await call(client, self.tally, "POST", "/tasks", "/tasks", json={"goal": goal})
+            if r is not None:
+                self.tally.saw(r, 201, 409)
+                if r.status_code == 201:
+                    self.tally.accepted.append(r.json()["id"])
+                elif r.status_code == 409:
+                    self.tally.refused += 1
             await self.pause(self.rng.expovariate(per_s), until)
 
     async def cancels(self, client: httpx.AsyncClient, until: float, per_s: float) -> None:
@@ -221,7 +241,10 @@ class Soak:
             await self.pause(self.rng.expovariate(per_s), until)
             if self.tally.accepted and time.monotonic() < until:
                 task_id = self.rng.choice(self.tally.accepted[-200:])
-                r = await client.post(f"/tasks/{task_id}/cancel")
+                url = f"/tasks/{task_id}/cancel"
+                r = await call(client, self.tally, "POST", url, "/tasks/{id}/cancel")
+                if r is None:
+                    continue
                 self.tally.saw(r, 200, 409)
                 self.tally.cancelled += r.status_code == 200
                 self.tally.cancel_conflicts += r.status_code == 409
@@ -253,12 +276,29 @@ class Soak:
     async def readers(self, client: httpx.AsyncClient, until: float) -> None:
         while time.monotonic() < until:
             await self.pause(self.rng.uniform(1.0, 4.0), until)
-            r = await client.get("/tasks", params={"order": "newest", "limit": 50})
+            r = await call(
+                client,
+                self.tally,
+                "GET",
+                "/tasks",
+                "/tasks",
+                params={"order": "newest", "limit": 50},
+            )
+            if r is None:
+                continue
             self.tally.saw(r, 200)
             self.tally.pages += 1
             finished = [t["id"] for t in r.json() if t["status"] == "succeeded"]
             if finished:
-                plot = await client.get(f"/tasks/{self.rng.choice(finished)}/plot.png")
+                plot = await call(
+                    client,
+                    self.tally,
+                    "GET",
+                    f"/tasks/{self.rng.choice(finished)}/plot.png",
+                    "plot.png",
+                )
+                if plot is None:
+                    continue
                 self.tally.saw(plot, 200, 409, 429)
                 self.tally.plots += plot.status_code == 200
                 self.tally.plots_limited += plot.status_code == 429
@@ -314,7 +354,7 @@ class Soak:
 
     async def run(self, minutes: float, tasks_per_s: float, event_clients: int) -> int:
         until = self.t0 + 60.0 * minutes
-        async with httpx.AsyncClient(base_url=self.server.url, timeout=30.0) as client:
+        async with httpx.AsyncClient(base_url=self.server.url, timeout=REQUEST_TIMEOUT_S) as client:
             await asyncio.gather(
                 self.sampler(until),
                 self.tasks(client, until, tasks_per_s),
@@ -455,7 +495,8 @@ def run(minutes: float, as_json: bool = False, **options: Any) -> int:
         f"{t.cancelled} cancelled, {result.drained} open ones cancelled at the end; "
         f"{t.events_sessions} event sessions ({t.event_frames} frames, {t.events_refused} "
         f"refused), {t.pages} pages, {t.plots} plots ({t.plots_limited} rate-limited), "
-        f"{t.kills} robot groups killed; server errors {t.server_errors}, unexpected {t.unexpected}"
+        f"{t.kills} robot groups killed; server errors {t.server_errors}, "
+        f"unexpected {t.unexpected}, timeouts {t.timeouts}"
     )
     print(
         f"store: {c.accepted} accepted, {c.stored} stored, {c.lost} lost, {c.not_final} not "

@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
 import math
 import sqlite3
 from pathlib import Path
 
+import httpx
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fleet.bench.soak import check_store, slope
+from fleet.bench.soak import Tally, call, check_store, slope
 from fleet.cli.main import main
 from fleet.core.tasks import Task, TaskRequest, TaskStatus
 from fleet.core.wire import Pose
@@ -69,3 +71,22 @@ def test_a_short_soak_runs_and_loses_nothing(capsys: pytest.CaptureFixture[str])
     assert report["tally"]["server_errors"] == 0 and report["tally"]["unexpected"] == {}
     assert len(report["samples"]) >= 3
     assert all(s["rss_mb"] > 0 and s["open_fds"] > 0 for s in report["samples"])
+
+
+def test_a_request_without_answer_is_counted_not_fatal() -> None:
+    def stall(request: httpx.Request) -> httpx.Response:
+        if request.url.path == "/tasks":
+            raise httpx.ReadTimeout("no answer", request=request)
+        return httpx.Response(200, json=[])
+
+    async def two_calls() -> tuple[httpx.Response | None, httpx.Response | None]:
+        tally = Tally()
+        transport = httpx.MockTransport(stall)
+        async with httpx.AsyncClient(base_url="http://x", transport=transport) as client:
+            stalled = await call(client, tally, "GET", "/tasks", "/tasks")
+            answered = await call(client, tally, "GET", "/healthz", "/healthz")
+        assert tally.timeouts == {"GET /tasks": 1}
+        return stalled, answered
+
+    stalled, answered = asyncio.run(two_calls())
+    assert stalled is None and answered is not None and answered.status_code == 200

@@ -38,6 +38,7 @@ from api.routes import (
 from api.schemas import ValidationErrorOut
 from api.streaming import EventHub
 from fleet.core.wire import Keys
+from fleet.io.heap import HeapTrimmer
 from fleet.io.settings import Settings
 from fleet.io.transport import listening_locators, open_session
 from fleet.service.fleet_service import FleetService
@@ -56,8 +57,9 @@ ccw and (20) cw). When `PARKFLEET_API_TOKEN` is set, POST and PUT need
 
 
 def open_fleet(settings: Settings, stack: ExitStack) -> tuple[FleetAPI, TaskStore, list[str]]:
-    """Open router session, store, bus and service on ``stack``; return the service, the
-    store (for task pages) and the Zenoh endpoints the router really listens on."""
+    """Open router session, store, bus and service on ``stack`` (and the heap trimmer,
+    :mod:`fleet.io.heap`); return the service, the store (for task pages) and the Zenoh
+    endpoints the router really listens on."""
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     session = open_session(settings, "router")
     stack.callback(session.close)
@@ -69,6 +71,9 @@ def open_fleet(settings: Settings, stack: ExitStack) -> tuple[FleetAPI, TaskStor
     service = FleetService(settings, bus, store)
     service.start()
     stack.callback(service.close)
+    trimmer = HeapTrimmer(settings.heap_trim_interval_s)
+    trimmer.start()
+    stack.callback(trimmer.close)
     return service, store, locators
 
 

@@ -173,6 +173,9 @@ class Settings(BaseSettings):
     # they ended (default 30 days).
     lost_robot_retention_s: Annotated[float, Field(gt=0)] = 3600.0
     finished_task_retention_s: Annotated[float, Field(gt=0)] = 30 * 86400.0
+    # The server gives the C heap's free pages back to the kernel this often [s]; 0: never
+    # (fleet/io/heap.py: without it the resident size grows with the work done).
+    heap_trim_interval_s: Annotated[float, Field(ge=0)] = 60.0
 
     @field_validator("fleet_name")
     @classmethod

@@ -1,0 +1,85 @@
+"""Give the C heap's free pages back to the operating system, now and then.
+
+A long-running server allocates and frees many short-lived buffers through ``malloc``
+(request and event bodies, numpy arrays of the planner, SQLite pages, Zenoh payloads) from
+several threads. glibc keeps what is freed inside its arenas and returns memory to the
+kernel only from the top of a heap, so the free space in the middle of the arenas grows
+with the work done: in a 14-minute soak of ``parkfleet serve`` the Python objects stayed
+flat (``sys.getallocatedblocks``) while the arenas grew 62 -> 157 MB, 89 MB of it free
+(``mallinfo2``), and the resident size grew with them; one ``malloc_trim(0)`` released
+70 MB. :class:`HeapTrimmer` calls ``malloc_trim(0)`` every ``interval_s`` seconds on a
+thread of its own. On a C library without ``malloc_trim`` (musl, macOS) it does nothing.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import logging
+import threading
+from collections.abc import Callable
+
+_log = logging.getLogger(__name__)
+
+
+def _load_malloc_trim() -> Callable[[int], int] | None:
+    """glibc's ``int malloc_trim(size_t pad)``, or None where the C library has none."""
+    name = ctypes.util.find_library("c")
+    if name is None:
+        return None
+    try:
+        libc = ctypes.CDLL(name)
+        trim = libc.malloc_trim
+    except (OSError, AttributeError):
+        return None
+    trim.argtypes = [ctypes.c_size_t]
+    trim.restype = ctypes.c_int
+    return trim
+
+
+_MALLOC_TRIM = _load_malloc_trim()
+
+
+def can_trim() -> bool:
+    """Whether this process's C library can give free heap pages back (glibc)."""
+    return _MALLOC_TRIM is not None
+
+
+def trim_heap() -> bool:
+    """Release the free pages of every ``malloc`` arena to the kernel; True if any were.
+
+    Walks the arenas under their locks: a few milliseconds for a few hundred MB.
+    """
+    return _MALLOC_TRIM is not None and _MALLOC_TRIM(0) == 1
+
+
+class HeapTrimmer:
+    """Calls :func:`trim_heap` every ``interval_s`` [s] on a daemon thread until closed.
+
+    ``interval_s <= 0`` or a C library without ``malloc_trim``: :meth:`start` does nothing.
+    ``trims`` counts the calls that released memory.
+    """
+
+    def __init__(self, interval_s: float) -> None:
+        self.interval_s = interval_s
+        self.trims = 0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        if self.interval_s <= 0 or not can_trim() or self._thread is not None:
+            return
+        self._thread = threading.Thread(target=self._run, name="heap-trim", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.interval_s):
+            if trim_heap():
+                self.trims += 1
+
+    def close(self) -> None:
+        """Stop the thread (waits for a trim under way); idempotent."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None

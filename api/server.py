@@ -23,6 +23,7 @@ import uvicorn
 from fastapi import FastAPI
 
 from api.app import create_app
+from fleet.io.heap import limit_arenas
 from fleet.io.settings import Settings
 
 _log = logging.getLogger(__name__)
@@ -124,6 +125,7 @@ async def serve(
     anything is opened.
     """
     check_bind(settings)
+    limit_arenas(settings.malloc_arenas)  # before the fleet's threads (fleet/io/heap.py)
     sock = bind_socket(settings.api_host, settings.api_port)
     try:
         host, port = sock.getsockname()[:2]

@@ -173,8 +173,10 @@ class Settings(BaseSettings):
     # they ended (default 30 days).
     lost_robot_retention_s: Annotated[float, Field(gt=0)] = 3600.0
     finished_task_retention_s: Annotated[float, Field(gt=0)] = 30 * 86400.0
-    # The server gives the C heap's free pages back to the kernel this often [s]; 0: never
-    # (fleet/io/heap.py: without it the resident size grows with the work done).
+    # The server's C heap (fleet/io/heap.py: without these its resident size grows with the
+    # work done): at most this many malloc arenas (0: the C library's default, 8 per core),
+    # and its free pages given back to the kernel this often [s] (0: never).
+    malloc_arenas: Annotated[int, Field(ge=0)] = 2
     heap_trim_interval_s: Annotated[float, Field(ge=0)] = 60.0
 
     @field_validator("fleet_name")

@@ -5,16 +5,18 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import os
+import subprocess
+import sys
 import threading
 from contextlib import ExitStack
 from pathlib import Path
 
 import pytest
+from support import wait_for
 
 from api.app import open_fleet
-from fleet.io.heap import HeapTrimmer, can_trim, trim_heap
+from fleet.io.heap import HeapTrimmer, can_trim, limit_arenas, trim_heap
 from fleet.io.settings import load_settings
-from tests.helpers.support import wait_for
 
 pytestmark = pytest.mark.skipif(not can_trim(), reason="no malloc_trim in this C library")
 
@@ -80,6 +82,38 @@ def test_the_trimmer_trims_until_closed_and_zero_means_never() -> None:
     finally:
         trimmer.close()
     assert not any(t.name == "heap-trim" for t in threading.enumerate())
+
+
+#: Eight threads alive at once, each allocating, then glibc's per-arena statistics.
+ARENA_PROBE = """
+import ctypes, sys, threading
+from fleet.io.heap import limit_arenas
+if int(sys.argv[1]):
+    assert limit_arenas(int(sys.argv[1]))
+gate = threading.Barrier(9)
+def work():
+    buf = bytearray(100_000)
+    gate.wait(); gate.wait()
+threads = [threading.Thread(target=work) for _ in range(8)]
+for t in threads: t.start()
+gate.wait()
+ctypes.CDLL(None).malloc_stats()
+gate.wait()
+for t in threads: t.join()
+"""
+
+
+def _arenas(limit: int) -> int:
+    probe = subprocess.run(
+        [sys.executable, "-c", ARENA_PROBE, str(limit)], capture_output=True, text=True, check=True
+    )
+    return sum(line.startswith("Arena ") for line in probe.stderr.splitlines())
+
+
+def test_limit_arenas_caps_the_arenas_of_threads_allocating_at_once() -> None:
+    assert _arenas(0) >= 5  # glibc's default: a new arena per thread, up to 8 per core
+    assert _arenas(2) == 2
+    assert not limit_arenas(0)  # 0: the default is left alone
 
 
 def test_the_server_runs_a_trimmer_while_open(tmp_path: Path) -> None:

@@ -22,7 +22,6 @@ from fleet.bench.fleet import (
 from fleet.bench.report import auto_table, policy_table
 from fleet.bench.scenarios import Scenario, full_suite, load_scenarios, quick_suite
 from fleet.cli.options import add_json, add_time_scale, positive_float
-from fleet.cli.signals import interrupt_on_sigterm
 from fleet.io.settings import load_settings
 
 
@@ -148,16 +147,11 @@ def print_summary(summary: list[SummaryRow], out: TextIO) -> None:
         )
 
 
-def run(args: argparse.Namespace) -> int:
-    with interrupt_on_sigterm():  # unwind, so every sim subprocess and session is closed
-        return _run(args)
-
-
 def print_markdown(rows: list[FleetBenchRow], out: TextIO) -> None:
     print("\n" + policy_table(rows) + "\n\n" + auto_table(rows), file=out)
 
 
-def _run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     if args.from_json is not None:
         try:
             data = json.loads(args.from_json.read_text())

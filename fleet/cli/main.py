@@ -13,6 +13,8 @@ import logging
 import sys
 from collections.abc import Sequence
 
+from fleet.cli.signals import interrupt_on_sigterm
+
 #: Modules that register sub-commands, in help order.
 COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.reproduce",
@@ -56,7 +58,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     level = logging.WARNING - 10 * min(int(args.verbose), 2)
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     try:
-        return int(args.func(args) or 0)
+        with interrupt_on_sigterm():  # SIGTERM unwinds like Ctrl-C: children, sessions closed
+            return int(args.func(args) or 0)
     except KeyboardInterrupt:
         return 130
     except (ValueError, FileNotFoundError, ConnectionError) as exc:

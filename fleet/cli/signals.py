@@ -32,7 +32,11 @@ def _interrupt(signum: int, frame: FrameType | None) -> None:
 @contextlib.contextmanager
 def interrupt_on_sigterm() -> Iterator[None]:
     """SIGTERM raises KeyboardInterrupt in the main thread (like Ctrl-C), so ``finally``
-    blocks close every child process and session; the handler is restored on exit."""
+    blocks close every child process and session; the handler is restored on exit. Off the
+    main thread (a command run from a test's thread) signals cannot be handled: no-op."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
         yield

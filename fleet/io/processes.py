@@ -116,9 +116,11 @@ def running_server(
     *extra: str,
     env: Mapping[str, str] | None = None,
     stderr: IO[str] | int | None = None,
-    timeout: float = 30.0,
+    timeout: float = 120.0,
 ) -> Iterator[ServerProcess]:
-    """A live ``parkfleet serve`` child; stopped (and reaped) on exit, whatever happens."""
+    """A live ``parkfleet serve`` child; stopped (and reaped) on exit, whatever happens.
+    ``timeout`` [s] bounds a hung start, not a slow one: imports and compiled code take
+    seconds alone and far longer on a loaded machine."""
     process = subprocess.Popen(
         serve_command(data_dir, *extra),
         stdin=subprocess.DEVNULL,

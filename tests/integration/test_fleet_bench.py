@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from support import wait_for
+from support import child_pids, command_line, is_alive, wait_for
 
 from fleet.bench.fleet import BenchOptions, run_fleet_bench
 from fleet.bench.scenarios import RobotSpec, Scenario
@@ -63,29 +63,6 @@ def test_three_noisy_robots_crossing_under_auto_all_park_without_touching(
     assert t[-1] - t[0] >= row.makespan_s - period
 
 
-def _children(pid: int) -> set[int]:
-    found: set[int] = set()
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        text = (task / "children").read_text().split()
-        found |= {int(p) for p in text}
-    return found
-
-
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except FileNotFoundError:
-        return False
-    return state != "Z"
-
-
-def _command(pid: int) -> str:
-    try:
-        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
-    except FileNotFoundError:
-        return ""
-
-
 def test_sigterm_stops_the_bench_its_sim_child_and_its_navground_worker() -> None:
     bench = subprocess.Popen(
         [sys.executable, "-m", "fleet.cli", "bench", "fleet", "--scenario", "swap-4-right",
@@ -96,19 +73,19 @@ def test_sigterm_stops_the_bench_its_sim_child_and_its_navground_worker() -> Non
     )  # fmt: skip
     try:
         wait_for(
-            lambda: any("fleet.cli sim" in _command(p) for p in _children(bench.pid)),
+            lambda: any("fleet.cli sim" in command_line(p) for p in child_pids(bench.pid)),
             60.0,
             "the sim child",
         )
-        children = _children(bench.pid)  # the sim, the navground worker (spawned)
-        assert any("multiprocessing" in _command(p) for p in children)
+        children = child_pids(bench.pid)  # the sim, the navground worker (spawned)
+        assert any("multiprocessing" in command_line(p) for p in children)
         bench.send_signal(signal.SIGTERM)
         _, err = bench.communicate(timeout=60)
         assert bench.returncode == 130, err.decode()
         # multiprocessing's resource tracker (a child too) exits once it reads the bench's
         # end of its pipe: shortly after the bench, not before it
         wait_for(
-            lambda: not [p for p in children if _alive(p)], 30.0, "the bench's children to exit"
+            lambda: not [p for p in children if is_alive(p)], 30.0, "the bench's children to exit"
         )
     finally:
         if bench.poll() is None:

@@ -5,13 +5,18 @@ from __future__ import annotations
 import asyncio
 import json
 import math
+import os
+import signal
 import sqlite3
+import subprocess
+import sys
 from pathlib import Path
 
 import httpx
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from support import child_pids, command_line, is_alive, wait_for
 
 from fleet.bench.soak import Tally, call, check_store, slope
 from fleet.cli.main import main
@@ -90,3 +95,30 @@ def test_a_request_without_answer_is_counted_not_fatal() -> None:
 
     stalled, answered = asyncio.run(two_calls())
     assert stalled is None and answered is not None and answered.status_code == 200
+
+
+@pytest.mark.integration
+def test_sigterm_stops_the_soak_with_its_server_and_robots() -> None:
+    soak = subprocess.Popen(
+        [sys.executable, "-m", "fleet.cli", "bench", "soak", "--minutes", "30",
+         "--robots", "4", "--groups", "2"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        env=os.environ | {"PYTHONUNBUFFERED": "1"},
+    )  # fmt: skip
+
+    def sims() -> list[int]:
+        return [p for p in child_pids(soak.pid) if "fleet.cli sim" in command_line(p)]
+
+    try:
+        wait_for(lambda: len(sims()) == 2, 120.0, "the soak's two robot groups")
+        children = child_pids(soak.pid)
+        assert any("fleet.cli serve" in command_line(p) for p in children)
+        soak.send_signal(signal.SIGTERM)
+        _, err = soak.communicate(timeout=60)
+        assert soak.returncode == 130, err.decode()
+        wait_for(lambda: not [p for p in children if is_alive(p)], 30.0, "the children to exit")
+    finally:
+        if soak.poll() is None:
+            soak.kill()
+            soak.communicate(timeout=10)

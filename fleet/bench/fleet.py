@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel
 
-from fleet.bench.metrics import RunMetrics, RunResult
+from fleet.bench.metrics import ARRIVAL_RADIUS_M, RunMetrics, RunResult
 from fleet.bench.peers import (
     BEHAVIOURS,
     MODES,
@@ -213,6 +213,12 @@ def metrics_title(row: FleetBenchRow) -> str:
     )
 
 
+def arrival_radius(scenario: Scenario) -> float:
+    """How close to its goal [m] a robot reporting ``arrived`` completes its task: the
+    scenario's position tolerance plus slack for the pose noise, at least the default."""
+    return max(ARRIVAL_RADIUS_M, scenario.tolerance.position + 0.15)
+
+
 def _obstacle_rows(scenario: Scenario) -> list[tuple[float, float, float]]:
     return [(o.x, o.y, o.body) for o in scenario.obstacles]
 
@@ -231,6 +237,7 @@ def run_peer_policy(scenario: Scenario, policy: str, options: BenchOptions) -> O
         _obstacle_rows(scenario),
         MODES,
         t_end=scenario.end_s,
+        arrival_radius_m=arrival_radius(scenario),
     )
     run = PeerRun(
         behaviour=policy,
@@ -389,11 +396,14 @@ def run_fleet_policy(
             time.sleep(0.02)
         latency.sample(service.counters)
         owners = {k: service.task(t.id).robot_id for k, t in tasks.items()}
-    goals = np.full((len(ids), 3), np.nan)
+    goals = np.full((len(ids), 3), np.nan)  # a robot's last task (its path, deadlocks)
+    served: list[tuple[int, float, float]] = []  # every task: (robot, goal x, goal y)
     for k, robot in owners.items():
         if robot in ids:
-            goals[ids.index(robot)] = scenario.robots[k].goal
-    result = _measure_trace(trace, goals, scenario, t0)
+            goal = scenario.robots[k].goal
+            goals[ids.index(robot)] = goal
+            served.append((ids.index(robot), goal[0], goal[1]))
+    result = _measure_trace(trace, goals, served, scenario, t0)
     if options.traces is None:
         trace.unlink(missing_ok=True)
     return Outcome(result, len(ids), latency.samples, rejected, time.monotonic() - began)
@@ -417,7 +427,13 @@ def _submit(
         return None
 
 
-def _measure_trace(path: Path, goals: FloatArray, scenario: Scenario, t0: float) -> RunResult:
+def _measure_trace(
+    path: Path,
+    goals: FloatArray,
+    tasks: Sequence[tuple[int, float, float]],
+    scenario: Scenario,
+    t0: float,
+) -> RunResult:
     header = read_header(path)
     metrics = RunMetrics(
         header.radii,
@@ -426,6 +442,8 @@ def _measure_trace(path: Path, goals: FloatArray, scenario: Scenario, t0: float)
         header.modes,
         t_start=t0,
         t_end=t0 + scenario.end_s,
+        tasks=tasks,
+        arrival_radius_m=arrival_radius(scenario),
     )
     for chunk in read_trace(path):
         metrics.add(chunk)

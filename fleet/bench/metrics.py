@@ -12,8 +12,10 @@ for plots). Definitions:
 * **minimum separation** -- the smallest centre distance of any pair at any instant [m];
 * **obstacle hits** -- robots whose body ever overlapped a static obstacle's body
   (clearance = centre distance - robot radius - obstacle body < -slack);
-* **arrival** -- the first instant a robot reports ``arrived`` (makespan: the last one,
-  from the run's start);
+* **arrival** -- of a task: the first instant its robot reports ``arrived`` within
+  ``arrival_radius_m`` of the task's goal (a robot may serve several tasks in a run: a
+  stream's later task can go to a robot that has already parked); success counts tasks,
+  makespan is the last task's arrival from the run's start;
 * **path ratio** -- distance driven (true poses, every tick) / straight line from the
   robot's pose at the run's start to its goal;
 * **deadlock** -- a robot with a task, not arrived, not waiting on purpose (a planned start
@@ -45,6 +47,10 @@ PROGRESS_M = 0.05
 NEAR_GOAL_M = 0.5
 #: Contact episodes kept for plots.
 MAX_EVENTS = 500
+#: A task arrived when its robot reports ``arrived`` this close to the task's goal [m]:
+#: robots stop within their position tolerance (0.1 m by default) of the pose they
+#: measure, the true pose within the measurement noise; goals are 1.5 m apart or more.
+ARRIVAL_RADIUS_M = 0.25
 #: Pair-distance entries computed at once (bounds the scratch memory).
 _BLOCK = 1_000_000
 
@@ -71,7 +77,7 @@ class RunResult:
     min_separation_m: float | None
     obstacle_hits: int
     min_obstacle_clearance_m: float | None
-    arrivals: FloatArray  # (N,) time of arrival [s], NaN if never
+    arrivals: FloatArray  # (N,) time a robot first reported arrived [s], NaN if never
     driven: FloatArray  # (N,) distance driven [m]
     starts: FloatArray  # (N, 3) pose at the run's start
     goals: FloatArray  # (N, 3) goal, NaN rows for robots without a task
@@ -79,14 +85,15 @@ class RunResult:
     path_t: FloatArray  # (S,) subsampled times [s]
     paths: FloatArray  # (S, N, 3) subsampled true poses
     final: FloatArray  # (N, 3) last true pose
+    task_arrivals: FloatArray  # (T,) time each task arrived [s], NaN if never
 
     @property
     def tasked(self) -> BoolArray:
         return np.asarray(~np.isnan(self.goals[:, 0]))
 
     def success_count(self) -> int:
-        """Robots with a task that arrived."""
-        return int(np.count_nonzero(self.tasked & ~np.isnan(self.arrivals)))
+        """Tasks that arrived."""
+        return int(np.count_nonzero(~np.isnan(self.task_arrivals)))
 
     def makespan(self, tasks: int, limit: float) -> float:
         """Last arrival after the start [s]; ``limit`` when any of ``tasks`` did not arrive."""
@@ -94,7 +101,7 @@ class RunResult:
             return 0.0
         if self.success_count() < tasks:
             return limit
-        return float(np.nanmax(self.arrivals[self.tasked]) - self.t_start)
+        return float(np.nanmax(self.task_arrivals) - self.t_start)
 
     def path_ratio(self) -> float | None:
         """Mean over tasked robots of distance driven / straight line (None if none)."""
@@ -108,9 +115,11 @@ class RunResult:
 class RunMetrics:
     """Accumulates :class:`RunResult` figures from chunks of ticks (see the module docstring).
 
-    ``radii`` [m] per robot; ``goals`` (N, 3) with NaN rows for robots without a task;
-    ``obstacles`` (K, 3) rows of (x, y, body radius) [m]; ``modes`` the trace's mode names;
-    ticks outside [``t_start``, ``t_end``] are ignored; one tick in ``path_stride`` is kept.
+    ``radii`` [m] per robot; ``goals`` (N, 3) with NaN rows for robots without a task (a
+    robot's last task: path ratio and deadlocks); ``tasks`` (robot index, goal x, goal y)
+    per task, default one per row of ``goals``; ``obstacles`` (K, 3) rows of (x, y, body
+    radius) [m]; ``modes`` the trace's mode names; ticks outside [``t_start``, ``t_end``]
+    are ignored; one tick in ``path_stride`` is kept.
     """
 
     def __init__(
@@ -123,10 +132,18 @@ class RunMetrics:
         t_start: float = 0.0,
         t_end: float = math.inf,
         path_stride: int = 5,
+        tasks: Sequence[tuple[int, float, float]] | None = None,
+        arrival_radius_m: float = ARRIVAL_RADIUS_M,
     ) -> None:
         n = len(radii)
         self.t_start, self.t_end, self.path_stride = t_start, t_end, max(1, path_stride)
         self.goals = np.asarray(goals, dtype=np.float64).reshape(n, 3)
+        if tasks is None:
+            tasks = [(r, g[0], g[1]) for r, g in enumerate(self.goals) if not np.isnan(g[0])]
+        self._task_robot = np.array([t[0] for t in tasks], dtype=np.intp)
+        self._task_xy = np.array([t[1:] for t in tasks], dtype=np.float64).reshape(-1, 2)
+        self._task_arrivals = np.full(len(tasks), np.nan)
+        self.arrival_radius_m = arrival_radius_m
         self.obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
         self._n = n
         self._pairs = np.triu_indices(n, k=1)
@@ -215,6 +232,13 @@ class RunMetrics:
         if newly.any():
             arrival_tick = arrived.argmax(axis=0)
             self._arrivals[newly] = t[arrival_tick[newly]]
+        waiting = np.nonzero(np.isnan(self._task_arrivals))[0]
+        if waiting.size and arrived.any():
+            robot, goal = self._task_robot[waiting], self._task_xy[waiting]
+            near = np.hypot(poses[:, robot, 0] - goal[:, 0], poses[:, robot, 1] - goal[:, 1])
+            there = arrived[:, robot] & (near <= self.arrival_radius_m)  # (T, waiting)
+            done = there.any(axis=0)
+            self._task_arrivals[waiting[done]] = t[there.argmax(axis=0)[done]]
         goals = self.goals
         tasked = ~np.isnan(goals[:, 0])
         moving = ~np.isin(modes, self._passive) & tasked[None, :]
@@ -256,4 +280,5 @@ class RunMetrics:
             path_t=np.asarray(self._path_t),
             paths=np.asarray(self._paths).reshape(-1, n, 3),
             final=empty if self._last is None else self._last,
+            task_arrivals=self._task_arrivals.copy(),
         )

@@ -115,15 +115,15 @@ def test_arrival_makespan_path_ratio_and_obstacle_hits() -> None:
     a = _line((0.0, 0.0), (3.0, 0.0), ticks)
     b = _line((0.0, 2.0), (0.0, 2.0), ticks)
     modes = np.full((ticks, 2), DRIVING, dtype=np.uint8)
-    modes[250:, 0] = ARRIVED
+    modes[290:, 0] = ARRIVED  # 0.1 m short of the goal, within the arrival radius
     r = _run(
         np.stack([a, b], axis=1),
         modes,
         goals=[(3.0, 0.0, 0.0), (np.nan, np.nan, np.nan)],
         obstacles=[(1.5, 0.3, 0.15), (9.0, 9.0, 0.1)],
     )
-    assert r.success_count() == 1 and r.arrivals[0] == pytest.approx(250 * DT)
-    assert r.makespan(1, 99.0) == pytest.approx(250 * DT)
+    assert r.success_count() == 1 and r.arrivals[0] == pytest.approx(290 * DT)
+    assert r.makespan(1, 99.0) == pytest.approx(290 * DT)
     assert r.makespan(2, 99.0) == 99.0  # a task never arrived: the time limit
     assert r.path_ratio() == pytest.approx(1.0)  # robot b has no task
     assert r.obstacle_hits == 1 and r.min_obstacle_clearance_m == pytest.approx(0.3 - 0.35)
@@ -157,3 +157,28 @@ def test_results_do_not_depend_on_how_ticks_are_chunked(n: int, chunk: int, seed
         for j in range(i + 1, n)
     )
     assert whole.min_separation_m == pytest.approx(d)
+
+
+def test_a_robot_serving_two_tasks_completes_both_each_at_its_own_goal() -> None:
+    # parks at (2, 0) at t = 2 s, then drives on and parks at (2, 3) at t = 5 s
+    first, second = _line((0.0, 0.0), (2.0, 0.0), 101), _line((2.0, 0.0), (2.0, 3.0), 150)
+    poses = np.concatenate([first, np.repeat(first[-1:], 50, axis=0), second])[:, None]
+    modes = np.full((len(poses), 1), DRIVING, dtype=np.uint8)
+    modes[100:150] = ARRIVED
+    modes[-1] = ARRIVED
+    m = RunMetrics(
+        [0.2], [(2.0, 3.0, 0.0)], [], MODES, tasks=[(0, 2.0, 0.0), (0, 2.0, 3.0), (0, -5.0, 0.0)]
+    )
+    t = np.arange(len(poses)) * DT
+    m.add(TraceChunk(t, poses, modes))
+    r = m.result()
+    assert r.task_arrivals[:2] == pytest.approx([100 * DT, (len(poses) - 1) * DT])
+    assert math.isnan(r.task_arrivals[2])  # arrived twice, never there
+    assert r.success_count() == 2 and r.makespan(3, 99.0) == 99.0
+    assert r.arrivals[0] == pytest.approx(100 * DT)  # the robot's first arrival
+
+
+def test_arrived_far_from_the_goal_is_no_arrival() -> None:
+    poses = _line((0.0, 0.0), (1.0, 0.0), 50)[:, None]
+    modes = np.full((50, 1), ARRIVED, dtype=np.uint8)
+    assert _run(poses, modes, goals=[(3.0, 0.0, 0.0)]).success_count() == 0

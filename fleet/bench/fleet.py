@@ -545,6 +545,7 @@ class SummaryRow(BaseModel):
     path_ratio_worst: float | None
     deadlocks_mean: float
     deadlocks_worst: int
+    obstacle_hits_worst: int = 0  # robots that hit a static obstacle, worst run
     plan_p99_worst_ms: float | None
 
 
@@ -575,6 +576,7 @@ def summarise(rows: Iterable[FleetBenchRow]) -> list[SummaryRow]:
                 path_ratio_worst=max(ratios) if ratios else None,
                 deadlocks_mean=round(float(np.mean([r.deadlocks for r in group])), 2),
                 deadlocks_worst=max(r.deadlocks for r in group),
+                obstacle_hits_worst=max(r.obstacle_hits for r in group),
                 plan_p99_worst_ms=max(plans) if plans else None,
             )
         )

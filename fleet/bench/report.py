@@ -5,11 +5,13 @@ Pure formatting of :class:`~fleet.bench.fleet.FleetBenchRow` lists (one run's ro
 
 * :func:`policy_table` -- one line per scenario family, one column per policy; a cell is
   ``success · collisions · makespan`` (means over the family's seeds; with several seeds
-  the worst success and the most collisions follow in brackets);
+  the worst success and the most collisions follow in brackets), then the robots that hit
+  a static obstacle in the worst run, if any;
 * :func:`auto_table` -- ``auto`` against the issue's targets, family by family: 100 %
-  success and 0 collisions, success at least every navground behaviour's, makespan within
-  1.25x of the fastest policy that had no collision (and, for reference, its path ratio,
-  deadlocks, worst separation and planning latency). Misses are spelled out.
+  success and 0 collisions (with robots or obstacles), success at least every navground
+  behaviour's, makespan within 1.25x of the fastest policy that touched nothing (and, for
+  reference, its path ratio, deadlocks, worst separation and planning latency). Misses are
+  spelled out.
 """
 
 from __future__ import annotations
@@ -41,6 +43,8 @@ def _cell(s: SummaryRow | None) -> str:
             f"{s.success_mean:.0%} ({s.success_worst:.0%}) · {s.collisions_mean:g} "
             f"({s.collisions_worst}) · {s.makespan_mean_s:.0f} s"
         )
+    if s.obstacle_hits_worst:
+        text += f" · **{s.obstacle_hits_worst} hit obstacles**"
     return text
 
 
@@ -60,12 +64,12 @@ def policy_table(rows: Sequence[FleetBenchRow]) -> str:
 
 
 def _fastest_clean(family: str, summary: dict[tuple[str, str], SummaryRow]) -> SummaryRow | None:
-    """The other policy with no collision in any run and the shortest mean makespan (the
-    most successful first among equals)."""
+    """The other policy that touched no robot and no obstacle in any run, with the
+    shortest mean makespan (the most successful first among equals)."""
     clean = [
         s
         for (f, p), s in summary.items()
-        if f == family and p != "auto" and s.collisions_worst == 0
+        if f == family and p != "auto" and s.collisions_worst == 0 and s.obstacle_hits_worst == 0
     ]
     return min(clean, key=lambda s: (s.makespan_mean_s, -s.success_mean), default=None)
 
@@ -77,6 +81,9 @@ def _misses(auto: SummaryRow, family: str, summary: dict[tuple[str, str], Summar
     if auto.collisions_worst:
         pairs = auto.collisions_worst
         misses.append(f"{pairs} colliding pair{'s' if pairs > 1 else ''}")
+    if auto.obstacle_hits_worst:
+        hits = auto.obstacle_hits_worst
+        misses.append(f"{hits} robot{'s' if hits > 1 else ''} hit obstacles")
     better = [
         p
         for p in PEER_POLICIES

@@ -23,7 +23,7 @@ def _row(family: str, policy: str, seed: int | None = None, **figures: float) ->
         deadlocks=0,
         plan_p50_ms=10.0 if policy == "auto" else None,
         plan_p99_ms=30.0 if policy == "auto" else None,
-        obstacle_hits=0,
+        obstacle_hits=int(values.get("obstacle_hits", 0)),
         min_obstacle_clearance_m=None,
         tasks=4,
         arrived=round(4 * values["success_rate"]),
@@ -63,3 +63,16 @@ def test_auto_verdicts_name_every_missed_target_and_only_those() -> None:
     assert bad.endswith(
         "| success 75%; 1 colliding pair; less success than hl; makespan 2.5x hl's |"
     )
+
+
+def test_robots_through_obstacles_are_a_miss_and_never_the_clean_reference() -> None:
+    rows = [
+        _row("park", "auto", makespan_s=60.0, obstacle_hits=3),
+        _row("park", "hl", makespan_s=30.0, obstacle_hits=1),  # fast, through a post
+        _row("park", "orca", makespan_s=55.0),
+    ]
+    park = policy_table(rows).splitlines()[2]
+    assert park.startswith("| park | 4 | 1 | 100% · 0 · 60 s · **3 hit obstacles** |")
+    assert "| 100% · 0 · 55 s |" in park  # none hit: nothing added
+    verdict = auto_table(rows).splitlines()[2]
+    assert verdict.endswith("| orca 55 s | 1.20 | 0 | 10 / 30 | 3 robots hit obstacles |")

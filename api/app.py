@@ -107,6 +107,7 @@ def create_app(
                 yield
             finally:
                 hub.close()
+                app.state.plots.close()
                 app.state.service = app.state.tasks = None
 
     app = FastAPI(

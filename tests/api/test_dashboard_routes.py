@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import threading
 import time
 
 import httpx
@@ -143,6 +144,25 @@ def test_the_plot_cache_keeps_the_most_recently_used() -> None:
     assert (cache.get("a"), cache.get("b"), cache.get("c")) == (b"a", None, b"c")
     assert cache.render("a", lambda: b"never drawn") == b"a"
     assert cache.renders == 3
+    cache.close()
+
+
+def test_plots_are_drawn_on_one_thread_whoever_asks() -> None:
+    cache = PlotCache(entries=8, rate=100.0, burst=10)
+    drawn_on: list[int] = []
+
+    def draw() -> bytes:
+        drawn_on.append(threading.get_ident())
+        return b"png"
+
+    askers = [threading.Thread(target=cache.render, args=(f"task-{k}", draw)) for k in range(4)]
+    for t in askers:
+        t.start()
+    for t in askers:
+        t.join()
+    assert len(drawn_on) == 4 and len(set(drawn_on)) == 1
+    assert drawn_on[0] not in {t.ident for t in askers}
+    cache.close()
 
 
 def test_token_bucket_allows_bursts_then_the_rate() -> None:

@@ -44,7 +44,8 @@ def _cell(s: SummaryRow | None) -> str:
             f"({s.collisions_worst}) · {s.makespan_mean_s:.0f} s"
         )
     if s.obstacle_hits_worst:
-        text += f" · **{s.obstacle_hits_worst} hit obstacles**"
+        hits = s.obstacle_hits_worst
+        text += f" · **{hits} robot{'s' if hits > 1 else ''} hit obstacles**"
     return text
 
 

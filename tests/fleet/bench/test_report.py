@@ -72,7 +72,8 @@ def test_robots_through_obstacles_are_a_miss_and_never_the_clean_reference() -> 
         _row("park", "orca", makespan_s=55.0),
     ]
     park = policy_table(rows).splitlines()[2]
-    assert park.startswith("| park | 4 | 1 | 100% · 0 · 60 s · **3 hit obstacles** |")
+    assert park.startswith("| park | 4 | 1 | 100% · 0 · 60 s · **3 robots hit obstacles** |")
     assert "| 100% · 0 · 55 s |" in park  # none hit: nothing added
+    assert "| 100% · 0 · 30 s · **1 robot hit obstacles** |" in park
     verdict = auto_table(rows).splitlines()[2]
     assert verdict.endswith("| orca 55 s | 1.20 | 0 | 10 / 30 | 3 robots hit obstacles |")

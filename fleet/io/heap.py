@@ -1,4 +1,4 @@
-"""Give the C heap's free pages back to the operating system, now and then.
+"""A bounded C heap for a long-running server: few ``malloc`` arenas, free pages given back.
 
 A long-running server allocates and frees many short-lived buffers through ``malloc``
 (request and event bodies, numpy arrays of the planner, SQLite pages, Zenoh payloads) from
@@ -21,12 +21,8 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
-import logging
 import threading
 from collections.abc import Callable
-
-_log = logging.getLogger(__name__)
-
 
 #: ``mallopt`` parameter number of the arena cap (glibc's ``malloc.h``).
 M_ARENA_MAX = -8

@@ -20,7 +20,6 @@ both do nothing.
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import threading
 from collections.abc import Callable
 
@@ -28,14 +27,14 @@ from collections.abc import Callable
 M_ARENA_MAX = -8
 
 
+#: The process's own symbols (the C library among them): no ``find_library`` subprocess.
+_PROCESS = ctypes.CDLL(None)
+
+
 def _libc_function(name: str, *argtypes: type) -> Callable[..., int] | None:
-    """A glibc function returning ``int``, or None where the C library has none."""
-    path = ctypes.util.find_library("c")
-    if path is None:
-        return None
-    try:
-        function = getattr(ctypes.CDLL(path), name)
-    except (OSError, AttributeError):
+    """A C library function returning ``int``, or None where the C library has none."""
+    function = getattr(_PROCESS, name, None)
+    if function is None:
         return None
     function.argtypes = list(argtypes)
     function.restype = ctypes.c_int

@@ -8,6 +8,7 @@ or unknown payload comes back as a :class:`Rejected` with the reason; the I/O ed
 Key expressions::
 
     parkfleet/<fleet>/robot/<id>/state        robot -> all     RobotState
+    parkfleet/<fleet>/robot/<id>/description  robot -> fleet   RobotDescription (also a queryable)
     parkfleet/<fleet>/robot/<id>/assignment   fleet -> robot   ParkAssignment | CancelAssignment
     parkfleet/<fleet>/robot/<id>/control      operator -> robot ControlCommand for that robot
     parkfleet/<fleet>/control                 operator -> all  ControlCommand for every robot
@@ -37,6 +38,16 @@ Protocol between the fleet service and a robot agent:
 * ``CancelAssignment`` for the current task stops the robot: ``mode=holding``, task id kept.
 * With no assignment the robot stands still in ``mode=idle`` with ``task_id=None``.
 
+Robot description (:class:`RobotDescription`, the role of VDA 5050's factsheet): what the
+robot is -- body radius, axle, wheel radius and limit, whether it may reverse. A robot
+puts it on ``robot/<id>/description`` when it declares its liveliness token and answers
+queries on that key for as long as the token lives; the fleet plans, checks goals and
+draws each robot with its own description. Compatibility rule: a new key and a new
+message, nothing else changes (``v`` stays 1). A robot of an older release publishes no
+description: the fleet then plans it with the host's own ``[profile]`` and says so
+(the robot is listed as ``described: false``). A service of an older release never
+subscribes to the key and behaves as before.
+
 Operator control (:class:`ControlCommand`, VDA 5050's ``startPause``/``stopPause`` and its
 emergency stop), obeyed by every agent directly, so any tool can stop the fleet even when
 the fleet service is down:
@@ -58,6 +69,7 @@ the fleet service is down:
 
 from __future__ import annotations
 
+import math
 import re
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -66,7 +78,7 @@ from typing import Annotated, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
 
-from fleet.core.params import Avoidance, Gains, Tolerance
+from fleet.core.params import Avoidance, Gains, RobotProfile, Tolerance
 from fleet.core.types import Law
 
 SCHEMA_VERSION = 1
@@ -104,6 +116,13 @@ class Keys:
 
     def state(self, robot_id: str) -> str:
         return f"{self.root}/robot/{validate_id(robot_id)}/state"
+
+    def description(self, robot_id: str) -> str:
+        return f"{self.root}/robot/{validate_id(robot_id)}/description"
+
+    @property
+    def all_descriptions(self) -> str:
+        return f"{self.root}/robot/*/description"
 
     def assignment(self, robot_id: str) -> str:
         return f"{self.root}/robot/{validate_id(robot_id)}/assignment"
@@ -232,6 +251,56 @@ class RobotState(_Message):
     errors: Annotated[list[RobotError], Field(max_length=MAX_ROBOT_ERRORS)] = Field(
         default_factory=list
     )
+
+
+class RobotDescription(_Message):
+    """Robot -> fleet on ``robot/<id>/description``: what the robot is (module docstring).
+
+    Fields flat (not a nested ``RobotProfile``) so a newer robot's extra fields are ignored
+    by an older fleet. ``max_wheel_speed`` [rad/s] ``None`` = no limit (the paper's robot).
+    """
+
+    kind: Literal["description"] = "description"
+    robot_id: RobotId
+    radius: Annotated[float, Field(gt=0, le=10.0, allow_inf_nan=False)]  # body radius [m]
+    wheel_radius: Annotated[float, Field(gt=0, le=10.0, allow_inf_nan=False)]  # [m]
+    half_axle: Annotated[float, Field(gt=0, le=10.0, allow_inf_nan=False)]  # [m]
+    max_wheel_speed: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = None
+    #: Whether the base may drive backwards (laws (17)/(20) reverse near the goal).
+    may_reverse: bool = True
+    #: Free text for people, e.g. ``TurtleBot 4 (Create 3)``.
+    model: Annotated[str, Field(max_length=64)] | None = None
+
+    @classmethod
+    def of(
+        cls,
+        robot_id: str,
+        profile: RobotProfile,
+        *,
+        may_reverse: bool = True,
+        model: str | None = None,
+    ) -> RobotDescription:
+        """The description of a robot with ``profile``."""
+        limit = profile.max_wheel_speed
+        return cls(
+            robot_id=robot_id,
+            radius=profile.radius,
+            wheel_radius=profile.wheel_radius,
+            half_axle=profile.half_axle,
+            max_wheel_speed=None if limit == math.inf else limit,
+            may_reverse=may_reverse,
+            model=model,
+        )
+
+    @property
+    def profile(self) -> RobotProfile:
+        """The robot's physical profile (Eq. 2, Table 10)."""
+        return RobotProfile(
+            wheel_radius=self.wheel_radius,
+            half_axle=self.half_axle,
+            max_wheel_speed=math.inf if self.max_wheel_speed is None else self.max_wheel_speed,
+            radius=self.radius,
+        )
 
 
 class ParkAssignment(_Message):

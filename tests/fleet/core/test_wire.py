@@ -8,13 +8,14 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fleet.core.params import Gains
+from fleet.core.params import UNLIMITED, Gains, RobotProfile
 from fleet.core.wire import (
     MAX_PAYLOAD_BYTES,
     CancelAssignment,
     Keys,
     ParkAssignment,
     Pose,
+    RobotDescription,
     RobotState,
     encode,
     validate_id,
@@ -102,3 +103,33 @@ def test_unknown_top_level_fields_are_ignored_so_releases_can_mix() -> None:
     state = decoder.decode(RobotState, newer)
     assert state is not None and state.robot_id == "r1"
     assert decoder.dropped_total == 0
+
+
+@given(
+    radius=st.floats(0.01, 2.0),
+    wheel_radius=st.floats(0.01, 0.5),
+    half_axle=st.floats(0.01, 1.0),
+    limit=st.one_of(st.just(float("inf")), st.floats(0.1, 200.0)),
+    may_reverse=st.booleans(),
+)
+def test_a_robot_description_carries_its_profile_exactly(
+    radius: float, wheel_radius: float, half_axle: float, limit: float, may_reverse: bool
+) -> None:
+    profile = RobotProfile(
+        radius=radius, wheel_radius=wheel_radius, half_axle=half_axle, max_wheel_speed=limit
+    )
+    description = RobotDescription.of("r1", profile, may_reverse=may_reverse)
+    received = Decoder().decode(RobotDescription, encode(description))
+    assert received is not None
+    assert received.profile == profile  # JSON floats round-trip; no limit travels as null
+    assert received.may_reverse is may_reverse
+
+
+def test_description_key_and_an_older_fleets_view_of_it() -> None:
+    keys = Keys("yard-1")
+    assert keys.description("robot-1") == "parkfleet/yard-1/robot/robot-1/description"
+    assert keys.robot_of(keys.description("robot-1")) == "robot-1"
+    unlimited = json.loads(encode(RobotDescription.of("r1", UNLIMITED)))
+    assert unlimited["max_wheel_speed"] is None
+    newer = encode(RobotDescription.of("r1", UNLIMITED))[:-1] + b', "max_accel": 2.0}'
+    assert Decoder().decode(RobotDescription, newer) is not None

@@ -120,7 +120,13 @@ class Settings(BaseSettings):
     acl_identity: Literal["username", "cert_common_name"] = "username"
     acl_robot_ids: list[str] = Field(default_factory=list)  # [] -> the credentials file's users
     acl_service_users: list[str] = Field(default_factory=lambda: ["fleet"])
+    # Operators' tools (parkfleet estop | pause | resume): operator commands and states only.
+    acl_operator_users: list[str] = Field(default_factory=list)
     acl_file: Path | None = None  # a hand-written access_control block (JSON5) used verbatim
+    # Robots whose ROS 2 traffic crosses this router (the robot's rmw_zenoh router pointed
+    # at the fleet host): robot id -> its ROS namespace, on ROS domain acl_ros2_domain_id.
+    acl_ros2_namespaces: dict[str, RosNamespace] = Field(default_factory=dict)
+    acl_ros2_domain_id: Annotated[int, Field(ge=0, le=232)] = 0
 
     # Robot agent
     robot_id: str | None = None
@@ -189,10 +195,15 @@ class Settings(BaseSettings):
     def _robot_id_is_key_safe(cls, value: str | None) -> str | None:
         return None if value is None else validate_id(value)
 
-    @field_validator("acl_robot_ids", "acl_service_users")
+    @field_validator("acl_robot_ids", "acl_service_users", "acl_operator_users")
     @classmethod
     def _acl_ids_are_key_safe(cls, value: list[str]) -> list[str]:
         return [validate_id(v, "access-control id") for v in value]
+
+    @field_validator("acl_ros2_namespaces")
+    @classmethod
+    def _acl_ros2_robots_are_key_safe(cls, value: dict[str, str]) -> dict[str, str]:
+        return {validate_id(robot, "access-control id"): ns for robot, ns in value.items()}
 
     @model_validator(mode="after")
     def _security_settings_come_in_pairs(self) -> Settings:

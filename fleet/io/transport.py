@@ -97,12 +97,16 @@ def access_control_json(settings: Settings) -> str | None:
     robots = list(settings.acl_robot_ids)
     if not robots and settings.zenoh_credentials_file is not None:
         users = credential_users(settings.zenoh_credentials_file.read_text())
-        robots = [u for u in users if u not in settings.acl_service_users]
+        trusted = {*settings.acl_service_users, *settings.acl_operator_users}
+        robots = [u for u in users if u not in trusted]
     block = fleet_acl(
         Keys(settings.fleet_name),
         robots,
         service_identities=settings.acl_service_users,
+        operator_identities=settings.acl_operator_users,
         identity=settings.acl_identity,
+        ros2_namespaces=settings.acl_ros2_namespaces,
+        ros2_domain_id=settings.acl_ros2_domain_id,
     )
     return json.dumps(block)
 

@@ -37,7 +37,7 @@ pytestmark = pytest.mark.integration
 KEYS = Keys()
 PARKFLEET = Path(sys.executable).with_name("parkfleet")
 CLI = [str(PARKFLEET)] if PARKFLEET.exists() else [sys.executable, "-m", "fleet.cli"]
-PASSWORDS = {"fleet": "fleet-pw", "r1": "r1-pw", "r2": "r2-pw"}
+PASSWORDS = {"fleet": "fleet-pw", "ops": "ops-pw", "r1": "r1-pw", "r2": "r2-pw"}
 
 
 # -- certificates ---------------------------------------------------------------------------
@@ -127,12 +127,12 @@ def _leaf(common_name: str, ca: tuple[x509.Certificate, Key]) -> tuple[x509.Cert
 
 @pytest.fixture(scope="module")
 def pki(tmp_path_factory: pytest.TempPathFactory) -> Pki:
-    """A CA with certificates for two routers, the fleet service and robots r1, r2; and a
-    certificate for "r1" signed by a rogue CA."""
+    """A CA with certificates for two routers, the fleet service, an operator and robots r1,
+    r2; and a certificate for "r1" signed by a rogue CA."""
     folder = tmp_path_factory.mktemp("pki")
     ca = _ca("parkfleet test CA")
     _write(folder, "ca", *ca)
-    for name in ("router", "site-b", "fleet", "r1", "r2"):
+    for name in ("router", "site-b", "fleet", "ops", "r1", "r2"):
         _write(folder, name, *_leaf(name, ca))
     _write(folder, "rogue-r1", *_leaf("r1", _ca("rogue CA")))
     return Pki(folder)
@@ -246,8 +246,9 @@ def _acl_settings(
     """Router settings with the generated ACL, and a factory of client settings."""
     if identity == "username":  # usrpwd over TCP
         router = load_settings(
-            listen=["tcp/127.0.0.1:0"], zenoh_credentials_file=credentials, acl=True
-        )
+            listen=["tcp/127.0.0.1:0"], zenoh_credentials_file=credentials, acl=True,
+            acl_operator_users=["ops"],
+        )  # fmt: skip
 
         def client(endpoint: str, who: str) -> Settings:
             return load_settings(connect=[endpoint], zenoh_user=who, zenoh_password=PASSWORDS[who])
@@ -257,6 +258,7 @@ def _acl_settings(
         listen=["tls/127.0.0.1:0"], tls_root_ca=pki.ca,
         tls_cert=pki.cert("router"), tls_key=pki.key("router"),
         acl=True, acl_identity="cert_common_name", acl_robot_ids=["r1", "r2"],
+        acl_operator_users=["ops"],
     )  # fmt: skip
 
     def tls_client(endpoint: str, who: str) -> Settings:
@@ -444,3 +446,213 @@ def test_robot_ids_with_key_expression_wildcards_are_rejected(
 ) -> None:
     assert parkfleet_main(argv) == 2
     assert "invalid robot id" in capsys.readouterr().err
+
+
+# -- operator commands, the link check and ROS 2 traffic under the ACL ----------------------
+def _identity_env(identity: str, who: str, pki: Pki) -> dict[str, str]:
+    """Environment that makes a ``parkfleet`` child present ``who``'s identity."""
+    if identity == "username":
+        return {"PARKFLEET_ZENOH_USER": who, "PARKFLEET_ZENOH_PASSWORD": PASSWORDS[who]}
+    return {
+        "PARKFLEET_TLS_ROOT_CA": str(pki.ca),
+        "PARKFLEET_TLS_CERT": str(pki.cert(who)),
+        "PARKFLEET_TLS_KEY": str(pki.key(who)),
+    }
+
+
+def _operator(endpoint: str, env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:
+    """Run ``parkfleet ARGS --connect ENDPOINT`` as an operator would, to the end."""
+    return subprocess.run(
+        [*CLI, *args, "--connect", endpoint, "--wait", "20"],
+        capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL,
+        env=os.environ | {"PYTHONUNBUFFERED": "1"} | env,
+    )  # fmt: skip
+
+
+def _mode(watch: Collector, robot: str) -> str | None:
+    """The mode in the newest state of ``robot`` a collector received."""
+    decoder = Decoder("test")
+    with watch.lock:
+        samples = list(watch.samples)
+    for key, payload in reversed(samples):
+        state = decoder.decode(RobotState, payload)
+        if key == KEYS.state(robot) and state is not None:
+            return state.mode.value
+    return None
+
+
+@pytest.mark.parametrize("identity", ["username", "cert_common_name"])
+def test_operator_commands_reach_a_robot_under_the_acl_and_forged_ones_do_not(
+    identity: str, pki: Pki, credentials: Path
+) -> None:
+    """``parkfleet estop | pause | resume`` from an operator identity stop, pause, resume
+    and release a simulated robot that has its own identity, each confirmed; robot r2's
+    forged release (fleet-wide and addressed to r1) is dropped at the router."""
+    from fleet.core.wire import ControlAction
+    from fleet.io import operator
+    from sim_agent.fleet import SimFleet, Spawn
+
+    router_settings, client = _acl_settings(identity, pki, credentials)
+    ops = _identity_env(identity, "ops", pki)
+    with (
+        running_router(router_settings) as (router, endpoint),
+        open_session(client(endpoint, "r1"), "client") as r1,
+        open_session(client(endpoint, "r2"), "client") as r2,
+        SimFleet(r1, client(endpoint, "r1"), [Spawn("r1", 0.0, 0.0, 0.0)]) as fleet,
+    ):
+        fleet.start()
+        at_router = Collector(router, f"{KEYS.root}/**")
+        wait_for(lambda: _mode(at_router, "r1") == "idle", 30.0, "r1's state at the router")
+
+        done = _operator(endpoint, ops, "estop", "--reason", "acl drill")
+        assert done.returncode == 0, done.stdout + done.stderr
+        assert "r1: confirmed" in done.stdout
+        wait_for(lambda: _mode(at_router, "r1") == "estop", 10.0, "r1 e-stopped")
+
+        forged = [
+            operator.command(ControlAction.RELEASE, issuer="r2", robot_id=robot)
+            for robot in (None, "r1")
+        ]
+        for message in forged:
+            r2.put(KEYS.control(message.robot_id), encode(message))
+        fence = (KEYS.state("r2"), b"fence")  # after the forgeries, on r2's own link
+        put_until(r2, *fence, lambda: fence in at_router.seen())
+        assert not any(payload == encode(m) for m in forged for _, payload in at_router.seen())
+        assert _mode(at_router, "r1") == "estop"
+
+        for args, mode in (
+            (("pause",), "estop"),  # e-stop wins over pause
+            (("estop", "--release"), "paused"),
+            (("resume",), "idle"),
+        ):
+            done = _operator(endpoint, ops, *args)
+            assert done.returncode == 0, done.stdout + done.stderr
+            assert "r1: confirmed" in done.stdout
+            wait_for(lambda m=mode: _mode(at_router, "r1") == m, 10.0, f"r1 {mode}")
+        at_router.sub.undeclare()
+
+
+def test_rest_estop_reaches_a_robot_under_the_acl(credentials: Path, tmp_path: Path) -> None:
+    """``parkfleet serve`` as the ACL router (the README's fleet host): ``POST
+    /control/estop`` stops a robot connected with its own credentials, and the release
+    frees it; the service sees both."""
+    import httpx
+
+    from fleet.io.processes import running_server
+    from sim_agent.fleet import SimFleet, Spawn
+
+    env = {
+        "PARKFLEET_ACL": "true",
+        "PARKFLEET_ZENOH_CREDENTIALS_FILE": str(credentials),
+        "PARKFLEET_API_TOKEN": "secret",
+    }
+    with (
+        (tmp_path / "serve.log").open("w") as log,
+        running_server(tmp_path / "data", env=env, stderr=log) as server,
+    ):
+        robot = load_settings(
+            connect=[server.zenoh_endpoint], zenoh_user="r1", zenoh_password=PASSWORDS["r1"]
+        )
+        with (
+            open_session(robot, "client") as r1,
+            SimFleet(r1, robot, [Spawn("r1", 0.0, 0.0, 0.0)]) as fleet,
+            httpx.Client(base_url=server.url, headers={"Authorization": "Bearer secret"}) as api,
+        ):
+            fleet.start()
+
+            def status() -> str | None:
+                reply = api.get("/robots/r1")
+                return reply.json()["status"] if reply.status_code == 200 else None
+
+            wait_for(lambda: status() == "idle", 60.0, "r1 to join the service")
+            assert api.post("/control/estop", json={"reason": "acl drill"}).status_code == 200
+            wait_for(lambda: status() == "estop", 10.0, "r1 e-stopped through the ACL")
+            assert api.post("/control/release", json={}).status_code == 200
+            wait_for(lambda: status() == "idle", 10.0, "r1 released")
+
+
+@pytest.mark.parametrize("identity", ["username", "cert_common_name"])
+def test_a_lone_robots_link_check_echo_is_answered_under_the_acl(
+    identity: str, pki: Pki, credentials: Path
+) -> None:
+    """The link check's echo (``robot_agent.link``): with no peer and no service, the router's
+    reply to a robot's admin-space query is what keeps the robot's link up."""
+    from robot_agent.link import LinkMonitor
+
+    router_settings, client = _acl_settings(identity, pki, credentials)
+    with (
+        running_router(router_settings) as (_router, endpoint),
+        open_session(client(endpoint, "r1"), "client") as r1,
+    ):
+        ticks = [0.0]
+        monitor = LinkMonitor(r1, KEYS, timeout_s=3.0, clock=lambda: ticks[0])
+        heard_at_start = monitor._last_heard
+
+        def echoed() -> bool:
+            ticks[0] += 0.1  # a clock of our own: only an echo reply can move last_heard
+            monitor.ok()
+            return monitor._last_heard > heard_at_start
+
+        wait_for(echoed, 20.0, "the router's echo reply", poll=0.05)
+
+
+@pytest.mark.parametrize("identity", ["username", "cert_common_name"])
+def test_a_robots_ros2_traffic_crosses_the_acl_router_in_its_namespace_only(
+    identity: str, pki: Pki, credentials: Path
+) -> None:
+    """The robot's rmw_zenoh router pointed at the fleet host (``acl_ros2_namespaces``): the
+    drive (robot r1's identity) and the robot's router (the same identity) exchange cmd_vel,
+    odometry and ROS-graph tokens under /tb4_1; r2 (namespace /tb4_2) cannot command r1's
+    base, and r1's side does not see r2's graph."""
+    from robot_agent.drives.ros2_names import data_key, node_token, topic_path
+
+    router_settings, client = _acl_settings(identity, pki, credentials)
+    namespaces = {"r1": "/tb4_1", "r2": "/tb4_2"}
+    router_settings = router_settings.model_copy(update={"acl_ros2_namespaces": namespaces})
+    cmd_vel = data_key("rmw_zenoh", 0, topic_path("rmw_zenoh", "cmd_vel", "/tb4_1"), "a/msg/T", "H")
+    odom = data_key("rmw_zenoh", 0, topic_path("rmw_zenoh", "odom", "/tb4_1"), "a/msg/O", "H")
+    with (
+        running_router(router_settings) as (router, endpoint),
+        open_session(client(endpoint, "r1"), "client") as drive,
+        open_session(client(endpoint, "r1"), "client") as base,  # the robot's own router
+        open_session(client(endpoint, "r2"), "client") as r2,
+    ):
+        at_router = Collector(router, "0/**")
+        at_base = Collector(base, "0/tb4_1/**")
+        at_drive = Collector(drive, "0/tb4_1/odom/**")
+        token = drive.liveliness().declare_token(node_token(0, "aa", 0, "/tb4_1", "parkfleet_r1"))
+        other = r2.liveliness().declare_token(node_token(0, "bb", 0, "/tb4_2", "parkfleet_r2"))
+
+        def forge_and_send() -> None:
+            r2.put(cmd_vel, b"forged")
+            drive.put(cmd_vel, b"twist")
+
+        def crossed() -> bool:
+            if (cmd_vel, b"twist") in at_base.seen() and (odom, b"pose") in at_drive.seen():
+                return True
+            forge_and_send()
+            base.put(odom, b"pose")
+            return False
+
+        wait_for(crossed, 10.0, "cmd_vel and odometry to cross the router", poll=0.05)
+        fence = (KEYS.state("r2"), b"fence")
+        fences = Collector(router, fence[0])
+        put_until(r2, *fence, lambda: fence in fences.seen())
+
+        def graph(session: Any) -> set[str]:
+            replies = session.liveliness().get("@ros2_lv/0/**", timeout=2.0)
+            return {str(reply.ok.key_expr) for reply in replies if reply.ok is not None}
+
+        both = {
+            node_token(0, "aa", 0, "/tb4_1", "parkfleet_r1"),
+            node_token(0, "bb", 0, "/tb4_2", "parkfleet_r2"),
+        }
+        wait_for(lambda: graph(router) == both, 10.0, "both robots' graph tokens at the router")
+        wait_for(lambda: bool(graph(base)), 10.0, "r1's graph token at its robot's router")
+        seen_by_base = graph(base)  # r2's token is at the router by now: it was not forwarded
+        token.undeclare()
+        other.undeclare()
+        for collector in (at_router, at_base, at_drive, fences):
+            collector.sub.undeclare()
+    assert (cmd_vel, b"forged") not in at_router.seen() | at_base.seen()
+    assert seen_by_base == {node_token(0, "aa", 0, "/tb4_1", "parkfleet_r1")}

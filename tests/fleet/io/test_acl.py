@@ -7,10 +7,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import zenoh
 from pydantic import ValidationError
 
 from fleet.core.wire import Keys
-from fleet.io.acl import ALL_MESSAGES, credential_users, fleet_acl
+from fleet.io.acl import ALL_MESSAGES, credential_users, fleet_acl, ros2_keys
 from fleet.io.settings import load_settings
 from fleet.io.transport import zenoh_config
 
@@ -40,7 +41,10 @@ def test_default_deny_robots_publish_only_their_own_keys() -> None:
     assert acl["enabled"] is True and acl["default_permission"] == "deny"
     r1 = grants(acl, "robot-r1")
     published = {(m, k) for f, m, k in r1 if f == "ingress" and m in ("put", "delete")}
-    assert published == {("put", "parkfleet/yard1/robot/r1/state")}
+    assert published == {
+        ("put", "parkfleet/yard1/robot/r1/state"),
+        ("put", "parkfleet/yard1/robot/r1/description"),
+    }
     tokens = {k for f, m, k in r1 if f == "ingress" and m == "liveliness_token"}
     assert tokens == {"parkfleet/yard1/alive/r1"}
     delivered = {k for f, m, k in r1 if f == "egress" and m == "put"}
@@ -139,3 +143,78 @@ def test_a_broken_acl_file_is_a_clear_error(tmp_path: Path) -> None:
     block.write_text("{ enabled: true, default_permission: ")
     with pytest.raises(ValueError, match="invalid access_control"):
         zenoh_config(load_settings(acl_file=block), "router")
+
+
+def test_robots_hear_operator_commands_but_only_services_and_operators_send_them() -> None:
+    acl = fleet_acl(KEYS, ["r1", "r2"], operator_identities=["ops"])
+    fleet_key, own_key = KEYS.control(), KEYS.control("r1")
+    r1 = grants(acl, "robot-r1")
+    assert {("ingress", "declare_subscriber", k) for k in (fleet_key, own_key)} <= r1
+    assert {("egress", "put", k) for k in (fleet_key, own_key)} <= r1
+    assert ("egress", "put", KEYS.control("r2")) not in r1  # not another robot's commands
+    assert not any("control" in k for f, m, k in r1 if f == "ingress" and m == "put")
+    ops = grants(acl, "operator")
+    assert {k for f, m, k in ops if f == "ingress" and m == "put"} == {
+        fleet_key,
+        KEYS.all_robot_controls,
+    }
+    assert ("ingress", "liveliness_query", KEYS.all_alive) in ops
+    assert not any(m == "liveliness_token" for f, m, k in ops if f == "ingress")
+    with pytest.raises(ValueError, match="both robot and operator"):
+        fleet_acl(KEYS, ["r1"], operator_identities=["r1"])
+    with pytest.raises(ValueError, match="both service and operator"):
+        fleet_acl(KEYS, ["r1"], operator_identities=["fleet"])
+
+
+def test_a_robot_answers_queries_on_its_own_description_only() -> None:
+    r1 = grants(fleet_acl(KEYS, ["r1", "r2"]), "robot-r1")
+    own = KEYS.description("r1")
+    assert {("ingress", "declare_queryable", own), ("ingress", "reply", own)} <= r1
+    assert ("egress", "query", own) in r1
+    assert not any(k == KEYS.description("r2") for _, _, k in r1)
+
+
+def test_ros2_grants_cover_exactly_the_robots_namespace() -> None:
+    """The rmw_zenoh keys and graph tokens the ROS 2 drive uses (robot_agent.drives.ros2_names)
+    fall under the grant for its namespace (and those below), another namespace's do not."""
+    from robot_agent.drives.ros2_names import data_key, endpoint_token, node_token, topic_path
+
+    acl = fleet_acl(KEYS, ["r1", "r2"], ros2_namespaces={"r1": "/tb4_1"}, ros2_domain_id=3)
+    r1 = grants(acl, "robot-r1")
+    granted = [zenoh.KeyExpr(k) for f, m, k in r1 if f == "ingress" and m == "put"]
+
+    def allowed(key: str) -> bool:
+        return any(g.includes(zenoh.KeyExpr(key)) for g in granted)
+
+    def keys_of(namespace: str) -> list[str]:
+        path = topic_path("rmw_zenoh", "cmd_vel", namespace)
+        token_fields = dict(
+            domain_id=3, zid="aa", node_id=0, namespace=namespace, node_name="parkfleet_r1",
+            topic=f"{namespace}/cmd_vel", ros_type="geometry_msgs/msg/Twist", type_hash="H",
+            qos="::,:,:,:,,",
+        )  # fmt: skip
+        return [
+            data_key("rmw_zenoh", 3, path, "geometry_msgs/msg/Twist", "H"),
+            node_token(3, "aa", 0, namespace, "parkfleet_r1"),
+            endpoint_token("MP", entity_id=1, **token_fields),  # type: ignore[arg-type]
+            topic_path("bridge", "cmd_vel", namespace),
+        ]
+
+    assert all(allowed(k) for k in keys_of("/tb4_1"))
+    assert not any(allowed(k) for k in keys_of("/tb4_2"))
+    assert all(allowed(k) for k in keys_of("/tb4_1/arm"))  # namespaces below are the robot's
+    assert not any(allowed(k) for k in keys_of("/tb4_10"))
+    assert not any("tb4" in k for _, _, k in grants(acl, "robot-r2"))
+
+
+@pytest.mark.parametrize("namespace", ["", "/"])
+def test_a_root_ros2_namespace_is_refused(namespace: str) -> None:
+    with pytest.raises(ValueError, match="root"):
+        ros2_keys(namespace, 0)
+
+
+def test_ros2_namespaces_must_name_robots_and_be_their_own() -> None:
+    with pytest.raises(ValueError, match="not robots"):
+        fleet_acl(KEYS, ["r1"], ros2_namespaces={"r9": "/tb4_9"})
+    with pytest.raises(ValueError, match="share a ROS 2 namespace"):
+        fleet_acl(KEYS, ["r1", "r2"], ros2_namespaces={"r1": "/tb", "r2": "/tb/"})

@@ -124,5 +124,10 @@ async def test_without_a_site_bays_are_404_with_the_reason(
 ) -> None:
     missing = await client_no_site.post("/tasks", json={"bay": "A1"})
     assert missing.status_code == 404 and "no site map" in missing.json()["detail"]
-    assert (await client_no_site.get("/bays")).json() == []
-    assert (await client_no_site.get("/site")).status_code == 404
+    for path in ("/bays", "/site"):
+        r = await client_no_site.get(path)
+        assert r.status_code == 404, path
+        assert r.json() == {"detail": "this fleet has no site map (--site)"}
+    paths = (await client_no_site.get("/openapi.json")).json()["paths"]
+    assert "404" in paths["/bays"]["get"]["responses"]
+    assert "404" in paths["/site"]["get"]["responses"]

@@ -12,7 +12,7 @@ from fleet.io.settings import Settings
 from fleet.service.bus import MemoryBus
 from fleet.service.fleet_service import FleetService
 from fleet.service.store import SqliteTaskStore
-from tests.api.conftest import add_robot, api_client
+from tests.api.conftest import add_robot, api_client, drive
 
 pytestmark = pytest.mark.anyio
 
@@ -229,8 +229,27 @@ async def test_cancel_then_cancel_again_is_409(client: httpx.AsyncClient) -> Non
     assert "cancelled" in again.json()["detail"]
 
 
-async def test_path_of_a_task(client: httpx.AsyncClient) -> None:
+async def test_path_of_a_task_not_driven_yet_is_409(client: httpx.AsyncClient) -> None:
     task_id = (await client.post("/tasks", json={"goal": {"x": 1, "y": 1}})).json()["id"]
     r = await client.get(f"/tasks/{task_id}/path")
-    assert r.status_code == 200
-    assert r.json() == []  # no robot has driven it yet
+    assert r.status_code == 409  # no robot has driven it yet
+    assert r.json() == {
+        "detail": f"task {task_id} has no recorded path (queued): a path is recorded while a "
+        "robot drives the task, and only for the most recent tasks"
+    }
+    responses = (await client.get("/openapi.json")).json()["paths"]["/tasks/{task_id}/path"]
+    assert {"200", "404", "409"} <= set(responses["get"]["responses"])
+
+
+async def test_path_of_a_driven_task_is_200(
+    client: httpx.AsyncClient, fleet: FleetService, bus: MemoryBus
+) -> None:
+    add_robot(bus, "r1", 0.0, 0.0)
+    body = {"goal": {"x": 2.0, "y": 1.0, "theta": 1.0}, "robot_id": "r1"}
+    task_id = (await client.post("/tasks", json=body)).json()["id"]
+    drive(fleet, bus, task_id, range(1, 10))
+    r = await client.get(f"/tasks/{task_id}/path")
+    assert r.status_code == 200, r.text
+    points = r.json()
+    assert points and set(points[0]) == {"t", "x", "y", "theta", "u", "omega"}
+    assert points[-1]["x"] == pytest.approx(2.0 * 9 / 40)

@@ -37,7 +37,8 @@ DEFAULT_PAGE = 100
         404: {"model": ErrorOut, "description": "unknown robot, bay or bay group"},
         409: {
             "model": ErrorOut,
-            "description": "goal rejected (obstacle or keep-out zone, near a goal), bay taken",
+            "description": "goal rejected (outside the yard, in an obstacle's or keep-out "
+            "zone, near a goal), bay taken, robot decommissioned; the reason in `detail`",
         },
     },
 )

@@ -146,20 +146,37 @@ async def test_non_finite_numbers_are_422_naming_the_field(
 
 
 @pytest.mark.parametrize(
-    ("goal", "field"),
+    ("goal", "where"),
     [
-        ({"x": 10.5, "y": 0}, "goal.x"),
-        ({"x": 0, "y": -5.01}, "goal.y"),
-        ({"x": -11, "y": 9}, "goal.x"),
+        ({"x": 10.5, "y": 0}, "(10.50, 0.00)"),
+        ({"x": 0, "y": -5.01}, "(0.00, -5.01)"),
+        ({"x": -11, "y": 9}, "(-11.00, 9.00)"),
     ],
 )
-async def test_out_of_yard_goal_is_422_naming_the_field(
-    client: httpx.AsyncClient, goal: dict[str, float], field: str
+async def test_out_of_yard_goal_is_409_goal_rejected_with_the_reason(
+    client: httpx.AsyncClient, goal: dict[str, float], where: str
 ) -> None:
+    """A well-formed goal the yard rejects is a 409 (as one in an obstacle's zone), not a
+    422: 422 is for malformed fields."""
     r = await client.post("/tasks", json={"goal": goal})
-    assert r.status_code == 422
-    assert field in r.json()["detail"]
-    assert "outside the yard" in r.json()["detail"]
+    assert r.status_code == 409, r.text
+    assert r.json() == {
+        "detail": f"goal {where} is outside the yard x in [-10, 10], y in [-5, 5] m"
+    }
+
+
+async def test_goal_bounds_are_not_in_the_schema_but_obstacle_bounds_are(
+    client: httpx.AsyncClient,
+) -> None:
+    """The OpenAPI schema matches the codes: a goal outside the yard is well-formed (409),
+    an obstacle centre outside it is not (422)."""
+    schema = (await client.get("/openapi.json")).json()
+    components = schema["components"]["schemas"]
+    assert "maximum" not in components["PoseIn"]["properties"]["x"]
+    assert components["ObstacleIn"]["properties"]["x"]["maximum"] == 10.0
+    responses = schema["paths"]["/tasks"]["post"]["responses"]
+    assert {"201", "401", "404", "409", "422"} <= set(responses)
+    assert "outside the yard" in responses["409"]["description"]
 
 
 async def test_yard_edges_are_inside(client: httpx.AsyncClient) -> None:

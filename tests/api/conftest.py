@@ -89,6 +89,17 @@ def drive(fleet: FleetService, bus: MemoryBus, task_id: str, steps: range) -> No
         )
 
 
+async def driven_task(
+    client: httpx.AsyncClient, fleet: FleetService, bus: MemoryBus, steps: range
+) -> str:
+    """A task for a new robot r1, submitted over ``client`` and driven (:func:`drive`)."""
+    add_robot(bus, "r1", 0.0, 0.0)
+    body = {"goal": {"x": 2.0, "y": 1.0, "theta": 1.0}, "robot_id": "r1"}
+    task_id: str = (await client.post("/tasks", json=body)).json()["id"]
+    drive(fleet, bus, task_id, steps)
+    return task_id
+
+
 async def api_client(
     settings: Settings, fleet: FleetService, store: SqliteTaskStore
 ) -> AsyncIterator[httpx.AsyncClient]:

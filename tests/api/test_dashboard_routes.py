@@ -17,7 +17,7 @@ from fleet.io.settings import Settings
 from fleet.service.bus import MemoryBus
 from fleet.service.fleet_service import FleetService
 from fleet.service.store import SqliteTaskStore
-from tests.api.conftest import add_robot, api_client, drive
+from tests.api.conftest import add_robot, api_client, drive, driven_task
 
 pytestmark = pytest.mark.anyio
 
@@ -80,10 +80,7 @@ async def test_plot_without_a_recorded_path_is_409(client: httpx.AsyncClient) ->
 async def test_plot_of_a_driven_task_is_a_png(
     client: httpx.AsyncClient, fleet: FleetService, bus: MemoryBus
 ) -> None:
-    add_robot(bus, "r1", 0.0, 0.0)
-    body = {"goal": {"x": 2.0, "y": 1.0, "theta": 1.0}, "robot_id": "r1"}
-    task_id = (await client.post("/tasks", json=body)).json()["id"]
-    drive(fleet, bus, task_id, range(1, 40))
+    task_id = await driven_task(client, fleet, bus, range(1, 40))
     r = await client.get(f"/tasks/{task_id}/plot.png")
     assert r.status_code == 200, r.text
     assert r.headers["content-type"] == "image/png"

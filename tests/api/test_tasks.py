@@ -12,7 +12,7 @@ from fleet.io.settings import Settings
 from fleet.service.bus import MemoryBus
 from fleet.service.fleet_service import FleetService
 from fleet.service.store import SqliteTaskStore
-from tests.api.conftest import add_robot, api_client, drive
+from tests.api.conftest import add_robot, api_client, driven_task
 
 pytestmark = pytest.mark.anyio
 
@@ -122,6 +122,25 @@ async def test_a_page_is_capped_by_the_setting(
         assert too_many.status_code == 422
         assert too_many.json()["errors"][0]["loc"] == ["query", "limit"]
         assert "at most 2" in too_many.json()["detail"]
+
+
+@pytest.mark.parametrize(
+    ("params", "field"),
+    [
+        ({"status": "asleep"}, "status"),
+        ({"robot_id": "r" * 201}, "robot_id"),
+        ({"order": "random"}, "order"),
+        ({"limit": 0}, "limit"),
+        ({"limit": "ten"}, "limit"),
+    ],
+)
+async def test_a_bad_list_parameter_is_422_naming_it(
+    client: httpx.AsyncClient, params: dict[str, Any], field: str
+) -> None:
+    r = await client.get("/tasks", params=params)
+    assert r.status_code == 422, r.text
+    assert r.json()["errors"][0]["loc"] == ["query", field]
+    assert r.json()["detail"].startswith(f"{field}: ")
 
 
 @pytest.mark.parametrize("cursor", ["nope", "W10", "WzEsMl0", "eyJhIjogMX0", "WyJ4IiwgImEiXQ"])
@@ -261,10 +280,7 @@ async def test_path_of_a_task_not_driven_yet_is_409(client: httpx.AsyncClient) -
 async def test_path_of_a_driven_task_is_200(
     client: httpx.AsyncClient, fleet: FleetService, bus: MemoryBus
 ) -> None:
-    add_robot(bus, "r1", 0.0, 0.0)
-    body = {"goal": {"x": 2.0, "y": 1.0, "theta": 1.0}, "robot_id": "r1"}
-    task_id = (await client.post("/tasks", json=body)).json()["id"]
-    drive(fleet, bus, task_id, range(1, 10))
+    task_id = await driven_task(client, fleet, bus, range(1, 10))
     r = await client.get(f"/tasks/{task_id}/path")
     assert r.status_code == 200, r.text
     points = r.json()

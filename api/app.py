@@ -139,18 +139,19 @@ def create_app(
 
 
 def _publish_yard(components: dict[str, Any], yard: tuple[float, float, float, float]) -> None:
-    """Write the configured yard into the coordinate fields' bounds (clients, fuzzers)."""
+    """Write the configured yard into the obstacle centres' bounds (clients, fuzzers): one
+    outside is a 422. A goal's are not bounds of the schema: outside the yard it is well-formed
+    and rejected by the service (409), as one in an obstacle's zone is."""
     xmin, xmax, ymin, ymax = yard
-    for model in ("PoseIn", "ObstacleIn"):
-        props = components.get(model, {}).get("properties", {})
-        for name, low, high in (("x", xmin, xmax), ("y", ymin, ymax)):
-            if name in props:
-                props[name] |= {"minimum": low, "maximum": high}
+    props = components.get("ObstacleIn", {}).get("properties", {})
+    for name, low, high in (("x", xmin, xmax), ("y", ymin, ymax)):
+        if name in props:
+            props[name] |= {"minimum": low, "maximum": high}
 
 
 def _document_validation_errors(app: FastAPI) -> None:
     """Make the OpenAPI schema describe our 422 body instead of FastAPI's default one, and
-    the configured yard as the bounds of every coordinate."""
+    the configured yard as the bounds of every obstacle centre."""
 
     def openapi() -> dict[str, Any]:
         if app.openapi_schema is None:

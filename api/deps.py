@@ -110,16 +110,6 @@ Authorized = Depends(require_token)
 """Use as ``dependencies=[Authorized]`` on mutating routes."""
 
 
-async def checked_task(body: Annotated[TaskIn, Body()], settings: SettingsDep) -> TaskIn:
-    """The task body, with its goal checked against the configured yard (422 otherwise)."""
-    if body.goal is None:
-        return body
-    errors = yard_errors([(("body", "goal"), body.goal.x, body.goal.y)], settings.yard)
-    if errors:
-        raise RequestValidationError(errors)
-    return body
-
-
 async def checked_obstacles(
     body: Annotated[ObstaclesIn, Body()], settings: SettingsDep
 ) -> ObstaclesIn:
@@ -130,7 +120,9 @@ async def checked_obstacles(
     return body
 
 
-TaskBody = Annotated[TaskIn, Depends(checked_task)]
+TaskBody = Annotated[TaskIn, Body()]
+"""A well-formed task body (422 otherwise). Its goal is the service's to judge: one outside
+the yard is rejected like one in an obstacle's zone (``GoalRejected``, 409 with the reason)."""
 ObstaclesBody = Annotated[list[ObstacleIn], Depends(checked_obstacles)]
 IdempotencyKey = Annotated[
     str | None,

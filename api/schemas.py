@@ -1,8 +1,10 @@
 """Request (``...In``) and response (``...Out``) models of the REST API.
 
 Input models are strict (``extra="forbid"``, finite numbers, bounded values) so bad input
-is a 422 naming the field, never a 500 further down. Yard bounds depend on the settings
-and are checked by :func:`yard_errors`, called from the route dependencies in ``api.deps``.
+is a 422 naming the field, never a 500 further down. Obstacle centres outside the yard
+(which depends on the settings) are 422s too, from :func:`yard_errors` in ``api.deps``; a
+goal outside the yard is well-formed but rejected by the service (409 with the reason), as
+a goal in an obstacle's zone is.
 The domain models (``fleet.core.tasks``) stay the service's business; these are the contract.
 """
 
@@ -32,6 +34,13 @@ from fleet.service.stats import PlannerStats
 Coordinate = Annotated[
     float, Field(allow_inf_nan=False, description="metres, inside the yard (see /healthz)")
 ]
+GoalCoordinate = Annotated[
+    float,
+    Field(
+        allow_inf_nan=False,
+        description="metres; a goal outside the yard (see /healthz) is rejected (409)",
+    ),
+]
 Heading = Annotated[
     float,
     Field(ge=-2 * math.pi, le=2 * math.pi, allow_inf_nan=False, description="radians"),
@@ -48,8 +57,8 @@ class _In(BaseModel):
 class PoseIn(_In):
     """Goal posture in the world frame: x, y [m] inside the yard, theta [rad]."""
 
-    x: Coordinate
-    y: Coordinate
+    x: GoalCoordinate
+    y: GoalCoordinate
     theta: Heading = 0.0
 
 

@@ -19,6 +19,7 @@ from fastapi import APIRouter, HTTPException, Path, Request, Response, status
 from api.deps import ServiceDep
 from api.errors import retry_later
 from api.plot_cache import PlotCache, RenderLimited
+from api.routes.tasks import no_path_reason
 from api.schemas import ErrorOut
 
 router = APIRouter(prefix="/tasks", tags=["tasks"])
@@ -92,11 +93,7 @@ def task_plot(
         try:
             poses, controls, dt = resample(samples)
         except ValueError:
-            raise HTTPException(
-                status.HTTP_409_CONFLICT,
-                f"task {task_id} has no recorded path ({task.status.value}): a path is "
-                "recorded while a robot drives the task, and only for the most recent tasks",
-            ) from None
+            raise HTTPException(status.HTTP_409_CONFLICT, no_path_reason(task)) from None
         goal = task.request.goal
         law = f"law {task.law}, {_EQUATION[task.law]}" if task.law else "law not chosen"
         title = f"task {task.id[:8]} · {task.robot_id or 'no robot'}\n{law} · {task.status.value}"

@@ -11,13 +11,13 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from fastapi import APIRouter, Path, Query, Request, Response, status
+from fastapi import APIRouter, HTTPException, Path, Query, Request, Response, status
 from fastapi.exceptions import RequestValidationError
 
 from api.deps import Authorized, IdempotencyKey, ServiceDep, SettingsDep, TaskBody, TaskStoreDep
 from api.paging import decode_cursor, encode_cursor
 from api.schemas import ErrorOut, PathPointOut, TaskEventOut, TaskOut
-from fleet.core.tasks import TaskStatus
+from fleet.core.tasks import Task, TaskStatus
 from fleet.service.store import TaskCursor
 
 router = APIRouter(prefix="/tasks", tags=["tasks"])
@@ -37,7 +37,8 @@ DEFAULT_PAGE = 100
         404: {"model": ErrorOut, "description": "unknown robot, bay or bay group"},
         409: {
             "model": ErrorOut,
-            "description": "goal rejected (obstacle or keep-out zone, near a goal), bay taken",
+            "description": "goal rejected (outside the yard, in an obstacle's or keep-out "
+            "zone, near a goal), bay taken, robot decommissioned; the reason in `detail`",
         },
     },
 )
@@ -137,10 +138,28 @@ def task_events(task_id: TaskId, service: ServiceDep) -> list[TaskEventOut]:
     return [TaskEventOut.of(at, event, task) for at, event, task in rows]
 
 
-@router.get("/{task_id}/path", responses={404: {"model": ErrorOut}})
+@router.get(
+    "/{task_id}/path",
+    responses={
+        404: {"model": ErrorOut, "description": "unknown task"},
+        409: {"model": ErrorOut, "description": "no recorded path (yet, or any more)"},
+    },
+)
 def task_path(task_id: TaskId, service: ServiceDep) -> list[PathPointOut]:
-    """The trajectory the fleet saw while a robot worked on the task."""
+    """The trajectory the fleet saw while a robot worked on the task; 409 while none is
+    recorded (no robot has driven it yet, or its path was evicted)."""
+    samples = service.path(task_id)  # 404 when unknown
+    if not samples:
+        raise HTTPException(status.HTTP_409_CONFLICT, no_path_reason(service.task(task_id)))
     return [
         PathPointOut(t=t, x=x, y=y, theta=theta, u=u, omega=omega)
-        for t, x, y, theta, u, omega in service.path(task_id)
+        for t, x, y, theta, u, omega in samples
     ]
+
+
+def no_path_reason(task: Task) -> str:
+    """Why ``task`` has no path to show (the 409 of ``/path`` and ``/plot.png``)."""
+    return (
+        f"task {task.id} has no recorded path ({task.status.value}): a path is recorded "
+        "while a robot drives the task, and only for the most recent tasks"
+    )

@@ -228,10 +228,21 @@ async function pollObstacles() {
   setTimeout(pollObstacles, OBSTACLES_POLL_MS);
 }
 
+/** The site's bays: none without a site map (GET /bays is a 404 then, not asked for). */
+async function fetchBays() {
+  if (!state.site) return [];
+  try {
+    return await api.bays();
+  } catch (err) {
+    if (err instanceof ApiError && err.status === 404) return []; // restarted without a site
+    throw err;
+  }
+}
+
 /** Bays and the operator's holds (no events carry them). */
 async function refreshOperator() {
   try {
-    const [bays, control] = await Promise.all([api.bays(), api.controlState()]);
+    const [bays, control] = await Promise.all([fetchBays(), api.controlState()]);
     state.bays = bays;
     state.control = control;
     dirty.map = true;

@@ -70,6 +70,36 @@ def add_robot(bus: MemoryBus, robot_id: str, x: float = 0.0, y: float = 0.0) -> 
     )
 
 
+def drive(fleet: FleetService, bus: MemoryBus, task_id: str, steps: range) -> None:
+    """Robot r1 drives ``task_id`` once assigned: a state for each of the ``steps``."""
+    wait_for(lambda: fleet.task(task_id).status != TaskStatus.QUEUED, 30, "the task to be assigned")
+    for k in steps:
+        s = k / 40
+        bus.deliver_state(
+            RobotState(
+                robot_id="r1",
+                seq=k,
+                stamp=time.time(),
+                pose=Pose(x=2.0 * s, y=1.0 * s, theta=s),
+                u=0.5,
+                omega=0.2,
+                mode=RobotMode.DRIVING,
+                task_id=task_id,
+            )
+        )
+
+
+async def driven_task(
+    client: httpx.AsyncClient, fleet: FleetService, bus: MemoryBus, steps: range
+) -> str:
+    """A task for a new robot r1, submitted over ``client`` and driven (:func:`drive`)."""
+    add_robot(bus, "r1", 0.0, 0.0)
+    body = {"goal": {"x": 2.0, "y": 1.0, "theta": 1.0}, "robot_id": "r1"}
+    task_id: str = (await client.post("/tasks", json=body)).json()["id"]
+    drive(fleet, bus, task_id, steps)
+    return task_id
+
+
 async def api_client(
     settings: Settings, fleet: FleetService, store: SqliteTaskStore
 ) -> AsyncIterator[httpx.AsyncClient]:

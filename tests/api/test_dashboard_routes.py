@@ -4,24 +4,20 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 
 import httpx
 import numpy as np
 import pytest
-from support import wait_for
 
 from api.plot_cache import PlotCache
 from api.rate_limit import TokenBucket
 from api.routes.dashboard import ASSETS
 from api.routes.plots import resample
-from fleet.core.tasks import TaskStatus
-from fleet.core.wire import Pose, RobotMode, RobotState
 from fleet.io.settings import Settings
 from fleet.service.bus import MemoryBus
 from fleet.service.fleet_service import FleetService
 from fleet.service.store import SqliteTaskStore
-from tests.api.conftest import add_robot, api_client
+from tests.api.conftest import add_robot, api_client, drive, driven_task
 
 pytestmark = pytest.mark.anyio
 
@@ -81,32 +77,10 @@ async def test_plot_without_a_recorded_path_is_409(client: httpx.AsyncClient) ->
     assert "no recorded path" in r.json()["detail"]
 
 
-def drive(fleet: FleetService, bus: MemoryBus, task_id: str, steps: range) -> None:
-    """Robot r1 drives ``task_id`` once assigned: a state for each of the ``steps``."""
-    wait_for(lambda: fleet.task(task_id).status != TaskStatus.QUEUED, 30, "the task to be assigned")
-    for k in steps:
-        s = k / 40
-        bus.deliver_state(
-            RobotState(
-                robot_id="r1",
-                seq=k,
-                stamp=time.time(),
-                pose=Pose(x=2.0 * s, y=1.0 * s, theta=s),
-                u=0.5,
-                omega=0.2,
-                mode=RobotMode.DRIVING,
-                task_id=task_id,
-            )
-        )
-
-
 async def test_plot_of_a_driven_task_is_a_png(
     client: httpx.AsyncClient, fleet: FleetService, bus: MemoryBus
 ) -> None:
-    add_robot(bus, "r1", 0.0, 0.0)
-    body = {"goal": {"x": 2.0, "y": 1.0, "theta": 1.0}, "robot_id": "r1"}
-    task_id = (await client.post("/tasks", json=body)).json()["id"]
-    drive(fleet, bus, task_id, range(1, 40))
+    task_id = await driven_task(client, fleet, bus, range(1, 40))
     r = await client.get(f"/tasks/{task_id}/plot.png")
     assert r.status_code == 200, r.text
     assert r.headers["content-type"] == "image/png"

@@ -73,7 +73,8 @@ async def test_the_site_sets_the_yard_and_the_initial_obstacles(client: httpx.As
     assert {(o["x"], o["y"]) for o in obstacles} == {(-5, 3), (5, 3), (-5, -3), (5, -3)}
     assert (await client.get("/config")).json()["yard"] == [-12.0, 12.0, -8.0, 8.0]
     outside = await client.post("/tasks", json={"goal": {"x": 0.0, "y": 9.0}})
-    assert outside.status_code == 422
+    assert outside.status_code == 409  # goal rejected, with the reason
+    assert "outside the yard x in [-12, 12], y in [-8, 8] m" in outside.json()["detail"]
 
 
 async def test_a_bay_is_reserved_by_exactly_one_active_task(client: httpx.AsyncClient) -> None:
@@ -124,5 +125,10 @@ async def test_without_a_site_bays_are_404_with_the_reason(
 ) -> None:
     missing = await client_no_site.post("/tasks", json={"bay": "A1"})
     assert missing.status_code == 404 and "no site map" in missing.json()["detail"]
-    assert (await client_no_site.get("/bays")).json() == []
-    assert (await client_no_site.get("/site")).status_code == 404
+    for path in ("/bays", "/site"):
+        r = await client_no_site.get(path)
+        assert r.status_code == 404, path
+        assert r.json() == {"detail": "this fleet has no site map (--site)"}
+    paths = (await client_no_site.get("/openapi.json")).json()["paths"]
+    assert "404" in paths["/bays"]["get"]["responses"]
+    assert "404" in paths["/site"]["get"]["responses"]

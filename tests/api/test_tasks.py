@@ -12,7 +12,7 @@ from fleet.io.settings import Settings
 from fleet.service.bus import MemoryBus
 from fleet.service.fleet_service import FleetService
 from fleet.service.store import SqliteTaskStore
-from tests.api.conftest import add_robot, api_client
+from tests.api.conftest import add_robot, api_client, driven_task
 
 pytestmark = pytest.mark.anyio
 
@@ -124,6 +124,25 @@ async def test_a_page_is_capped_by_the_setting(
         assert "at most 2" in too_many.json()["detail"]
 
 
+@pytest.mark.parametrize(
+    ("params", "field"),
+    [
+        ({"status": "asleep"}, "status"),
+        ({"robot_id": "r" * 201}, "robot_id"),
+        ({"order": "random"}, "order"),
+        ({"limit": 0}, "limit"),
+        ({"limit": "ten"}, "limit"),
+    ],
+)
+async def test_a_bad_list_parameter_is_422_naming_it(
+    client: httpx.AsyncClient, params: dict[str, Any], field: str
+) -> None:
+    r = await client.get("/tasks", params=params)
+    assert r.status_code == 422, r.text
+    assert r.json()["errors"][0]["loc"] == ["query", field]
+    assert r.json()["detail"].startswith(f"{field}: ")
+
+
 @pytest.mark.parametrize("cursor", ["nope", "W10", "WzEsMl0", "eyJhIjogMX0", "WyJ4IiwgImEiXQ"])
 async def test_a_cursor_not_made_by_the_api_is_422(client: httpx.AsyncClient, cursor: str) -> None:
     r = await client.get("/tasks", params={"cursor": cursor})
@@ -146,20 +165,37 @@ async def test_non_finite_numbers_are_422_naming_the_field(
 
 
 @pytest.mark.parametrize(
-    ("goal", "field"),
+    ("goal", "where"),
     [
-        ({"x": 10.5, "y": 0}, "goal.x"),
-        ({"x": 0, "y": -5.01}, "goal.y"),
-        ({"x": -11, "y": 9}, "goal.x"),
+        ({"x": 10.5, "y": 0}, "(10.50, 0.00)"),
+        ({"x": 0, "y": -5.01}, "(0.00, -5.01)"),
+        ({"x": -11, "y": 9}, "(-11.00, 9.00)"),
     ],
 )
-async def test_out_of_yard_goal_is_422_naming_the_field(
-    client: httpx.AsyncClient, goal: dict[str, float], field: str
+async def test_out_of_yard_goal_is_409_goal_rejected_with_the_reason(
+    client: httpx.AsyncClient, goal: dict[str, float], where: str
 ) -> None:
+    """A well-formed goal the yard rejects is a 409 (as one in an obstacle's zone), not a
+    422: 422 is for malformed fields."""
     r = await client.post("/tasks", json={"goal": goal})
-    assert r.status_code == 422
-    assert field in r.json()["detail"]
-    assert "outside the yard" in r.json()["detail"]
+    assert r.status_code == 409, r.text
+    assert r.json() == {
+        "detail": f"goal {where} is outside the yard x in [-10, 10], y in [-5, 5] m"
+    }
+
+
+async def test_goal_bounds_are_not_in_the_schema_but_obstacle_bounds_are(
+    client: httpx.AsyncClient,
+) -> None:
+    """The OpenAPI schema matches the codes: a goal outside the yard is well-formed (409),
+    an obstacle centre outside it is not (422)."""
+    schema = (await client.get("/openapi.json")).json()
+    components = schema["components"]["schemas"]
+    assert "maximum" not in components["PoseIn"]["properties"]["x"]
+    assert components["ObstacleIn"]["properties"]["x"]["maximum"] == 10.0
+    responses = schema["paths"]["/tasks"]["post"]["responses"]
+    assert {"201", "401", "404", "409", "422"} <= set(responses)
+    assert "outside the yard" in responses["409"]["description"]
 
 
 async def test_yard_edges_are_inside(client: httpx.AsyncClient) -> None:
@@ -229,8 +265,24 @@ async def test_cancel_then_cancel_again_is_409(client: httpx.AsyncClient) -> Non
     assert "cancelled" in again.json()["detail"]
 
 
-async def test_path_of_a_task(client: httpx.AsyncClient) -> None:
+async def test_path_of_a_task_not_driven_yet_is_409(client: httpx.AsyncClient) -> None:
     task_id = (await client.post("/tasks", json={"goal": {"x": 1, "y": 1}})).json()["id"]
     r = await client.get(f"/tasks/{task_id}/path")
-    assert r.status_code == 200
-    assert r.json() == []  # no robot has driven it yet
+    assert r.status_code == 409  # no robot has driven it yet
+    assert r.json() == {
+        "detail": f"task {task_id} has no recorded path (queued): a path is recorded while a "
+        "robot drives the task, and only for the most recent tasks"
+    }
+    responses = (await client.get("/openapi.json")).json()["paths"]["/tasks/{task_id}/path"]
+    assert {"200", "404", "409"} <= set(responses["get"]["responses"])
+
+
+async def test_path_of_a_driven_task_is_200(
+    client: httpx.AsyncClient, fleet: FleetService, bus: MemoryBus
+) -> None:
+    task_id = await driven_task(client, fleet, bus, range(1, 10))
+    r = await client.get(f"/tasks/{task_id}/path")
+    assert r.status_code == 200, r.text
+    points = r.json()
+    assert points and set(points[0]) == {"t", "x", "y", "theta", "u", "omega"}
+    assert points[-1]["x"] == pytest.approx(2.0 * 9 / 40)

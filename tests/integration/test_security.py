@@ -656,3 +656,53 @@ def test_a_robots_ros2_traffic_crosses_the_acl_router_in_its_namespace_only(
             collector.sub.undeclare()
     assert (cmd_vel, b"forged") not in at_router.seen() | at_base.seen()
     assert seen_by_base == {node_token(0, "aa", 0, "/tb4_1", "parkfleet_r1")}
+
+
+@pytest.mark.parametrize("identity", ["username", "cert_common_name"])
+def test_a_robots_description_reaches_the_service_under_the_acl_and_a_forged_one_does_not(
+    identity: str, pki: Pki, credentials: Path
+) -> None:
+    """A robot puts its own description and answers the service's query for it; r2's put of
+    a description for r1 is dropped at the router, and r2 cannot answer for r1."""
+    from fleet.core.params import RobotProfile
+    from fleet.core.wire import RobotDescription
+
+    router_settings, client = _acl_settings(identity, pki, credentials)
+    own = encode(RobotDescription.of("r1", RobotProfile(max_wheel_speed=8.5), model="tb4"))
+    forged = encode(RobotDescription.of("r1", RobotProfile(radius=0.01)))
+    with (
+        running_router(router_settings) as (router, endpoint),
+        open_session(client(endpoint, "r1"), "client") as r1,
+        open_session(client(endpoint, "r2"), "client") as r2,
+        open_session(client(endpoint, "fleet"), "client") as fleet,
+    ):
+        at_service = Collector(fleet, KEYS.all_descriptions)
+        answer = r1.declare_queryable(
+            KEYS.description("r1"), lambda query: query.reply(KEYS.description("r1"), own)
+        )
+        impostor = r2.declare_queryable(
+            KEYS.description("r1"), lambda query: query.reply(KEYS.description("r1"), forged)
+        )
+
+        def asked() -> set[bytes]:
+            replies = fleet.get(KEYS.description("r1"), timeout=2.0)
+            return {reply.ok.payload.to_bytes() for reply in replies if reply.ok is not None}
+
+        def put_both() -> bool:
+            if (KEYS.description("r1"), own) in at_service.seen():
+                return True
+            r2.put(KEYS.description("r1"), forged)
+            r1.put(KEYS.description("r1"), own)
+            return False
+
+        wait_for(put_both, 10.0, "r1's description at the service", poll=0.05)
+        fence = (KEYS.state("r2"), b"fence")  # after r2's last forged put, on its link
+        fences = Collector(router, fence[0])
+        at_service_states = Collector(fleet, KEYS.all_states)
+        put_until(r2, *fence, lambda: fence in fences.seen() and fence in at_service_states.seen())
+        wait_for(lambda: own in asked(), 10.0, "r1's answer to the service's query")
+        answers = asked()
+        for handle in (answer, impostor, at_service.sub, fences.sub, at_service_states.sub):
+            handle.undeclare()
+    assert {payload for _, payload in at_service.seen()} == {own}
+    assert answers == {own}

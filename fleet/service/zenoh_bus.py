@@ -32,7 +32,7 @@ import logging
 import threading
 from collections import Counter
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 import zenoh
 
@@ -52,6 +52,8 @@ from fleet.io.operator import put_control
 from fleet.service.bus import FleetSink
 
 _log = logging.getLogger(__name__)
+#: Messages that name their robot, checked against the key they came on.
+_Addressed = TypeVar("_Addressed", RobotState, RobotDescription, ControlCommand)
 #: Robots asked for their description remembered at most (then the memory starts afresh:
 #: at worst a robot is asked once more).
 MAX_ASKED = 4096
@@ -147,15 +149,25 @@ class ZenohFleetBus:
 
         return callback
 
+    def _addressed(
+        self, model: type[_Addressed], sample: zenoh.Sample, what: str
+    ) -> _Addressed | None:
+        """The decoded message if its robot is the key's (else dropped and counted as
+        ``<what>_key_mismatch``; a malformed one is counted by the decoder)."""
+        message = self._decoder.decode(model, sample.payload.to_bytes())
+        if message is None:
+            return None
+        if self._keys.robot_of(str(sample.key_expr)) != message.robot_id:
+            self._count(f"{what}_key_mismatch")
+            return None
+        return message
+
     def _on_state(self, sample: zenoh.Sample) -> None:
         sink = self._sink
         if sink is None:
             return
-        state = self._decoder.decode(RobotState, sample.payload.to_bytes())
+        state = self._addressed(RobotState, sample, "state")
         if state is None:
-            return
-        if self._keys.robot_of(str(sample.key_expr)) != state.robot_id:
-            self._count("state_key_mismatch")
             return
         sink.on_state(state)
         self._ask_description(state.robot_id)
@@ -164,11 +176,8 @@ class ZenohFleetBus:
         sink = self._sink
         if sink is None:
             return
-        description = self._decoder.decode(RobotDescription, sample.payload.to_bytes())
+        description = self._addressed(RobotDescription, sample, "description")
         if description is None:
-            return
-        if self._keys.robot_of(str(sample.key_expr)) != description.robot_id:
-            self._count("description_key_mismatch")
             return
         self._count("descriptions_received")
         sink.on_description(description)
@@ -203,11 +212,8 @@ class ZenohFleetBus:
         sink = self._sink
         if sink is None:
             return
-        command = self._decoder.decode(ControlCommand, sample.payload.to_bytes())
+        command = self._addressed(ControlCommand, sample, "control")
         if command is None:
-            return
-        if self._keys.robot_of(str(sample.key_expr)) != command.robot_id:
-            self._count("control_key_mismatch")
             return
         sink.on_control(command)
 

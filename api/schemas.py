@@ -294,6 +294,20 @@ class RobotOut(BaseModel):
     )
     errors: list[RobotErrorOut] = Field(default_factory=list, description="active faults")
     in_service: bool = Field(default=True, description="false: decommissioned, gets no task")
+    described: bool = Field(
+        default=False,
+        description="it published its RobotDescription; false: planned with the host profile",
+    )
+    max_wheel_speed: float | None = Field(
+        default=None, description="described wheel-speed limit [rad/s]; null: none or unknown"
+    )
+    max_speed: float | None = Field(
+        default=None, description="described top forward speed [m/s]; null: none or unknown"
+    )
+    may_reverse: bool = Field(
+        default=True, description="false: it may not drive backwards, the fleet assigns it nothing"
+    )
+    model: str | None = Field(default=None, description="described model, e.g. 'TurtleBot 4'")
 
     @classmethod
     def of(cls, robot: RobotView) -> RobotOut:
@@ -311,6 +325,11 @@ class RobotOut(BaseModel):
             detail=robot.detail,
             errors=[RobotErrorOut.of(e) for e in robot.errors],
             in_service=robot.in_service,
+            described=robot.described,
+            max_wheel_speed=robot.max_wheel_speed,
+            max_speed=robot.max_speed,
+            may_reverse=robot.may_reverse,
+            model=robot.model,
         )
 
 

@@ -6,7 +6,11 @@ messages; :meth:`RobotAgent.act` decides with the pure :func:`robot_agent.logic.
 commands the wheels and publishes ``RobotState`` on ``keys.state(id)`` (stamped with the
 wall clock). Zenoh edges:
 
-* liveliness token ``keys.alive(id)``;
+* liveliness token ``keys.alive(id)``, and right after it the robot's
+  :class:`~fleet.core.wire.RobotDescription` (its profile, ``Settings.may_reverse`` and
+  ``Settings.robot_model``) put on ``keys.description(id)``, with a queryable on that key
+  answering with it until :meth:`RobotAgent.close` (``describe=False``: a robot of an
+  older release, which publishes none);
 * subscriber on ``keys.assignment(id)`` (park / cancel, decoded by ``wire.Decoder``:
   malformed payloads are dropped and counted, never reach the loop);
 * subscribers on ``keys.control()`` (the whole fleet) and ``keys.control(id)`` (this robot):
@@ -47,6 +51,7 @@ from fleet.core.wire import (
     Keys,
     ParkAssignment,
     Pose,
+    RobotDescription,
     RobotError,
     RobotMode,
     RobotState,
@@ -96,6 +101,7 @@ class RobotAgent:
         feed: WorldFeed | None = None,
         link: LinkMonitor | None = None,
         wall_clock: Callable[[], float] = time.time,
+        describe: bool = True,
     ) -> None:
         self.keys = Keys(settings.fleet_name)
         self.robot_id = robot_id
@@ -134,6 +140,17 @@ class RobotAgent:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._opened = False
+        self.description: RobotDescription | None = (
+            RobotDescription.of(
+                robot_id,
+                settings.profile,
+                may_reverse=settings.may_reverse,
+                model=settings.robot_model,
+            )
+            if describe
+            else None
+        )
+        self.description_queries = 0
 
     # -- Zenoh edges ----------------------------------------------------------------------
     @property
@@ -160,6 +177,14 @@ class RobotAgent:
             self.decoder.drop("wrong_robot", f"{command.robot_id} on {sample.key_expr}")
             return
         self.submit(command)
+
+    def _on_description_query(self, query: Any) -> None:
+        """Answer a query on this robot's description key (a bad query is counted by the
+        guard, never raised into Zenoh)."""
+        if self.description is None:
+            return
+        query.reply(self.keys.description(self.robot_id), encode(self.description))
+        self.description_queries += 1
 
     def submit(self, message: Inbound) -> None:
         """Queue an assignment or control message; applied at the start of the next tick
@@ -190,6 +215,12 @@ class RobotAgent:
             self._handles.append(
                 self.session.liveliness().declare_token(self.keys.alive(self.robot_id))
             )
+            if self.description is not None:
+                key = self.keys.description(self.robot_id)
+                self.session.put(key, encode(self.description))
+                self._handles.append(
+                    self.session.declare_queryable(key, self.guard.wrap(self._on_description_query))
+                )
         except BaseException:
             self.close()
             raise

@@ -38,7 +38,9 @@ class DashboardConfigOut(BaseModel):
 
     fleet_name: str
     yard: tuple[float, float, float, float] = Field(description="xmin, xmax, ymin, ymax [m]")
-    robot_radius: float = Field(description="robot body radius [m] (default profile)")
+    robot_radius: float = Field(
+        description="host profile's body radius [m] (undescribed robots; others: their radius)"
+    )
     peer_radius: float = Field(description="influence radius of a peer robot, Eq. (27) [m]")
     auth: bool = Field(description="POST/PUT need 'Authorization: Bearer <token>'")
     site: bool = Field(default=False, description="a site map is loaded (GET /site, /bays)")

@@ -108,7 +108,11 @@ function applyRobot(data) {
   robot.task_id = data.task_id;
   robot.law = data.law;
   robot.goal = data.goal;
-  robot.radius = data.radius;
+  robot.radius = data.radius; // its own body (described), else what its state says
+  robot.described = data.described ?? false;
+  robot.model = data.model ?? null;
+  robot.max_speed = data.max_speed ?? null;
+  robot.may_reverse = data.may_reverse ?? true;
   robot.last_seen = data.last_seen;
   if (robot.detail !== data.detail || JSON.stringify(robot.errors) !== JSON.stringify(data.errors ?? [])) {
     dirty.faults = true;
@@ -556,7 +560,7 @@ function renderRobots() {
     setCell(row.cells[1], `<span class="badge mode-${mode}">${mode}</span>${why}`);
     setCell(
       row.cells[0],
-      `${escapeHtml(robot.id)}<div class="robot-control">${robotButtons(robot)}</div>`,
+      `${escapeHtml(robot.id)}${profileLine(robot)}<div class="robot-control">${robotButtons(robot)}</div>`,
     );
     setCell(row.cells[2], lawBadge(robot.law));
     setCell(row.cells[3], formatPose(robot.pose));
@@ -566,6 +570,18 @@ function renderRobots() {
   $("robots-empty").hidden = state.robots.size > 0;
   renderSummary(counts);
   dirty.robotTable = false;
+}
+
+/** What the robot said it is (README "Robots describe themselves"), or that the fleet plans
+ * it with the host's own profile. */
+function profileLine(robot) {
+  if (!robot.described) return `<div class="reason">host profile (not described)</div>`;
+  const parts = [];
+  if (robot.model) parts.push(escapeHtml(robot.model));
+  parts.push(`r ${Number(robot.radius).toFixed(2)} m`);
+  if (robot.max_speed != null) parts.push(`${Number(robot.max_speed).toFixed(2)} m/s`);
+  if (!robot.may_reverse) parts.push("no reverse: not assigned");
+  return `<div class="reason">${parts.join(" · ")}</div>`;
 }
 
 function robotButtons(robot) {
@@ -930,6 +946,8 @@ window.__parkfleet = {
       theta: r.pose.theta,
       law: r.law,
       task_id: r.task_id,
+      radius: r.radius,
+      described: r.described,
       trail: r.trail.length,
     })),
   tasks: () => [...state.tasks.values()].map((t) => ({ ...t })),

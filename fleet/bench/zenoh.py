@@ -46,6 +46,7 @@ from fleet.core.wire import (
     Keys,
     ObstacleSet,
     ParkAssignment,
+    RobotDescription,
     RobotState,
 )
 from fleet.io.processes import parkfleet_command, terminate
@@ -97,6 +98,9 @@ class _TimedSink:
 
     def on_robot_gone(self, robot_id: str) -> None:
         self._sink.on_robot_gone(robot_id)
+
+    def on_description(self, description: RobotDescription) -> None:
+        self._sink.on_description(description)
 
     def on_control(self, command: ControlCommand) -> None:
         self._sink.on_control(command)

@@ -1,13 +1,14 @@
 """Optimal assignment of unnamed parking tasks to idle robots (pure).
 
 Cost of robot i taking task j: the **predicted time to arrival** [s] of robot i driving
-alone to goal j in a closed-loop rollout of the batch simulator (``fleet.core.simulate``, the
-control code the robots run: law (17) and/or (20) with the task's gains and tolerance, the
-robot profile's wheel limits, static obstacles with the Eq. (27) repulsion; peers are left
-out -- their interaction is the planner's job, ``fleet.core.planner``). For an
-``auto`` task the faster of the two laws counts. A rollout that does not arrive within the
-horizon costs ``horizon + remaining distance / top speed``, so unreachable pairs rank last
-but still rank by how far off they end.
+alone to goal j in a closed-loop rollout of the batch simulator (``fleet.core.simulate``,
+the control code the robots run: law (17) and/or (20) with the task's gains and tolerance,
+the wheel limits of the robot's own profile (one profile for all, or one per robot), static
+obstacles with the Eq. (27) repulsion; peers are left out -- their interaction is the
+planner's job, ``fleet.core.planner``). For an ``auto`` task the faster of the two laws
+counts. A rollout that does not arrive within the horizon costs ``horizon + remaining
+distance / top speed``, so unreachable pairs rank last but still rank by how far off they
+end.
 
 All pairs (and both laws) are simulated in one vectorised batch; with ``nearest`` = K only
 the pairs of each task's K nearest robots and each robot's K nearest tasks are (a large
@@ -49,19 +50,23 @@ class TaskSpec:
 def predicted_times(
     starts: Sequence[Posture],
     tasks: Sequence[TaskSpec],
-    profile: RobotProfile,
+    profile: RobotProfile | Sequence[RobotProfile],
     obstacles: Sequence[Obstacle] = (),
     avoidance: Avoidance = _DEFAULT_AVOIDANCE,
     dt: float = PREDICTION_DT,
     horizon: float = PREDICTION_HORIZON,
     nearest: int | None = None,
 ) -> FloatArray:
-    """(R, T) matrix of predicted arrival times [s] (see the module docstring)."""
+    """(R, T) matrix of predicted arrival times [s] (see the module docstring);
+    ``profile``: every robot's, or one per robot (same order as ``starts``)."""
     n_r, n_t = len(starts), len(tasks)
     cost = np.full((n_r, n_t), np.inf)
     if n_r == 0 or n_t == 0:
         return cost
-    top_speed = max(profile.max_speed, 1e-3) if np.isfinite(profile.max_speed) else 1.0
+    profiles = [profile] * n_r if isinstance(profile, RobotProfile) else list(profile)
+    speeds = np.array([p.max_speed for p in profiles], dtype=np.float64)
+    top = np.where(np.isfinite(speeds), np.maximum(speeds, 1e-3), 1.0)  # (R,)
+    top_speed = top[:, None]
     xy_r = np.array([s[:2] for s in starts], dtype=np.float64)
     xy_t = np.array([t.goal[:2] for t in tasks], dtype=np.float64)
     dist = np.hypot(xy_r[:, None, 0] - xy_t[None, :, 0], xy_r[:, None, 1] - xy_t[None, :, 1])
@@ -89,7 +94,7 @@ def predicted_times(
         [tasks[j].gains[law] for _, j, law in rows],
         [law for _, _, law in rows],
         tolerance=[tasks[j].tolerance for _, j, _ in rows],
-        profile=profile,
+        profile=[profiles[i] for i, _, _ in rows],
         obstacles=[(o.x, o.y) for o in obstacles],
         obstacle_radius=[o.radius for o in obstacles],
         k_avoid=avoidance.k_avoid,
@@ -97,7 +102,8 @@ def predicted_times(
     )
     result = simulate(problem, dt=dt, max_time=horizon)
     remaining = np.hypot(result.final_pose[:, 0] - goal[:, 0], result.final_pose[:, 1] - goal[:, 1])
-    times = np.where(result.done, result.time, horizon + remaining / top_speed)
+    row_speed = np.array([top[i] for i, _, _ in rows], dtype=np.float64)
+    times = np.where(result.done, result.time, horizon + remaining / row_speed)
     for (i, j, _), t in zip(rows, times, strict=True):
         cost[i, j] = min(cost[i, j], float(t))
     return cost

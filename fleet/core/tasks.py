@@ -138,6 +138,12 @@ class RobotView(BaseModel):
     detail: str | None = None  # why it stands still (RobotState.detail)
     in_service: bool = True  # False: decommissioned by an operator (gets no task)
     errors: list[RobotError] = Field(default_factory=list)  # active faults, oldest first
+    #: The robot published a ``RobotDescription``; False: planned with the host's profile.
+    described: bool = False
+    max_wheel_speed: float | None = None  # [rad/s] described limit; None: none or unknown
+    max_speed: float | None = None  # [m/s] top forward speed described; None: none/unknown
+    may_reverse: bool = True  # described: its base may drive backwards
+    model: str | None = None  # described model name, for people
 
 
 class RobotEvent(BaseModel):

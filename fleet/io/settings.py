@@ -132,6 +132,10 @@ class Settings(BaseSettings):
     robot_id: str | None = None
     control_rate_hz: Annotated[float, Field(gt=0, le=1000)] = 50.0
     profile: RobotProfile = RobotProfile()
+    # What the robot says of itself on ``robot/<id>/description`` (README "Robots describe
+    # themselves"): whether its base may drive backwards, and a model name for people.
+    may_reverse: bool = True
+    robot_model: Annotated[str, Field(max_length=64)] | None = None
     avoidance: Avoidance = Avoidance()
     pose_stale_s: Annotated[float, Field(gt=0)] = 0.5  # own pose older than this -> stop
     # Router link silent this long (no peer, service or echo reply) -> hold; a silent peer

@@ -4,9 +4,10 @@ Outgoing: :meth:`FleetBus.publish_assignment`, :meth:`FleetBus.publish_obstacles
 :meth:`FleetBus.publish_control` (operator commands).
 Incoming: the bus calls the :class:`FleetSink` given to :meth:`FleetBus.start` --
 ``on_state`` for every decoded ``RobotState``, ``on_robot_alive``/``on_robot_gone`` for
-liveliness tokens appearing/disappearing, ``on_control`` for every operator command seen on
-the control keys (from any issuer, the service's own included), and ``obstacles()`` to
-answer late joiners.
+liveliness tokens appearing/disappearing, ``on_description`` for every decoded
+``RobotDescription`` (put by the robot, or its answer to the bus's query), ``on_control``
+for every operator command seen on the control keys (from any issuer, the service's own
+included), and ``obstacles()`` to answer late joiners.
 
 :class:`MemoryBus` is the in-memory implementation for unit tests; the Zenoh one is
 :class:`fleet.service.zenoh_bus.ZenohFleetBus`.
@@ -23,6 +24,7 @@ from fleet.core.wire import (
     Obstacle,
     ObstacleSet,
     ParkAssignment,
+    RobotDescription,
     RobotState,
 )
 
@@ -35,6 +37,8 @@ class FleetSink(Protocol):
     def on_robot_alive(self, robot_id: str) -> None: ...
 
     def on_robot_gone(self, robot_id: str) -> None: ...
+
+    def on_description(self, description: RobotDescription) -> None: ...
 
     def on_control(self, command: ControlCommand) -> None: ...
 
@@ -114,6 +118,9 @@ class MemoryBus:
 
     def robot_gone(self, robot_id: str) -> None:
         self._require_sink().on_robot_gone(robot_id)
+
+    def deliver_description(self, description: RobotDescription) -> None:
+        self._require_sink().on_description(description)
 
     def deliver_control(self, command: ControlCommand) -> None:
         """An operator command from another tool (e.g. ``parkfleet estop``)."""

@@ -61,6 +61,7 @@ from collections.abc import Callable
 from types import TracebackType
 
 from fleet.core.goals import Occupied, validate_goal
+from fleet.core.params import RobotProfile
 from fleet.core.planner import Plan, plan
 from fleet.core.tasks import (
     BayTaken,
@@ -82,6 +83,7 @@ from fleet.core.wire import (
     Obstacle,
     ObstacleSet,
     Pose,
+    RobotDescription,
     RobotMode,
     RobotState,
 )
@@ -396,6 +398,27 @@ class FleetService:
             self._outbox.emit([RobotEvent(robot=view)])
         self._planner.request("robot_joined")
 
+    def on_description(self, description: RobotDescription) -> None:
+        """A robot said what it is: kept in the roster; the planner uses its profile."""
+        with self._lock:
+            if self._closed:
+                return
+            rec, changed = self._roster.describe(description)
+            if not changed:
+                return
+            self._version += 1
+            view = Roster.view_of(rec)
+        self._counters.add("robots_described")
+        if view is not None:
+            self._outbox.emit([RobotEvent(robot=view)])
+        self._planner.request("robot_described")
+
+    def _profile_of(self, robot_id: str | None) -> RobotProfile:
+        """The robot's own profile (its description), else the host's ``[profile]``."""
+        if robot_id is None:
+            return self.settings.profile
+        return self._roster.profile_of(robot_id, self.settings.profile)
+
     def on_robot_gone(self, robot_id: str) -> None:
         """A robot's token disappeared: it is lost; its task fails or is requeued."""
         clock = self._clock
@@ -665,10 +688,12 @@ class FleetService:
 
     def _available(self, rec: RobotRecord | None) -> bool:
         """Whether the robot may take a new task: known pose, not lost, in service, not held
-        still by an operator, no task under way."""
+        still by an operator, no task under way, and not described as unable to reverse
+        (laws (17)/(20) reverse near the goal: the fleet never assigns such a robot)."""
         return (
             rec is not None
             and rec.state is not None
+            and (rec.description is None or rec.description.may_reverse)
             and rec.token is not False
             and rec.in_service
             and rec.robot_id not in self._ledger.robot_task
@@ -692,7 +717,13 @@ class FleetService:
             if self._closed:
                 return None
             robots = [
-                RobotFacts(rec.state, rec.status, now - rec.seen, self._available(rec))
+                RobotFacts(
+                    rec.state,
+                    rec.status,
+                    now - rec.seen,
+                    self._available(rec),
+                    None if rec.description is None else rec.description.profile,
+                )
                 for rec in self._roster.records()
                 if rec.state is not None and rec.status is not None and not rec.gone_for_good
             ]
@@ -845,6 +876,15 @@ class FleetService:
                 raise RobotNotFound(f"robot {rid} not found")
             if named is not None and not named.in_service:
                 raise TaskConflict(f"robot {rid} is decommissioned: commission it first")
+            if (
+                named is not None
+                and named.description is not None
+                and not named.description.may_reverse
+            ):
+                raise TaskConflict(
+                    f"robot {rid} says it may not reverse (may_reverse false), and laws "
+                    "(17)/(20) reverse near the goal: the fleet does not park it"
+                )
             self._ledger.bays.check(task)
             site = self.settings.site
             validate_goal(
@@ -854,7 +894,7 @@ class FleetService:
                 self._occupied(goal, rid),
                 self.settings.avoidance.peer_radius,
                 () if site is None else site.keep_out,
-                margin=self.settings.profile.radius,
+                margin=self._profile_of(rid).radius,
             )
             # Reserve the goal and bay while the task is written (outside the lock, so
             # concurrent submits share one commit): a concurrent submit near it (or for the

@@ -12,6 +12,11 @@ arguments: ``now`` [s, monotonic] for every interval, ``wall`` [s since epoch] f
   robot events, rate measurement, cancel re-sends), so removing a robot forgets all of it.
   A robot lost (or silent without any token) for longer than the retention time is
   :meth:`Roster.expired`; the service removes it (:meth:`Roster.remove`), as does an operator.
+* Each robot's :class:`~fleet.core.wire.RobotDescription` (what it says it is: radius,
+  wheels, limit, may it reverse) is kept in its record, one per robot (a newer one
+  replaces it) and forgotten with the robot; a robot without one (an older release) is
+  planned with the host's own profile and shown ``described: false``
+  (:meth:`Roster.profile_of`).
 * Parked robots (arrived, holding, paused, e-stopped or lost) are kept in a grid
   (:class:`GoalIndex`), so the goal check of a new task looks at the few robots near the
   goal, not at the whole fleet.
@@ -30,8 +35,9 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 from fleet.core.goals import GoalIndex, Occupied
+from fleet.core.params import RobotProfile
 from fleet.core.tasks import RobotStatus, RobotView
-from fleet.core.wire import RobotMode, RobotState
+from fleet.core.wire import RobotDescription, RobotMode, RobotState
 
 _STATUS_OF_MODE: dict[RobotMode, RobotStatus] = {m: RobotStatus(m.value) for m in RobotMode}
 #: Statuses of a robot that stands where it is for good (it blocks goals near it).
@@ -76,6 +82,7 @@ class RobotRecord:
     stray_at: float = _NEVER  # last check of a task it drives that is not its own
     parked_at: tuple[float, float] | None = None  # where it is in the parked grid [m]
     in_service: bool = True  # False: decommissioned by an operator (gets no task)
+    description: RobotDescription | None = None  # what it says it is (None: never said)
 
     @property
     def task_id(self) -> str | None:
@@ -172,6 +179,22 @@ class Roster:
             rec.status = status
             self._place(rec)
 
+    def describe(self, description: RobotDescription) -> tuple[RobotRecord, bool]:
+        """Keep the robot's description (it replaces an older one); returns the record and
+        whether anything changed (a repeat of the same description changes nothing)."""
+        rec = self._entry(description.robot_id)
+        changed = rec.description != description
+        rec.description = description
+        return rec, changed
+
+    def profile_of(self, robot_id: str, default: RobotProfile) -> RobotProfile:
+        """The robot's own profile, or ``default`` (the host's) if it has not described
+        itself."""
+        rec = self._robots.get(robot_id)
+        if rec is None or rec.description is None:
+            return default
+        return rec.description.profile
+
     def set_in_service(self, robot_id: str, in_service: bool) -> RobotRecord | None:
         """Decommission (False) or commission (True) a known robot; None if unknown."""
         rec = self._robots.get(robot_id)
@@ -242,6 +265,7 @@ class Roster:
         s = rec.state
         if s is None or rec.status is None:
             return None
+        d = rec.description
         # The state is a validated message: build the view without validating again.
         return RobotView.model_construct(
             robot_id=s.robot_id,
@@ -252,11 +276,16 @@ class Roster:
             task_id=s.task_id,
             law=s.law,
             goal=s.goal,
-            radius=s.radius,
+            radius=s.radius if d is None else d.radius,
             last_seen=rec.seen_wall,
             detail=s.detail,
             in_service=rec.in_service,
             errors=s.errors,
+            described=d is not None,
+            max_wheel_speed=None if d is None else d.max_wheel_speed,
+            max_speed=None if d is None else _max_speed(d),
+            may_reverse=True if d is None else d.may_reverse,
+            model=None if d is None else d.model,
         )
 
     def view(self, robot_id: str) -> RobotView | None:
@@ -271,3 +300,8 @@ class Roster:
     def sizes(self) -> dict[str, int]:
         """How many entries each per-robot structure holds (bounded with the roster)."""
         return {"robots": len(self._robots), "parked_robots": len(self._parked)}
+
+
+def _max_speed(d: RobotDescription) -> float | None:
+    """Top forward speed [m/s] of a described robot (None: no wheel limit)."""
+    return None if d.max_wheel_speed is None else d.max_wheel_speed * d.wheel_radius

@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
+from fleet.core.params import RobotProfile
 from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.tasks import RobotStatus, Task, TaskStatus
 from fleet.core.types import LAWS
@@ -30,6 +31,7 @@ class RobotFacts:
     status: RobotStatus
     age_s: float  # since its state arrived [s, service clock]
     available: bool  # may take a new task (not lost, no task, in service, not held)
+    profile: RobotProfile | None = None  # its own (described); None: the host's [profile]
 
 
 @dataclass(frozen=True)
@@ -114,6 +116,7 @@ def planning_input(
                 law=s.law,
                 revision=s.revision,
                 age_s=r.age_s * time_scale,
+                profile=r.profile,
             )
         )
         origins[s.robot_id] = s.seq + lead_time_s * hz

@@ -7,6 +7,13 @@ On :meth:`ZenohFleetBus.start` it declares
 * a liveliness subscriber on ``alive/*`` *with history* (robots already up are reported at
   once) -> ``sink.on_robot_alive`` / ``sink.on_robot_gone``; the service's own token is
   skipped;
+* a subscriber on ``robot/*/description`` -> ``sink.on_description`` (the key's robot id
+  must match the payload's); and when a robot appears (its token, or its first state) the
+  bus asks for its description once with a non-blocking ``get`` on
+  ``robot/<id>/description`` (the answer comes on a Zenoh thread, to the same handler). A
+  robot of an older release never answers: the service plans it with its own profile.
+  The bus forgets whom it asked when the robot's token goes, so a robot that comes back
+  (maybe upgraded) is asked again; the set is bounded (``MAX_ASKED``);
 * subscribers on the fleet's and every robot's ``control`` key -> ``sink.on_control`` (a
   robot's key must carry a command for that robot), so the service knows the e-stops and
   pauses other tools (``parkfleet estop``) latched;
@@ -25,7 +32,7 @@ import logging
 import threading
 from collections import Counter
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 import zenoh
 
@@ -36,6 +43,7 @@ from fleet.core.wire import (
     Keys,
     ObstacleSet,
     ParkAssignment,
+    RobotDescription,
     RobotState,
     encode,
 )
@@ -44,6 +52,13 @@ from fleet.io.operator import put_control
 from fleet.service.bus import FleetSink
 
 _log = logging.getLogger(__name__)
+#: Messages that name their robot, checked against the key they came on.
+_Addressed = TypeVar("_Addressed", RobotState, RobotDescription, ControlCommand)
+#: Robots asked for their description remembered at most (then the memory starts afresh:
+#: at worst a robot is asked once more).
+MAX_ASKED = 4096
+#: [s] how long a description query waits for the robot's answer.
+DESCRIPTION_QUERY_TIMEOUT_S = 5.0
 
 
 class ZenohFleetBus:
@@ -58,6 +73,7 @@ class ZenohFleetBus:
         self._sink: FleetSink | None = None
         self._declared: list[Any] = []
         self._closed = False
+        self._asked: set[str] = set()  # robots asked for their description (this token)
 
     # -- outgoing ------------------------------------------------------------------------
 
@@ -109,6 +125,11 @@ class ZenohFleetBus:
                 keys.all_alive, self._guard("liveliness", self._on_alive), history=True
             )
         )
+        self._declared.append(
+            session.declare_subscriber(
+                keys.all_descriptions, self._guard("description", self._on_description)
+            )
+        )
         for key in (keys.control(), keys.all_robot_controls):
             self._declared.append(
                 session.declare_subscriber(key, self._guard("control", self._on_control))
@@ -128,27 +149,71 @@ class ZenohFleetBus:
 
         return callback
 
+    def _addressed(
+        self, model: type[_Addressed], sample: zenoh.Sample, what: str
+    ) -> _Addressed | None:
+        """The decoded message if its robot is the key's (else dropped and counted as
+        ``<what>_key_mismatch``; a malformed one is counted by the decoder)."""
+        message = self._decoder.decode(model, sample.payload.to_bytes())
+        if message is None:
+            return None
+        if self._keys.robot_of(str(sample.key_expr)) != message.robot_id:
+            self._count(f"{what}_key_mismatch")
+            return None
+        return message
+
     def _on_state(self, sample: zenoh.Sample) -> None:
         sink = self._sink
         if sink is None:
             return
-        state = self._decoder.decode(RobotState, sample.payload.to_bytes())
+        state = self._addressed(RobotState, sample, "state")
         if state is None:
             return
-        if self._keys.robot_of(str(sample.key_expr)) != state.robot_id:
-            self._count("state_key_mismatch")
-            return
         sink.on_state(state)
+        self._ask_description(state.robot_id)
+
+    def _on_description(self, sample: zenoh.Sample) -> None:
+        sink = self._sink
+        if sink is None:
+            return
+        description = self._addressed(RobotDescription, sample, "description")
+        if description is None:
+            return
+        self._count("descriptions_received")
+        sink.on_description(description)
+
+    def _on_description_reply(self, reply: zenoh.Reply) -> None:
+        if reply.ok is None:
+            self._count("description_query_errors")
+            return
+        self._on_description(reply.ok)
+
+    def _ask_description(self, robot_id: str) -> None:
+        """Ask the robot for its description once (per token), without blocking."""
+        with self._lock:
+            if self._closed or robot_id in self._asked:
+                return
+            if len(self._asked) >= MAX_ASKED:
+                self._asked.clear()
+            self._asked.add(robot_id)
+        try:
+            self._session.get(
+                self._keys.description(robot_id),
+                self._guard("description", self._on_description_reply),
+                timeout=DESCRIPTION_QUERY_TIMEOUT_S,
+            )
+        except zenoh.ZError:
+            self._count("description_query_errors")
+            _log.exception("could not ask %s for its description", robot_id)
+            return
+        self._count("description_queries")
 
     def _on_control(self, sample: zenoh.Sample) -> None:
         sink = self._sink
         if sink is None:
             return
-        command = self._decoder.decode(ControlCommand, sample.payload.to_bytes())
+        command = self._addressed(ControlCommand, sample, "control")
         if command is None:
-            return
-        if self._keys.robot_of(str(sample.key_expr)) != command.robot_id:
-            self._count("control_key_mismatch")
             return
         sink.on_control(command)
 
@@ -158,9 +223,12 @@ class ZenohFleetBus:
         if sink is None or robot_id is None or robot_id == SERVICE_TOKEN:
             return
         if sample.kind == zenoh.SampleKind.DELETE:
+            with self._lock:
+                self._asked.discard(robot_id)
             sink.on_robot_gone(robot_id)
         else:
             sink.on_robot_alive(robot_id)
+            self._ask_description(robot_id)
 
     def _on_query(self, query: zenoh.Query) -> None:
         sink = self._sink

@@ -86,7 +86,7 @@ def pair_queued(
         cost = predicted_times(
             [r.pose for r in robots],
             specs,
-            snapshot.profile,
+            [r.profile or snapshot.profile for r in robots],
             snapshot.obstacles,
             snapshot.avoidance,
             nearest=config.assignment_candidates,

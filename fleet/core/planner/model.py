@@ -55,6 +55,8 @@ class RobotSnapshot:
     ``available``: it may take a new task (known, not lost, no active task, in service).
     ``task_id``/``law``/``revision``: what its last state says it runs.
     ``age_s``: how old ``pose`` is [s, robot time] at the snapshot.
+    ``profile``: the robot's own (it described itself); None: the snapshot's ``profile``
+    (the host's, for a robot of an older release).
     """
 
     robot_id: str
@@ -65,6 +67,7 @@ class RobotSnapshot:
     law: Law | None = None
     revision: int = 0
     age_s: float = 0.0
+    profile: RobotProfile | None = None
 
 
 @dataclass(frozen=True)
@@ -109,7 +112,7 @@ class PlanningSnapshot:
     robots: tuple[RobotSnapshot, ...]
     tasks: tuple[TaskSnapshot, ...]
     obstacles: tuple[Obstacle, ...] = ()
-    profile: RobotProfile = field(default_factory=RobotProfile)
+    profile: RobotProfile = field(default_factory=RobotProfile)  # robots without their own
     avoidance: Avoidance = field(default_factory=Avoidance)
     separation_m: float = 0.5  # minimum centre distance a plan must keep [m]
     lead_time_s: float = 0.0  # until the plan reaches the robots [s, robot time]

@@ -417,7 +417,10 @@ def plan(snapshot: PlanningSnapshot, config: PlannerConfig | None = None) -> Pla
     """Decide the queued and under-way tasks of ``snapshot`` (see the module docstring)."""
     config = config or PlannerConfig()
     strict = _plan(snapshot, config)
-    floor = 2 * snapshot.profile.radius + config.standstill_margin_m
+    radius = max(
+        [snapshot.profile.radius, *(r.profile.radius for r in snapshot.robots if r.profile)]
+    )  # the largest body of the fleet
+    floor = 2 * radius + config.standstill_margin_m
     if floor >= snapshot.separation_m or not strict.decisions:
         return strict
     if not all(d.hold for d in strict.decisions):

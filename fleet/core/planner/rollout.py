@@ -55,7 +55,9 @@ class Rows:
     """One scene: ``n`` robots as arrays (world frame; metres, radians, seconds).
 
     ``gains`` (n, 3) = (kx, ky, ktheta); ``cw`` True for law (20); ``tolerance`` (n, 2) =
-    (position [m], heading [rad]); ``delay`` (n,) start delay [s].
+    (position [m], heading [rad]); ``delay`` (n,) start delay [s]; ``limits`` (n, 4) each
+    robot's own profile (wheel radius [m], half axle [m], max wheel speed [rad/s], body
+    radius [m]; :func:`limits_of`), a NaN row (or None for all) = the world's profile.
     """
 
     start: FloatArray  # (n, 3)
@@ -64,6 +66,7 @@ class Rows:
     cw: BoolArray  # (n,)
     tolerance: FloatArray  # (n, 2)
     delay: FloatArray  # (n,)
+    limits: FloatArray | None = None  # (n, 4); None or NaN rows: the world's profile
 
     @property
     def size(self) -> int:
@@ -93,7 +96,23 @@ class Rows:
             cw=np.concatenate([p.cw for p in parts]),
             tolerance=np.concatenate([p.tolerance for p in parts]),
             delay=np.concatenate([p.delay for p in parts]),
+            limits=(
+                None
+                if all(p.limits is None for p in parts)
+                else np.concatenate(
+                    [np.full((p.size, 4), np.nan) if p.limits is None else p.limits for p in parts]
+                )
+            ),
         )
+
+
+def limits_of(profiles: Sequence[RobotProfile | None]) -> FloatArray:
+    """(n, 4) :attr:`Rows.limits` of ``profiles`` (None: a NaN row, the world's)."""
+    out = np.full((len(profiles), 4), np.nan)
+    for i, p in enumerate(profiles):
+        if p is not None:
+            out[i] = (p.wheel_radius, p.half_axle, p.max_wheel_speed, p.radius)
+    return out
 
 
 @dataclass(frozen=True)
@@ -152,10 +171,25 @@ def problem_of(rows: Rows, world: World, peers: bool = True) -> BatchProblem:
         min_x_oa=avoid.min_x_oa,
         start_delay=rows.delay,
     )
-    return replace(
+    problem = replace(
         problem,
         tol_position=np.ascontiguousarray(rows.tolerance[:, 0]),
         tol_heading=np.ascontiguousarray(rows.tolerance[:, 1]),
+    )
+    if rows.limits is None:
+        return problem
+    own = rows.limits
+
+    def column(i: int, world_value: FloatArray | float | None) -> FloatArray:
+        world_value = np.nan if world_value is None else world_value
+        return np.ascontiguousarray(np.where(np.isnan(own[:, i]), world_value, own[:, i]))
+
+    return replace(
+        problem,
+        wheel_radius=column(0, problem.wheel_radius),
+        half_axle=column(1, problem.half_axle),
+        max_wheel_speed=column(2, problem.max_wheel_speed),
+        body_radius=column(3, problem.body_radius),
     )
 
 
@@ -278,6 +312,7 @@ class Live:
             cw=r.cw,
             tolerance=np.where(done, STANDING_TOLERANCE, r.tolerance),
             delay=np.where(self.done, STANDING_DELAY, np.maximum(r.delay - self.elapsed, 0.0)),
+            limits=r.limits,
         )
 
     def absorb(self, o: Outcome, dt: float) -> None:

@@ -32,7 +32,14 @@ import numpy.typing as npt
 from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
 from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
-from fleet.core.planner.rollout import STANDING_DELAY, STANDING_TOLERANCE, Rows, World, roll_out
+from fleet.core.planner.rollout import (
+    STANDING_DELAY,
+    STANDING_TOLERANCE,
+    Rows,
+    World,
+    limits_of,
+    roll_out,
+)
 from fleet.core.tasks import RobotStatus, TaskStatus
 from fleet.core.types import LAWS, BoolArray, FloatArray, Law
 
@@ -68,6 +75,7 @@ class Movers:
     keep_law: IntArray  # (k,) law it runs now (NEW: its fastest solo law)
     keep_delay: FloatArray  # (k,) start delay left when the plan arrives [s]
     keep_hold: BoolArray  # (k,) held now
+    limits: FloatArray  # (k, 4) each robot's own profile (``Rows.limits``; NaN: the world's)
 
     @property
     def size(self) -> int:
@@ -120,7 +128,13 @@ class Fleet:
 
     @property
     def top_speed(self) -> float:
-        speed = self.world.profile.max_speed
+        """[m/s] the slowest mover's top speed (the world's profile without movers): a
+        remaining distance over it does not underestimate anyone's time."""
+        speeds = [self.world.profile.max_speed] if self.movers.size == 0 else []
+        wheel = self.movers.limits[:, 2] * self.movers.limits[:, 0]
+        world = self.world.profile.max_speed
+        speeds += [world if np.isnan(v) else float(v) for v in wheel]
+        speed = min(speeds)
         return speed if np.isfinite(speed) and speed > 0 else 1.0
 
     def keep(self, movers: Sequence[int]) -> Candidate:
@@ -200,6 +214,7 @@ def build_fleet(
         [(t.tolerance.position, t.tolerance.heading) for t in tasks], dtype=np.float64
     ).reshape(k, 2)
     allowed = np.array([_allowed(t) for t in tasks], dtype=bool).reshape(k, 2)
+    limits = limits_of([r.profile for r in owners])
     standing_xy = np.array([r.pose[:2] for r in standing], dtype=np.float64).reshape(-1, 2)
     world = World(snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles))
 
@@ -218,6 +233,7 @@ def build_fleet(
                     cw=law_now == 1,
                     tolerance=np.where(still[:, None], STANDING_TOLERANCE, tolerance),
                     delay=np.where(still, STANDING_DELAY, delay_now),
+                    limits=limits,
                 ),
                 Rows.standing(standing_xy),
             ]
@@ -234,7 +250,7 @@ def build_fleet(
         delay_now = np.maximum(delay_now - lead, 0.0)
 
     solo_time, solo_times, solo_xy = _solo(
-        start, goal, gains, tolerance, allowed, world, snapshot.control_dt, config
+        start, goal, gains, tolerance, allowed, world, snapshot.control_dt, config, limits
     )
     fastest = np.where(
         allowed[:, 0] & (~allowed[:, 1] | (solo_time[:, 0] <= solo_time[:, 1])), 0, 1
@@ -252,6 +268,7 @@ def build_fleet(
         keep_law=keep_law.astype(np.int64),
         keep_delay=delay_now,
         keep_hold=kind == HELD,
+        limits=limits,
     )
     return Fleet(
         movers=movers,
@@ -303,6 +320,7 @@ def _solo(
     world: World,
     dt: float,
     config: PlannerConfig,
+    limits: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Each mover alone with each allowed law: arrival times (k, 2) and sampled paths."""
     k = start.shape[0]
@@ -318,6 +336,7 @@ def _solo(
         cw=np.tile([False, True], k),
         tolerance=np.repeat(tolerance, 2, axis=0),
         delay=np.zeros(2 * k),
+        limits=None if limits is None else np.repeat(limits, 2, axis=0),
     )
     (result,) = roll_out(
         [rows], world, dt=step, max_time=config.max_horizon_s, peers=False, record_every=every
@@ -345,6 +364,7 @@ def scene_rows(fleet: Fleet, cluster: Cluster, c: Candidate) -> Rows:
         cw=c.law == 1,
         tolerance=np.where(hold, STANDING_TOLERANCE, m.tolerance[idx]),
         delay=np.where(c.hold, STANDING_DELAY, c.delay),
+        limits=m.limits[idx],
     )
     still = [fleet.standing_xy[np.asarray(cluster.standing, dtype=np.int64)].reshape(-1, 2)]
     still.append(np.array([p[:2] for p in cluster.phantoms], dtype=np.float64).reshape(-1, 2))

@@ -123,6 +123,19 @@ def velocity(ros_type: str, payload: bytes) -> tuple[float, float]:
     return (twist.linear.x, twist.angular.z)
 
 
+def test_a_held_robot_gets_a_zero_every_tick(robot: Robot, drive_session: Any) -> None:
+    """stop() (e-stop, pause, holding ...) never falls silent, so a teleop is overridden."""
+    drive = make(drive_session)
+    try:
+        wait_for(lambda: drive.cmd_vel_subscribed, 10, "the robot's cmd_vel subscriber")
+        for _ in range(3 * ZERO_REPEATS):
+            drive.stop()
+        wait_for(lambda: len(robot.received()) >= 3 * ZERO_REPEATS, 10, "zeros")
+        assert {velocity(TWIST, p) for _, p, _ in robot.received()} == {(0.0, 0.0)}
+    finally:
+        drive.close()
+
+
 def test_commands_go_out_on_the_exact_key_with_the_attachment(
     robot: Robot, drive_session: Any
 ) -> None:
@@ -133,7 +146,7 @@ def test_commands_go_out_on_the_exact_key_with_the_attachment(
         first = 1
         drive.command_wheels(10.0, 6.0)
         for _ in range(3 * ZERO_REPEATS):
-            drive.stop()  # zeros after motion, then silence...
+            drive.release()  # idle: zeros after motion, then silence...
         drive.command_wheels(-4.0, 4.0)  # ...until the next motion (a marker here)
         wait_for(lambda: len(robot.received()) >= first + ZERO_REPEATS + 2, 10, "commands")
         assert velocity(TWIST, robot.received()[0][1]) == (0.0, 0.0)
@@ -237,7 +250,7 @@ def test_bridge_mapping_with_stamped_commands(robot: Robot, drive_session: Any) 
 
 
 def test_localiser_pose_is_carried_forward_by_odometry(robot: Robot, drive_session: Any) -> None:
-    drive = make(drive_session, pose_source="localiser", namespace="/tb4_1")
+    drive = make(drive_session, pose_source="localiser", namespace="/tb4_1", odom_jump_m=5.0)
     assert drive.localiser is not None
     amcl_key = drive.localiser.key
     assert amcl_key == "0/tb4_1/amcl_pose/geometry_msgs::msg::dds_::PoseWithCovarianceStamped_/" + (

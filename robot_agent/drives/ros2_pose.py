@@ -165,6 +165,7 @@ class PoseTrack:
         self._correction: Posture | None = None if localiser else (0.0, 0.0, 0.0)
         self.jumped: str | None = None  # why the odometry jumped, until re-aligned
         self.clock_steps = 0  # re-bases after a clock stepped back
+        self._pending: tuple[float, Posture] | None = None  # localiser pose ahead of odometry
 
     def add_odometry(
         self, stamp_s: float, pose: Posture, wall_now: float | None = None
@@ -204,6 +205,9 @@ class PoseTrack:
             self._poses.pop()
         self._stamps.append(stamp_s)
         self._poses.append(pose)
+        pending, self._pending = self._pending, None
+        if pending is not None:  # a localiser pose that came before its odometry (latched)
+            self.add_localiser(*pending)
         return None
 
     def odometry_at(self, stamp_s: float) -> Posture | None:
@@ -222,6 +226,8 @@ class PoseTrack:
         """Re-anchor on a localiser pose; ``no_odometry`` if no odometry covers its stamp."""
         odometry = self.odometry_at(stamp_s)
         if odometry is None:
+            if not self._stamps or stamp_s > self._stamps[-1]:
+                self._pending = (stamp_s, pose)  # retried when the odometry catches up
             return Rejected("no_odometry", f"no odometry around localiser stamp {stamp_s}")
         self._correction = compose(pose, invert(odometry))
         self.jumped = None  # history starts after any jump: this pose re-aligns the track

@@ -71,6 +71,15 @@ from robot_agent.world_feed import WorldFeed
 _log = logging.getLogger(__name__)
 _NO_PEERS = np.zeros((0, 2))  # peers only matter while driving
 Inbound = ParkAssignment | CancelAssignment | ControlCommand
+#: Modes in which the robot stands with nothing to do: a drive with ``release()`` may fall
+#: silent there (an operator may teleop); every other stopped mode calls ``stop()`` each tick.
+_AT_REST = (RobotMode.IDLE, RobotMode.ARRIVED)
+
+
+def _drive_faults(drive: Drive) -> list[tuple[str, str]]:
+    """The drive's own holding faults (optional ``faults()``, e.g. the ros2 drive's pose_jump)."""
+    faults = getattr(drive, "faults", None)
+    return list(faults()) if faults is not None else []
 
 
 @dataclass(frozen=True)
@@ -261,6 +270,7 @@ class RobotAgent:
         failure = self._failure
         pose_age = float("nan")
         link_ok = True
+        drive_faults: list[tuple[str, str]] = []
         decision: TickResult | None = None
         if reading is not None:
             pose, stamp, now = reading
@@ -287,12 +297,20 @@ class RobotAgent:
                         link_ok=link_ok if active else True,
                         now=now,
                     )
+                drive_faults = _drive_faults(self.drive)
+                if drive_faults and override is None and decision.mode not in _AT_REST:
+                    decision = TickResult(
+                        mode=RobotMode.HOLDING, task=decision.task, detail=drive_faults[0][1]
+                    )
                 self._task = decision.task
                 phase = "drive_error"
+                release = getattr(self.drive, "release", None)
                 if decision.moving:
                     self.drive.command_wheels(decision.right, decision.left)
+                elif decision.mode in _AT_REST and release is not None:
+                    release()  # nothing to do: the drive may fall silent (teleop)
                 else:
-                    self.drive.stop()
+                    self.drive.stop()  # held stopped for a reason: zero every tick
             except Exception as exc:
                 failure = self._tick_failed(phase, exc)
                 decision = None
@@ -310,6 +328,7 @@ class RobotAgent:
             link_ok=link_ok,
             estop=self.operator.detail if self.operator.estop else None,
             failure=failure,
+            drive=drive_faults,
         )
         wall = self._wall()
         return self._publish(decision, self.faults.update(faults, wall), wall)

@@ -13,8 +13,14 @@ A ``Drive`` connects :class:`robot_agent.agent.RobotAgent` to one robot's hardwa
   (positive = forward). The agent already respects ``RobotProfile.max_wheel_speed``
   (both wheels scaled together so the path curvature is kept, Eq. 2); the drive holds the
   command until the next one (zero-order hold). The agent commands at its control rate.
-* :meth:`Drive.stop` -- stop both wheels now. Called on shutdown, on a stale pose and
-  when a tick fails; it must be safe to call at any time and repeatedly.
+* :meth:`Drive.stop` -- stop both wheels now. Called on shutdown, when a tick fails and
+  on every tick the robot is held stopped for a reason (e-stop, pause, holding, link
+  lost, pose stale or jumped, waiting); it must be safe to call at any time and repeatedly.
+* Optional ``release()`` -- called instead of ``stop()`` on ticks the robot stands with
+  nothing to do (idle, arrived): a drive may stop commanding (the ros2 drive falls silent
+  so an operator can teleop). Optional ``faults()`` -- ``(code, message)`` pairs of the
+  drive's own faults; while any is reported the agent holds and lists it in
+  ``RobotState.errors`` (the ros2 drive's ``pose_jump``).
 
 Calls come from one thread (the agent's control loop), never concurrently. Methods should
 return quickly (well under one control period); raise an exception on a hardware fault,

@@ -10,7 +10,9 @@ Codes (stable, for scripts and dashboards):
 * ``pose_stale`` (error) -- the drive's pose is older than ``pose_stale_s``;
 * ``link_lost`` (error) -- the router link is gone (``robot_agent.link``);
 * ``drive_error`` (error) -- the drive raised on the last tick (the robot was stopped);
-* ``tick_error`` (error) -- the agent's own tick failed (the robot was stopped).
+* ``tick_error`` (error) -- the agent's own tick failed (the robot was stopped);
+* ``pose_jump`` (error) -- the ros2 drive's odometry jumped or reset: holding until
+  re-aligned (any code a drive's optional ``faults()`` reports is passed on like this).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ def current_faults(
     link_ok: bool,
     estop: str | None = None,
     failure: tuple[str, str] | None = None,
+    drive: Iterable[tuple[str, str]] = (),
 ) -> list[Fault]:
     """Faults of one tick.
 
@@ -45,6 +48,7 @@ def current_faults(
         faults.append(
             ("pose_stale", ErrorLevel.ERROR, f"own pose older than {pose_stale_s:g} s: holding")
         )
+    faults.extend((code, ErrorLevel.ERROR, message) for code, message in drive)
     if not link_ok:
         faults.append(("link_lost", ErrorLevel.ERROR, "link to the fleet network lost: holding"))
     return faults

@@ -83,6 +83,15 @@ class Ros2Settings(BaseModel):
     max_future_s: Annotated[float, Field(ge=0, le=10)] = 0.1
     # parkfleet agent waits this long [s] for the first usable pose, then exits with a reason.
     first_pose_timeout_s: Annotated[float, Field(gt=0)] = 30.0
+    # Odometry jump (README "Where the two links go"): consecutive odometry poses farther apart
+    # than the profile's top speed x their stamps' interval + odom_jump_m [m] (or turned more
+    # than its top turn rate x interval + odom_jump_rad [rad]), or odometry back at its origin,
+    # hold the robot with a pose_jump fault until re-aligned.
+    odom_jump_m: Annotated[float, Field(gt=0)] = 0.25
+    odom_jump_rad: Annotated[float, Field(gt=0)] = 0.5
+    # An odometry stamp this far [s] behind the newest, but near this computer's clock, is a
+    # clock stepped back (NTP, no RTC): the drive re-bases instead of dropping every pose.
+    clock_step_s: Annotated[float, Field(gt=0)] = 1.0
 
 
 class Settings(BaseSettings):

@@ -5,15 +5,23 @@ The fleet side needs no ROS installation: the drive speaks the ROS 2 wire format
 * **Commands** -- the agent's wheel speeds become (u, omega) again by Eq. (2)
   (:func:`fleet.core.control.body_velocities`) and go out as ``geometry_msgs/msg/Twist``
   (or ``TwistStamped``, ``Ros2Settings.cmd_vel_type``) on the robot's ``cmd_vel``, one
-  per control tick (50 Hz). After motion the zero command is sent :data:`ZERO_REPEATS`
-  times, then the drive stays silent while the robot stands (a teleop or Nav2 may then
-  use ``cmd_vel``) until the agent drives again.
+  per control tick (50 Hz). While the agent holds the robot stopped for a reason
+  (:meth:`Ros2Drive.stop`: e-stop, pause, holding, link lost, pose stale or jumped,
+  waiting) a zero goes out every tick, so a teleop or Nav2 on the same ``cmd_vel`` is
+  overridden at the control rate. When the robot merely stands with nothing to do (idle or
+  arrived, :meth:`Ros2Drive.release`) the zero is sent :data:`ZERO_REPEATS` times after
+  motion, then the drive falls silent so an operator may teleop it. This is **not** a
+  hardware stop (README "Where the two links go").
 * **Pose** -- ``nav_msgs/msg/Odometry`` on ``odom`` or a localiser's
   ``geometry_msgs/msg/PoseWithCovarianceStamped`` (e.g. ``amcl_pose``) carried forward
   by the odometry (:mod:`robot_agent.drives.ros2_pose`), moved into the fleet's world
   frame by ``Ros2Settings.origin``. :meth:`Ros2Drive.read_pose` reports the time the
   message's own header stamp maps to on this computer's monotonic clock, so the agent's
-  staleness check (``pose_stale_s``) stops the robot when the odometry stops.
+  staleness check (``pose_stale_s``) stops the robot when the odometry stops. An odometry
+  jump or reset is reported by :meth:`Ros2Drive.faults` (``pose_jump``: the agent holds)
+  until re-aligned; a clock stepped back re-bases the track (``ros2_pose``). The localiser
+  is subscribed transient-local (a Zenoh advanced subscriber with history), so AMCL's
+  latched last pose arrives even when it was published before the agent started.
 * **Bad input** -- a message of another type or type hash, malformed CDR, a non-finite
   pose, a wrong frame, a missing or future stamp: dropped, counted by reason in
   :attr:`Ros2Drive.decoder` and logged (sampled); never raised into the agent. The robot
@@ -53,6 +61,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import zenoh
+import zenoh.ext
 
 from fleet.core.control import body_velocities
 from fleet.core.params import RobotProfile
@@ -81,12 +90,20 @@ from robot_agent.drives.ros2_names import (
     qos_token,
     topic_path,
 )
-from robot_agent.drives.ros2_pose import PoseTrack, check_pose, compose, measured_at
+from robot_agent.drives.ros2_pose import (
+    JumpLimits,
+    PoseTrack,
+    check_pose,
+    compose,
+    measured_at,
+)
 
 _log = logging.getLogger(__name__)
 
-#: Zero commands sent after motion before the drive falls silent (100 ms at 50 Hz).
+#: Zero commands sent after motion before an idle drive falls silent (100 ms at 50 Hz).
 ZERO_REPEATS = 5
+#: History depth of the localiser subscription (AMCL: transient-local, keep last 1).
+LOCALISER_DEPTH = 1
 #: Security settings a session to the robot's own router does not inherit from the fleet.
 _FLEET_ONLY: dict[str, object] = {
     "listen": [],
@@ -149,7 +166,17 @@ class Ros2Drive:
         self._monotonic = monotonic
         self._wall = wall_clock
         self._lock = threading.Lock()
-        self._track = PoseTrack(localiser=config.pose_source == "localiser")
+        top_speed = profile.max_wheel_speed * profile.wheel_radius  # [m/s], Eq. (2)
+        self._track = PoseTrack(
+            localiser=config.pose_source == "localiser",
+            jump=JumpLimits(
+                top_speed=top_speed,
+                top_turn=top_speed / profile.half_axle,
+                slack_m=config.odom_jump_m,
+                slack_rad=config.odom_jump_rad,
+            ),
+            clock_step_s=config.clock_step_s,
+        )
         self._odometry_measured = float("-inf")  # [s, monotonic] of the newest odometry
         self._reading: PoseReading | None = None
         self._has_pose = threading.Event()
@@ -219,9 +246,22 @@ class Ros2Drive:
         if self.localiser is not None:
             subscriptions.append((self.localiser, self._on_localiser))
         for topic, callback in subscriptions:
-            self._handles.append(
-                session.declare_subscriber(topic.subscription, self.guard.wrap(callback))
-            )
+            if topic is self.localiser:
+                # AMCL publishes amcl_pose transient-local: rmw_zenoh gives such a publisher
+                # an AdvancedPublisher with a cache; history fetches its last pose, also from
+                # a publisher that appears later (detect_late_publishers).
+                handle: Any = zenoh.ext.declare_advanced_subscriber(
+                    session,
+                    topic.subscription,
+                    self.guard.wrap(callback),
+                    history=zenoh.ext.HistoryConfig(
+                        detect_late_publishers=True, max_samples=LOCALISER_DEPTH
+                    ),
+                    subscriber_detection=True,
+                )
+            else:
+                handle = session.declare_subscriber(topic.subscription, self.guard.wrap(callback))
+            self._handles.append(handle)
         if rmw:  # the ROS graph: node, publisher (reliable), subscriptions (best effort)
             zid = str(session.info.zid())
             self.tokens.append(node_token(c.domain_id, zid, 0, c.namespace, self.node_name))
@@ -229,9 +269,12 @@ class Ros2Drive:
                 self._token("MP", 1, self.cmd_vel, qos_token(reliable=True, depth=1))
             )
             for entity_id, (topic, _) in enumerate(subscriptions, start=2):
-                self.tokens.append(
-                    self._token("MS", entity_id, topic, qos_token(reliable=False, depth=5))
+                qos = (
+                    qos_token(reliable=True, depth=LOCALISER_DEPTH, transient_local=True)
+                    if topic is self.localiser
+                    else qos_token(reliable=False, depth=5)
                 )
+                self.tokens.append(self._token("MS", entity_id, topic, qos))
             self._gid = entity_gid(self.tokens[1])
             liveliness = session.liveliness()
             for token in self.tokens:
@@ -286,7 +329,12 @@ class Ros2Drive:
             return
         measured = measured_at(pose.stamp_s, self._wall(), self._monotonic())
         with self._lock:
-            rejected = self._track.add_odometry(pose.stamp_s, (pose.x, pose.y, pose.theta))
+            steps = self._track.clock_steps
+            rejected = self._track.add_odometry(
+                pose.stamp_s, (pose.x, pose.y, pose.theta), self._wall()
+            )
+            if self._track.clock_steps != steps:
+                _log.warning("ros2 drive %s: clock stepped back: re-based", self.node_name)
             if rejected is None:
                 self._odometry_measured = measured
                 self.poses_received += 1
@@ -358,10 +406,30 @@ class Ros2Drive:
         self._zeros_left = ZERO_REPEATS
 
     def stop(self) -> None:
-        """Command zero velocity (repeated :data:`ZERO_REPEATS` times after motion)."""
+        """Command zero velocity, every call: the agent calls it every tick while it holds
+        the robot stopped, so a zero goes out at the control rate."""
+        self._zeros_left = ZERO_REPEATS
+        self._send(0.0, 0.0)
+
+    def release(self) -> None:
+        """The robot stands with nothing to do (idle, arrived): zero velocity
+        :data:`ZERO_REPEATS` times after motion, then silence (a teleop may use ``cmd_vel``)."""
         if self._zeros_left > 0:
             self._zeros_left -= 1
             self._send(0.0, 0.0)
+
+    def faults(self) -> list[tuple[str, str]]:
+        """``(code, message)`` of the drive's faults that hold the robot: ``pose_jump``."""
+        with self._lock:
+            jumped = self._track.jumped
+        if jumped is None:
+            return []
+        how = (
+            "until the next localiser pose re-aligns it"
+            if self.localiser is not None
+            else "re-align: set ros2.origin and restart the agent"
+        )
+        return [("pose_jump", f"{jumped}: holding, {how}")]
 
     def _send(self, u: float, omega: float) -> None:
         c = self.config

@@ -90,13 +90,15 @@ def key_type(mapping: KeyMapping, key: str, domain_id: int, path: str) -> tuple[
     return (chunks[0], chunks[1]) if len(chunks) == 2 else None
 
 
-def qos_token(*, reliable: bool, depth: int) -> str:
-    """rmw_zenoh's compact QoS (``qos_to_keyexpr``) of a volatile keep-last endpoint:
+def qos_token(*, reliable: bool, depth: int, transient_local: bool = False) -> str:
+    """rmw_zenoh's compact QoS (``qos_to_keyexpr``) of a keep-last endpoint:
     ``<reliability>:<durability>:<history>,<depth>:<deadline>:<lifespan>:<liveliness>``,
-    each field left empty where it equals the default (reliable = 1, best effort = 2)."""
+    each field left empty where it equals the default (reliable = 1, best effort = 2;
+    durability volatile = 2, the default, transient-local = 1: rmw's enum values)."""
     reliability = "" if reliable else "2"
+    durability = "1" if transient_local else ""
     shown_depth = "" if depth == DEFAULT_QOS_DEPTH else str(depth)
-    return f"{reliability}::,{shown_depth}:,:,:,,"
+    return f"{reliability}:{durability}:,{shown_depth}:,:,:,,"
 
 
 def node_token(domain_id: int, zid: str, node_id: int, namespace: str, node_name: str) -> str:

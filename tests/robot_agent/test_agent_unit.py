@@ -248,3 +248,38 @@ def test_states_say_why_the_robot_holds_and_list_its_faults() -> None:
     drive.stamp_lag = 0.0
     snap = agent.tick()
     assert snap is not None and snap.mode is RobotMode.DRIVING and snap.errors == ()
+
+
+class RosLikeDrive(FakeDrive):
+    """A drive with the optional release() and faults() (as the ros2 drive has)."""
+
+    def __init__(self, clock: SteppedClock) -> None:
+        super().__init__(clock)
+        self.releases = 0
+        self.jumped: str | None = None
+
+    def release(self) -> None:
+        self.releases += 1
+
+    def faults(self) -> list[tuple[str, str]]:
+        return [] if self.jumped is None else [("pose_jump", self.jumped)]
+
+
+def test_at_rest_the_drive_is_released_held_it_is_stopped_every_tick() -> None:
+    clock = SteppedClock()
+    drive = RosLikeDrive(clock)
+    agent = RobotAgent("r1", drive, None, load_settings(), clock=clock)
+    agent.tick()
+    assert drive.releases == 1 and drive.stops == 0  # idle: the drive may fall silent
+    agent.submit(ASSIGNMENT)
+    agent.tick()
+    assert drive.commands  # driving
+    drive.jumped = "odometry moved 1.000 m in 0.020 s"
+    for _ in range(3):
+        snap = agent.tick()
+    assert snap is not None and snap.mode is RobotMode.HOLDING
+    assert [e.code for e in snap.errors] == ["pose_jump"]
+    assert drive.stops == 3 and len(drive.commands) == 1  # a zero every held tick
+    drive.jumped = None
+    snap = agent.tick()
+    assert snap is not None and snap.mode is not RobotMode.HOLDING and not snap.errors

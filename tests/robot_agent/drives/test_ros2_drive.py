@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 import zenoh
+import zenoh.ext
 from support import wait_for
 from zenoh_ros2_sdk.discovery import _parse_liveliness_keyexpr
 
@@ -24,7 +25,7 @@ from fleet.cli.agent import DRIVES, load_drive
 from fleet.core.control import body_velocities
 from fleet.core.wire import Pose
 from fleet.io.settings import Ros2Settings, Settings, load_settings
-from fleet.io.transport import open_session
+from fleet.io.transport import open_session, zenoh_config
 from robot_agent.drives.ros2 import ZERO_REPEATS, Ros2Drive, robot_session_settings
 from robot_agent.drives.ros2_attachment import decode_attachment, entity_gid
 from robot_agent.drives.ros2_messages import (
@@ -123,6 +124,19 @@ def velocity(ros_type: str, payload: bytes) -> tuple[float, float]:
     return (twist.linear.x, twist.angular.z)
 
 
+def test_a_held_robot_gets_a_zero_every_tick(robot: Robot, drive_session: Any) -> None:
+    """stop() (e-stop, pause, holding ...) never falls silent, so a teleop is overridden."""
+    drive = make(drive_session)
+    try:
+        wait_for(lambda: drive.cmd_vel_subscribed, 10, "the robot's cmd_vel subscriber")
+        for _ in range(3 * ZERO_REPEATS):
+            drive.stop()
+        wait_for(lambda: len(robot.received()) >= 3 * ZERO_REPEATS, 10, "zeros")
+        assert {velocity(TWIST, p) for _, p, _ in robot.received()} == {(0.0, 0.0)}
+    finally:
+        drive.close()
+
+
 def test_commands_go_out_on_the_exact_key_with_the_attachment(
     robot: Robot, drive_session: Any
 ) -> None:
@@ -133,7 +147,7 @@ def test_commands_go_out_on_the_exact_key_with_the_attachment(
         first = 1
         drive.command_wheels(10.0, 6.0)
         for _ in range(3 * ZERO_REPEATS):
-            drive.stop()  # zeros after motion, then silence...
+            drive.release()  # idle: zeros after motion, then silence...
         drive.command_wheels(-4.0, 4.0)  # ...until the next motion (a marker here)
         wait_for(lambda: len(robot.received()) >= first + ZERO_REPEATS + 2, 10, "commands")
         assert velocity(TWIST, robot.received()[0][1]) == (0.0, 0.0)
@@ -237,7 +251,7 @@ def test_bridge_mapping_with_stamped_commands(robot: Robot, drive_session: Any) 
 
 
 def test_localiser_pose_is_carried_forward_by_odometry(robot: Robot, drive_session: Any) -> None:
-    drive = make(drive_session, pose_source="localiser", namespace="/tb4_1")
+    drive = make(drive_session, pose_source="localiser", namespace="/tb4_1", odom_jump_m=5.0)
     assert drive.localiser is not None
     amcl_key = drive.localiser.key
     assert amcl_key == "0/tb4_1/amcl_pose/geometry_msgs::msg::dds_::PoseWithCovarianceStamped_/" + (
@@ -335,3 +349,38 @@ def test_the_robot_router_session_leaves_the_fleet_security_out(tmp_path: Any) -
     )
     assert robot.connect == ["tcp/127.0.0.1:7447"] and robot.zenoh_mode == "client"
     assert (robot.tls_root_ca, robot.tls_cert, robot.zenoh_user) == (None, None, None)
+
+
+def test_a_latched_localiser_pose_published_before_the_drive_arrives(
+    robot: Robot, drive_session: Any, client_settings: Settings
+) -> None:
+    """AMCL's amcl_pose is transient-local: under rmw_zenoh an AdvancedPublisher with a cache.
+    Its pose, put before the drive subscribes, still reaches the drive (history)."""
+    amcl_key = "0/amcl_pose/geometry_msgs::msg::dds_::PoseWithCovarianceStamped_/" + (
+        MESSAGES.type_hash(POSE_WITH_COVARIANCE_STAMPED)
+    )
+    config = zenoh_config(client_settings, "client")
+    config.insert_json5("timestamping/enabled", "true")  # as rmw_zenoh's session config has
+    with zenoh.open(config) as amcl:
+        _latched_pose_reaches_the_drive(amcl, amcl_key, robot, drive_session)
+
+
+def _latched_pose_reaches_the_drive(
+    amcl: Any, amcl_key: str, robot: Robot, drive_session: Any
+) -> None:
+    publisher = zenoh.ext.declare_advanced_publisher(
+        amcl, amcl_key, cache=zenoh.ext.CacheConfig(1), publisher_detection=True
+    )
+    try:
+        publisher.put(pose_message(POSE_WITH_COVARIANCE_STAMPED, 3, 4, 0.0, WALL - 0.1, "map"))
+        drive = make(drive_session, pose_source="localiser")
+        try:
+            robot.put(drive.odometry.key, pose_message(ODOMETRY, 0.0, 0.0, 0.0, WALL - 0.1))
+            wait_for(drive._has_pose.is_set, 10, "the latched localiser pose")
+            pose, _ = drive.read_pose()
+            assert (pose.x, pose.y) == pytest.approx((3.0, 4.0))
+            assert any(":1:," in token for token in drive.tokens)  # announced transient-local
+        finally:
+            drive.close()
+    finally:
+        publisher.undeclare()

@@ -5,18 +5,21 @@ from __future__ import annotations
 import math
 
 import pytest
-from hypothesis import given
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 from robot_agent.drives.ros2_messages import StampedPose
 from robot_agent.drives.ros2_pose import (
     MAX_LOCALISER_LEAD_S,
+    RESET_RADIUS_M,
+    JumpLimits,
     PoseTrack,
     check_pose,
     compose,
     interpolate,
     invert,
     measured_at,
+    odometry_jump,
     wrap_angle,
 )
 
@@ -119,3 +122,51 @@ def test_a_localiser_stamp_outside_the_odometry_history_is_refused() -> None:
         rejected = track.add_localiser(stamp, (0.0, 0.0, 0.0))
         assert rejected is not None and rejected.reason == "no_odometry"
     assert track.latest() is None
+
+
+LIMITS = JumpLimits(top_speed=1.0, top_turn=7.4, slack_m=0.25, slack_rad=0.5)
+
+
+@given(
+    st.floats(-5, 5), st.floats(-5, 5), st.floats(-3, 3), st.floats(0.001, 0.1),
+    st.floats(0, 1), st.floats(-1, 1),
+)  # fmt: skip
+def test_motion_the_robot_can_make_is_no_jump(
+    x: float, y: float, t: float, dt: float, fraction: float, turn: float
+) -> None:
+    step = LIMITS.top_speed * dt * fraction
+    pose = (x + step * math.cos(t), y + step * math.sin(t), wrap_angle(t + turn * dt))
+    assume(math.hypot(pose[0], pose[1]) > RESET_RADIUS_M)
+    assert odometry_jump((x, y, t), pose, dt, LIMITS) is None
+
+
+def test_a_jump_or_a_reset_holds_until_a_localiser_pose_re_aligns() -> None:
+    track = PoseTrack(localiser=False, jump=LIMITS)
+    track.add_odometry(1.0, (2.0, 0.0, 0.0))
+    track.add_odometry(1.02, (2.0, 1.0, 0.0))  # 1 m in 20 ms
+    assert track.jumped is not None and "moved" in track.jumped
+    reset = PoseTrack(localiser=True, jump=LIMITS)
+    reset.add_odometry(1.0, (3.0, 0.0, 0.0))
+    assert reset.add_localiser(1.0, (5.0, 5.0, 0.0)) is None
+    reset.add_odometry(60.0, (0.0, 0.0, 0.0))  # back at the origin after a long silence
+    assert reset.jumped is not None and "reset" in reset.jumped
+    assert reset.add_localiser(59.0, (5.0, 5.0, 0.0)) is not None  # before the jump: no use
+    assert reset.jumped is not None
+    assert reset.add_localiser(60.0, (6.0, 5.0, 0.0)) is None
+    assert reset.jumped is None
+    latest = reset.latest()
+    assert latest is not None and latest[0] == pytest.approx((6.0, 5.0, 0.0))
+
+
+def test_a_clock_stepped_back_re_bases_instead_of_dropping_every_pose() -> None:
+    track = PoseTrack(localiser=False, jump=LIMITS, clock_step_s=1.0)
+    track.add_odometry(1000.0, (1.0, 0.0, 0.0), wall_now=1000.0)
+    late = track.add_odometry(999.5, (1.0, 0.0, 0.0), wall_now=1000.01)
+    assert late is not None and late.reason == "out_of_order"  # a late message, dropped
+    stale = track.add_odometry(900.0, (1.0, 0.0, 0.0), wall_now=1000.02)
+    assert stale is not None and stale.reason == "out_of_order"  # old, and far from now
+    assert track.add_odometry(900.0, (1.01, 0.0, 0.0), wall_now=900.01) is None  # a step
+    assert track.add_odometry(900.02, (1.02, 0.0, 0.0), wall_now=900.03) is None
+    assert track.clock_steps == 1 and track.jumped is None
+    latest = track.latest()
+    assert latest is not None and latest == ((1.02, 0.0, 0.0), 900.02)

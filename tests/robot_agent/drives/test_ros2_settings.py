@@ -69,3 +69,10 @@ def test_the_readme_turtlebot4_sample_loads(
 def test_bad_values_are_refused_with_the_field_name(field: str, value: object) -> None:
     with pytest.raises(ValidationError, match=field):
         load_settings(ros2={field: value})
+
+
+def test_the_turtlebot4_bridge_example_loads() -> None:
+    path = Path(__file__).parents[3] / "docs/examples/turtlebot4-create3-bridge.toml"
+    ros2 = load_settings(path).ros2
+    assert ros2.key_mapping == "bridge" and ros2.pose_source == "localiser"
+    assert ros2.odom_jump_m == 0.25 and ros2.clock_step_s == 1.0

@@ -16,6 +16,15 @@ def add_connect(p: argparse.ArgumentParser, help: str = "router endpoint") -> No
     p.add_argument("--connect", action="append", metavar="ENDPOINT", help=f"{help}, repeatable")
 
 
+def add_fleet(p: argparse.ArgumentParser) -> None:
+    """``--fleet NAME``: the fleet addressed, overriding the settings' ``fleet_name``."""
+    p.add_argument(
+        "--fleet",
+        metavar="NAME",
+        help="fleet name (default: fleet_name of the settings, PARKFLEET_FLEET_NAME, 'default')",
+    )
+
+
 def add_json(p: argparse.ArgumentParser) -> None:
     """``--json``: machine-readable output."""
     p.add_argument("--json", action="store_true", help="print the results as one JSON object")

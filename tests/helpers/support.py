@@ -112,11 +112,11 @@ def zenoh_fleet_service(settings: Settings, db: Path) -> Iterator[FleetService]:
 class StateWatcher:
     """Records every RobotState seen on the fleet's state keys (from a separate session)."""
 
-    def __init__(self, session: Any) -> None:
+    def __init__(self, session: Any, keys: Keys | None = None) -> None:
         self.decoder = Decoder("watcher")
         self.lock = threading.Lock()
         self.history: dict[str, list[RobotState]] = {}
-        self.sub = session.declare_subscriber(Keys().all_states, self._on)
+        self.sub = session.declare_subscriber((keys or Keys()).all_states, self._on)
 
     def _on(self, sample: Any) -> None:
         state = self.decoder.decode(RobotState, sample.payload.to_bytes())

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from support import StateWatcher, assign_until_acked, park, wait_for, zenoh_fleet_service
 
-from fleet.core.wire import ErrorLevel, RobotMode
+from fleet.core.wire import ErrorLevel, Keys, RobotMode
 from fleet.io.processes import parkfleet_command
 from fleet.io.settings import Settings
 from fleet.io.transport import open_session
@@ -131,9 +131,72 @@ def test_a_robot_that_does_not_answer_is_reported_and_the_exit_code_says_so(
     assert moving(watcher, "r1")  # a command for another robot changes nothing here
 
 
+def test_estop_of_the_fleet_named_reaches_its_robots_and_no_other(
+    router_endpoint: str, client_settings: Settings
+) -> None:
+    """``--fleet yard`` addresses fleet ``yard``; without it the settings' fleet (``default``)
+    has no robot online: exit 1, said on stderr."""
+    yard = client_settings.model_copy(update={"fleet_name": "yard"})
+    with (
+        open_session(yard, "client") as robots,
+        open_session(yard, "client") as tool,
+        SimFleet(robots, yard, [Spawn("r1", -8, 0, 0), Spawn("r2", -8, 3, 0)]) as fleet,
+    ):
+        watcher = StateWatcher(tool, Keys("yard"))
+        try:
+            fleet.start()
+            for rid in ("r1", "r2"):
+                wait_for(lambda r=rid: watcher.latest(r) is not None, 10, f"{rid} reporting")
+            done = parkfleet(router_endpoint, "estop")  # fleet "default": nobody there
+            assert done.returncode == 1, done.stdout + done.stderr
+            assert "no robot of fleet default is online; nothing confirmed" in done.stderr
+            assert all(in_mode(watcher, r, RobotMode.IDLE) for r in ("r1", "r2"))
+
+            done = parkfleet(router_endpoint, "estop", "--fleet", "yard")
+            assert done.returncode == 0, done.stdout + done.stderr
+            assert "of fleet yard" in done.stdout
+            assert "r1: confirmed" in done.stdout and "r2: confirmed" in done.stdout
+            for rid in ("r1", "r2"):
+                wait_for(lambda r=rid: in_mode(watcher, r, RobotMode.ESTOP), 10, f"{rid} stopped")
+            done = parkfleet(router_endpoint, "estop", "--release", "--fleet", "yard")
+            assert done.returncode == 0, done.stdout + done.stderr
+        finally:
+            watcher.close()
+
+
+def test_a_robot_online_that_does_not_confirm_is_named_and_the_exit_code_is_1(
+    router_endpoint: str, client_settings: Settings
+) -> None:
+    """A liveliness token with no agent behind it (a hung robot): the others confirm, it is
+    named on stderr."""
+    keys = Keys()
+    with (
+        open_session(client_settings, "client") as robots,
+        open_session(client_settings, "client") as hung,
+        open_session(client_settings, "client") as tool,
+        SimFleet(robots, client_settings, [Spawn("r1", -8, 0, 0)]) as fleet,
+    ):
+        token = hung.liveliness().declare_token(f"{keys.root}/alive/r9")
+        watcher = StateWatcher(tool)
+        try:
+            fleet.start()
+            wait_for(lambda: watcher.latest("r1") is not None, 10, "r1 reporting")
+            done = parkfleet(router_endpoint, "pause", "--wait", "1")
+            assert done.returncode == 1, done.stdout + done.stderr
+            assert "r1: confirmed" in done.stdout and "r9: NOT confirmed" in done.stdout
+            assert "not confirmed by r9" in done.stderr
+            done = parkfleet(router_endpoint, "resume", "--wait", "0")
+            assert done.returncode == 0 and "not confirmed (--wait 0)" in done.stdout
+        finally:
+            watcher.close()
+            token.undeclare()
+
+
 def test_wrong_ids_are_refused_before_anything_is_sent(router_endpoint: str) -> None:
     done = parkfleet(router_endpoint, "estop", "--robot", "r*")
     assert done.returncode == 2 and "invalid robot id" in done.stderr
+    done = parkfleet(router_endpoint, "estop", "--fleet", "a/b")
+    assert done.returncode == 2 and "invalid fleet name" in done.stderr
 
 
 def test_the_service_takes_up_a_cli_estop_for_a_late_joiner_and_its_release(

@@ -17,6 +17,16 @@ Reported per N, over N x trials samples, p50 / p99 / max [ms]:
 * ``received``: from the publish to that state's arrival here (monotonic clock): an upper
   bound, it adds the state's trip back (encode, router, decode: ~0.3 ms here).
 
+Then, on the same robots in the same run, ``--cli-trials`` e-stops go through the path an
+operator uses: this process runs the real ``parkfleet estop --issuer bench-cli-<k>`` (a
+child process with its own session, which publishes first and then discovers who must
+confirm) and must see it exit 0 with every robot confirmed. Reported:
+
+* ``cli_command``: from starting the command to each robot's first e-stop state arriving
+  here (process start, imports and session open included: what an operator waits);
+* ``cli_put``: from the command's first put arriving here (this process also subscribes to
+  the fleet's control key) to that state: the same path as ``received``, once the tool runs.
+
 The 1-minute load average is printed with each row: on a shared machine the tail is the
 sim process waiting for a CPU. The agents apply commands at
 the start of their next tick, so about half a control period (10 ms at 50 Hz) is expected
@@ -38,6 +48,7 @@ import numpy as np
 from fleet.core.params import Gains
 from fleet.core.wire import (
     ControlAction,
+    ControlCommand,
     Keys,
     ParkAssignment,
     Pose,
@@ -47,7 +58,7 @@ from fleet.core.wire import (
 )
 from fleet.io import operator
 from fleet.io.decoder import Decoder
-from fleet.io.processes import sim_command, terminate
+from fleet.io.processes import parkfleet_command, sim_command, terminate
 from fleet.io.settings import load_settings
 from fleet.io.transport import listening_locators, open_session, tcp_endpoint
 
@@ -127,13 +138,44 @@ def _all_driving(session: Any, keys: Keys, states: _States, robots: int, trial: 
             states.changed.wait(0.2)
 
 
-def _measure(endpoint: str, robots: int, trials: int) -> dict[str, Any]:
+class _Commands:
+    """Monotonic arrival here of the first command of each issuer on the fleet control key."""
+
+    def __init__(self) -> None:
+        self.decoder = Decoder("bench estop commands")
+        self.lock = threading.Lock()
+        self.first: dict[str, float] = {}
+
+    def __call__(self, sample: Any) -> None:
+        received = time.monotonic()
+        command = self.decoder.decode(ControlCommand, sample.payload.to_bytes())
+        if command is not None:
+            with self.lock:
+                self.first.setdefault(command.issuer, received)
+
+
+def _percentiles(name: str, seconds: list[float]) -> dict[str, float]:
+    ms = np.asarray(seconds) * 1e3
+    if ms.size == 0:
+        return {}
+    return {
+        f"{name}_p50_ms": float(np.percentile(ms, 50)),
+        f"{name}_p99_ms": float(np.percentile(ms, 99)),
+        f"{name}_max_ms": float(ms.max()),
+    }
+
+
+def _measure(endpoint: str, robots: int, trials: int, cli_trials: int = 0) -> dict[str, Any]:
     keys = Keys()
     states = _States(keys)
     settings = load_settings(connect=[endpoint])
     cmd = sim_command(endpoint, robots, time_scale=1.0, spawn="grid")
     with open_session(settings, "client") as session:
         sub = session.declare_subscriber(keys.all_states, states)
+        commands = _Commands()
+        command_sub = session.declare_subscriber(keys.control(), commands)
+        cli_command: list[float] = []
+        cli_put: list[float] = []
         proc = subprocess.Popen(
             cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )
@@ -163,9 +205,39 @@ def _measure(endpoint: str, robots: int, trials: int) -> dict[str, Any]:
                     tick_latencies.extend(s - estop.stamp for s in states.stopped_stamp.values())
                 release = operator.command(ControlAction.RELEASE, issuer=issuer)
                 operator.put_control(session, keys, release)
+            for trial in range(cli_trials):
+                _all_driving(session, keys, states, robots, trials + trial)
+                with states.lock:
+                    states.stopped_at.clear()
+                    states.stopped_stamp.clear()
+                    states.armed = True
+                cli_issuer = f"bench-cli-{trial}"
+                t0 = time.monotonic()
+                done = subprocess.run(
+                    parkfleet_command(
+                        "estop", "--connect", endpoint, "--issuer", cli_issuer, "--wait", "10"
+                    ),
+                    capture_output=True,
+                    text=True,
+                    stdin=subprocess.DEVNULL,
+                    timeout=120,
+                )
+                if done.returncode != 0:
+                    raise RuntimeError(f"bench estop: parkfleet estop failed: {done.stderr}")
+                states.wait(lambda: len(states.stopped_at) >= robots, 10.0, "every e-stop")
+                with states.lock:
+                    states.armed = False
+                    arrivals = list(states.stopped_at.values())
+                with commands.lock:
+                    first_put = commands.first[cli_issuer]
+                cli_command.extend(t - t0 for t in arrivals)
+                cli_put.extend(t - first_put for t in arrivals)
+                release = operator.command(ControlAction.RELEASE, issuer=issuer)
+                operator.put_control(session, keys, release)
         finally:
             terminate(proc)
             sub.undeclare()  # type: ignore[no-untyped-call]
+            command_sub.undeclare()  # type: ignore[no-untyped-call]
     ms = np.asarray(latencies) * 1e3
     tick_ms = np.asarray(tick_latencies) * 1e3
     period_ms = 1e3 / settings.control_rate_hz
@@ -183,16 +255,19 @@ def _measure(endpoint: str, robots: int, trials: int) -> dict[str, Any]:
         "load_average_1min": os.getloadavg()[0],
         "estop_states_with_speed": states.moving_estop,
         "dropped": states.decoder.dropped_total,
+        "cli_trials": cli_trials,
+        **_percentiles("cli_command", cli_command),
+        **_percentiles("cli_put", cli_put),
     }
 
 
-def run(sizes: list[int], trials: int, as_json: bool = False) -> int:
+def run(sizes: list[int], trials: int, as_json: bool = False, cli_trials: int = 3) -> int:
     """Measure each robot count in ``sizes`` and print the rows (table or JSON)."""
     rows = []
     with open_session(load_settings(listen=["tcp/127.0.0.1:0"]), "router") as router:
         endpoint = tcp_endpoint(listening_locators(router))
         for n in sizes:
-            row = _measure(endpoint, n, trials)
+            row = _measure(endpoint, n, trials, cli_trials)
             rows.append(row)
             if not as_json:
                 print(
@@ -205,6 +280,14 @@ def run(sizes: list[int], trials: int, as_json: bool = False) -> int:
                     f"      e-stop states with nonzero speed: {row['estop_states_with_speed']}",
                     flush=True,
                 )
+                if cli_trials:
+                    print(
+                        f"      parkfleet estop x {cli_trials}: command -> state back "
+                        f"p50 {row['cli_command_p50_ms']:6.1f} ms  "
+                        f"max {row['cli_command_max_ms']:6.1f} ms; its first put -> state back "
+                        f"p50 {row['cli_put_p50_ms']:6.1f} ms  max {row['cli_put_max_ms']:6.1f} ms",
+                        flush=True,
+                    )
     if as_json:
         print(json.dumps({"rows": rows}))
     return 0

@@ -22,10 +22,21 @@ def register(commands: Any, bench: Any) -> None:
         "--robots", type=int, action="append", help="robot count (repeatable; default 10 100)"
     )
     p.add_argument("--trials", type=int, default=20, help="e-stops per robot count")
+    p.add_argument(
+        "--cli-trials",
+        type=int,
+        default=3,
+        help="then this many e-stops through the real `parkfleet estop` command (default 3)",
+    )
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from fleet.bench import estop
 
-    return estop.run(args.robots or list(estop.DEFAULT_SIZES), args.trials, as_json=args.json)
+    return estop.run(
+        args.robots or list(estop.DEFAULT_SIZES),
+        args.trials,
+        as_json=args.json,
+        cli_trials=max(args.cli_trials, 0),
+    )

@@ -35,9 +35,26 @@ COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.bench_plan",
     "fleet.cli.bench_soak",
 )
+#: Commands whose module alone builds their parser: an operator's e-stop must not wait for
+#: every other command's imports (numba, matplotlib: ~2 s) before it publishes.
+URGENT_COMMANDS: dict[str, str] = {
+    "estop": "fleet.cli.control",
+    "pause": "fleet.cli.control",
+    "resume": "fleet.cli.control",
+}
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _command_of(argv: Sequence[str]) -> str | None:
+    """The sub-command named in ``argv`` (after the global ``-v`` flags), if any."""
+    for arg in argv:
+        if arg in ("-v", "-vv", "--verbose"):
+            continue
+        return arg
+    return None
+
+
+def build_parser(modules: Sequence[str] = COMMAND_MODULES) -> argparse.ArgumentParser:
+    """The ``parkfleet`` parser with the sub-commands of ``modules`` (default: all)."""
     parser = argparse.ArgumentParser(
         prog="parkfleet",
         description="Fleet service for self-parking robots (Lyapunov posture control over Zenoh).",
@@ -48,13 +65,15 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     bench_parser = commands.add_parser("bench", help="benchmarks that print numbers and ratios")
     bench = bench_parser.add_subparsers(dest="bench", metavar="BENCH", required=True)
-    for name in COMMAND_MODULES:
+    for name in modules:
         importlib.import_module(name).register(commands, bench)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    urgent = URGENT_COMMANDS.get(_command_of(argv) or "")
+    args = build_parser((urgent,) if urgent else COMMAND_MODULES).parse_args(argv)
     level = logging.WARNING - 10 * min(int(args.verbose), 2)
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     try:

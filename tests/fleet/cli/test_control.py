@@ -135,3 +135,30 @@ def test_wait_zero_sends_once_and_asks_nobody() -> None:
     outcome = operator.send_and_confirm(session, KEYS, _estop(), 0.0)  # type: ignore[arg-type]
     assert session.log == ["put"] and outcome.sends == 1
     assert not outcome.discovered and outcome.confirmed == {} and outcome.missing == []
+
+
+def test_an_operator_command_does_not_wait_for_every_other_commands_imports() -> None:
+    """``parkfleet estop`` builds its parser from its own module: numba, matplotlib and the
+    paper's code (~2 s of imports) are not loaded before it publishes; ``--help`` of the
+    whole tool still lists every command."""
+    import subprocess
+    import sys
+
+    probe = (
+        "import sys\n"
+        "from fleet.cli.main import main\n"
+        "try:\n"
+        "    main(['estop', '--help'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "heavy = ('numba', 'matplotlib', 'fleet.paper.reproduce', 'fleet.bench.fleet')\n"
+        "print(sorted(m for m in heavy if m in sys.modules))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True
+    ).stdout
+    assert out.strip().splitlines()[-1] == "[]"
+    full = subprocess.run(
+        [sys.executable, "-m", "fleet.cli", "--help"], capture_output=True, text=True, check=True
+    ).stdout
+    assert all(name in full for name in ("estop", "serve", "reproduce", "bench"))

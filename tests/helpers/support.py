@@ -8,8 +8,11 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import zenoh
 
 from fleet.core.params import Gains, Tolerance
 from fleet.core.types import Law, Posture
@@ -150,3 +153,22 @@ def assign_until_acked(
         return False
 
     wait_for(acked, timeout, f"{message.robot_id} to acknowledge {message.task_id}", poll=0.05)
+
+
+@dataclass
+class FakePayload:
+    """A Zenoh payload stand-in for callbacks under unit test."""
+
+    data: bytes
+
+    def to_bytes(self) -> bytes:
+        return self.data
+
+
+@dataclass
+class FakeSample:
+    """A Zenoh sample stand-in: key, payload and kind (a put unless told)."""
+
+    key_expr: str
+    payload: FakePayload
+    kind: Any = field(default_factory=lambda: zenoh.SampleKind.PUT)

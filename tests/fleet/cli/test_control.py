@@ -8,24 +8,12 @@ import threading
 from dataclasses import dataclass
 from typing import Any
 
+from support import FakePayload, FakeSample
+
 from fleet.core.wire import ControlAction, Keys, Pose, RobotMode, RobotState, encode
 from fleet.io import operator
 
 KEYS = Keys("yard")
-
-
-@dataclass
-class _Bytes:
-    data: bytes
-
-    def to_bytes(self) -> bytes:
-        return self.data
-
-
-@dataclass
-class _Sample:
-    key_expr: str
-    payload: _Bytes
 
 
 @dataclass
@@ -102,7 +90,7 @@ class FakeSession:
             state = RobotState(
                 robot_id=robot, seq=self.puts, stamp=0.0, pose=Pose(x=0, y=0), mode=RobotMode.ESTOP
             )
-            self.subscriber(_Sample(KEYS.state(robot), _Bytes(encode(state))))
+            self.subscriber(FakeSample(KEYS.state(robot), FakePayload(encode(state))))
 
 
 def _estop() -> Any:

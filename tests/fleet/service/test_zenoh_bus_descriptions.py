@@ -4,10 +4,11 @@ often, and what it hands to the sink. The real thing: ``tests/integration/test_d
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import zenoh
+from support import FakePayload, FakeSample
 
 from fleet.core.params import RobotProfile
 from fleet.core.wire import Keys, Pose, RobotDescription, RobotMode, RobotState, encode
@@ -51,23 +52,8 @@ class FakeSession:
 
 
 @dataclass
-class _Payload:
-    data: bytes
-
-    def to_bytes(self) -> bytes:
-        return self.data
-
-
-@dataclass
-class _Sample:
-    key_expr: str
-    payload: _Payload
-    kind: Any = field(default_factory=lambda: zenoh.SampleKind.PUT)
-
-
-@dataclass
 class _Reply:
-    ok: _Sample | None
+    ok: FakeSample | None
 
 
 class Sink:
@@ -101,20 +87,20 @@ def _bus() -> tuple[ZenohFleetBus, FakeSession, Sink]:
     return bus, session, sink
 
 
-def _state(rid: str) -> _Sample:
+def _state(rid: str) -> FakeSample:
     s = RobotState(robot_id=rid, seq=0, stamp=0.0, pose=Pose(x=0.0, y=0.0), mode=RobotMode.IDLE)
-    return _Sample(KEYS.state(rid), _Payload(encode(s)))
+    return FakeSample(KEYS.state(rid), FakePayload(encode(s)))
 
 
 def test_a_robot_is_asked_once_per_token_and_again_after_it_comes_back() -> None:
     bus, session, _ = _bus()
-    alive = _Sample(KEYS.alive("r1"), _Payload(b""))
+    alive = FakeSample(KEYS.alive("r1"), FakePayload(b""))
     states = session.subscribers[KEYS.all_states]
     bus._on_alive(alive)  # type: ignore[arg-type]
     for _ in range(5):
         states(_state("r1"))
     assert [k for k, _ in session.gets] == [KEYS.description("r1")]
-    bus._on_alive(_Sample(KEYS.alive("r1"), _Payload(b""), zenoh.SampleKind.DELETE))  # type: ignore[arg-type]
+    bus._on_alive(FakeSample(KEYS.alive("r1"), FakePayload(b""), zenoh.SampleKind.DELETE))  # type: ignore[arg-type]
     states(_state("r1"))  # first state of its next life
     assert [k for k, _ in session.gets] == [KEYS.description("r1")] * 2
     assert bus.counters["description_queries"] == 2
@@ -126,12 +112,12 @@ def test_answers_and_puts_reach_the_sink_and_bad_ones_are_dropped_and_counted() 
     session.subscribers[KEYS.all_states](_state("r1"))
     ((_, reply),) = session.gets
     good = RobotDescription.of("r1", RobotProfile(), model="m")
-    reply(_Reply(_Sample(KEYS.description("r1"), _Payload(encode(good)))))
+    reply(_Reply(FakeSample(KEYS.description("r1"), FakePayload(encode(good)))))
     reply(_Reply(None))  # an error reply (e.g. a timeout): counted
     put = session.subscribers[KEYS.all_descriptions]
-    put(_Sample(KEYS.description("r1"), _Payload(b"not json")))
+    put(FakeSample(KEYS.description("r1"), FakePayload(b"not json")))
     other = RobotDescription.of("r2", RobotProfile())
-    put(_Sample(KEYS.description("r1"), _Payload(encode(other))))  # r2's on r1's key
+    put(FakeSample(KEYS.description("r1"), FakePayload(encode(other))))  # r2's on r1's key
     assert sink.descriptions == [good]
     counters = bus.counters
     assert counters["description_query_errors"] == 1

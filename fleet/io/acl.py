@@ -41,6 +41,7 @@ on any assignment or control key from a robot is dropped at the router's ingress
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, Literal
 
@@ -81,6 +82,9 @@ def _rule(
 
 #: Prefix of rmw_zenoh's ROS-graph liveliness tokens (``robot_agent.drives.ros2_names``).
 ROS_GRAPH_PREFIX = "@ros2_lv"
+#: One part of a ROS name (ROS 2 name rules); the fleet's keys all start with this prefix.
+_ROS_NAME_PART = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+FLEET_KEY_PREFIX = "parkfleet"
 #: The link check's echo query (``robot_agent.link``): a router's own admin-space entry.
 ROUTER_ECHO = "@/*/router"
 
@@ -89,11 +93,20 @@ def ros2_keys(namespace: str, domain_id: int) -> list[str]:
     """Key expressions of every ROS 2 message and graph token under ``namespace`` on
     ``domain_id``, for both key mappings (module docstring).
 
-    Raises ValueError for the root namespace (it would grant the whole ROS domain).
+    Raises ValueError for the root namespace (it would grant the whole ROS domain), a name
+    that is not a ROS namespace (each part a letter or ``_`` then letters, digits, ``_``:
+    so no wildcard and never a domain number), or one whose bridge keys would cover the
+    fleet's own (``parkfleet/**``).
     """
     chunks = namespace.strip("/")
     if not chunks:
         raise ValueError("a robot's ROS 2 namespace in the access-control list cannot be the root")
+    if not all(_ROS_NAME_PART.fullmatch(part) for part in chunks.split("/")):
+        raise ValueError(f"invalid ROS 2 namespace {namespace!r} in the access-control list")
+    if chunks.split("/")[0] == FLEET_KEY_PREFIX:
+        raise ValueError(
+            f"ROS 2 namespace {namespace!r}: its bridge keys would cover the fleet's own keys"
+        )
     mangled = "%" + chunks.replace("/", "%")  # rmw_zenoh writes each / of a name as %
     graph = f"{ROS_GRAPH_PREFIX}/{domain_id}/*/*/*/*/*"
     return [

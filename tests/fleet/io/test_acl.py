@@ -207,9 +207,21 @@ def test_ros2_grants_cover_exactly_the_robots_namespace() -> None:
     assert not any("tb4" in k for _, _, k in grants(acl, "robot-r2"))
 
 
-@pytest.mark.parametrize("namespace", ["", "/"])
-def test_a_root_ros2_namespace_is_refused(namespace: str) -> None:
-    with pytest.raises(ValueError, match="root"):
+@pytest.mark.parametrize(
+    ("namespace", "why"),
+    [
+        ("", "root"),
+        ("/", "root"),
+        ("/0", "invalid"),  # bridge keys 0/** would be every rmw_zenoh key of domain 0
+        ("/tb*", "invalid"),
+        ("/a/**", "invalid"),
+        ("/parkfleet", "fleet's own keys"),  # bridge keys parkfleet/** = the whole fleet
+    ],
+)
+def test_ros2_namespaces_that_would_grant_more_than_a_robot_are_refused(
+    namespace: str, why: str
+) -> None:
+    with pytest.raises(ValueError, match=why):
         ros2_keys(namespace, 0)
 
 

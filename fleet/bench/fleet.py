@@ -54,7 +54,7 @@ from fleet.bench.peers import (
 )
 from fleet.bench.plots import plot_run
 from fleet.bench.scenarios import Scenario, random_yard
-from fleet.core.params import Avoidance
+from fleet.core.params import Avoidance, SafetyConfig
 from fleet.core.tasks import (
     Direction,
     FleetEvent,
@@ -316,8 +316,12 @@ def run_fleet_policy(
     began = time.monotonic()
     base = options.settings
     update: dict[str, Any] = {"fleet_name": fleet_name, "task_timeout_s": _SERVICE_TIMEOUT_S}
-    if policy == "none":  # no repulsion, and 1 µm to keep: the planner never holds anyone
-        update |= {"avoidance": Avoidance(k_avoid=0.0), "safety_separation_m": 1e-6}
+    if policy == "none":  # no repulsion, no filter, 1 µm to keep: the planner holds no one
+        update |= {
+            "avoidance": Avoidance(k_avoid=0.0),
+            "safety_separation_m": 1e-6,
+            "safety": SafetyConfig(enabled=False),
+        }
     settings = base.model_copy(update=update)
     ids = scenario.robot_ids
     spawn = workdir / f"{fleet_name}.json"
@@ -342,6 +346,7 @@ def run_fleet_policy(
     env = dict(os.environ)
     env["PARKFLEET_FLEET_NAME"] = fleet_name
     env["PARKFLEET_AVOIDANCE__K_AVOID"] = str(settings.avoidance.k_avoid)
+    env["PARKFLEET_SAFETY__ENABLED"] = "true" if settings.safety.enabled else "false"
     env["PARKFLEET_CONTROL_RATE_HZ"] = str(settings.control_rate_hz)
     command = sim_command(
         endpoint,

@@ -163,7 +163,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         self._obstacles: list[Obstacle] = [] if site is None else list(site.obstacles)
         self._desk = ControlDesk()  # what the operator asked (pause, e-stop), held to
         self._keys_in_flight: dict[str, threading.Event] = {}  # idempotency keys being stored
-        self._version = 0  # bumped by every change a plan depends on (not by poses)
+        self._obstacles_version = 0  # rises with every set_obstacles
         self._time_scale: float | None = None  # robot seconds per service second
         self._close_pairs: set[tuple[str, str]] = set()
         self._next_robot_sweep = -float("inf")  # [s, monotonic]
@@ -196,7 +196,6 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             if operator is not None:
                 self._desk.restore(operator.control_state())
                 self._roster.restore_out_of_service(operator.out_of_service)
-            self._version += 1
         self._counters.add("tasks_recovered", n)
         self._bus.start(self)
         if background:
@@ -273,8 +272,6 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             seen = self._ledger.observe(state, now, wall)
             if seen.effects:
                 batch = self._queue(seen.effects, now)
-            elif changed:
-                self._version += 1
             if changed:  # its mode changed: maybe paused or e-stopped, or no more
                 hold_effects, released = self._sync_hold(rec, now, wall)
                 batch = self._queue(hold_effects, now) or batch
@@ -341,7 +338,6 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             if self._closed:
                 return
             rec = self._roster.alive(robot_id, self._clock.wall())
-            self._version += 1
             view = Roster.view_of(rec)
         if view is not None:
             self._outbox.emit([RobotEvent(robot=view)])
@@ -355,7 +351,6 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             rec, changed = self._roster.describe(description)
             if not changed:
                 return
-            self._version += 1
             view = Roster.view_of(rec)
         self._counters.add("robots_described")
         if view is not None:
@@ -370,7 +365,6 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             if self._closed:
                 return
             rec = self._roster.gone(robot_id, now)
-            self._version += 1
             view = Roster.view_of(rec)
             batch = self._queue(self._ledger.robot_lost(robot_id, now, wall), now)
         self._counters.add("robots_lost")
@@ -482,7 +476,6 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         self._desk.forget(robot_id)
         if named:
             effects.append(self._operator_saved())
-        self._version += 1
         return self._queue(effects, now)
 
     # -- queries and yard ---------------------------------------------------------------
@@ -555,6 +548,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         msg = ObstacleSet(obstacles=list(obstacles))
         with self._lock:
             self._obstacles = list(msg.obstacles)
+            self._obstacles_version += 1
             batch = self._queue([Publish(msg)], self._clock.monotonic())
         self._settle(batch, wait=True)
         self._planner.request("obstacles")

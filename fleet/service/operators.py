@@ -66,10 +66,8 @@ class OperatorControls(ServiceState):
         why = self._hold_reason(rec)
         held = rec.robot_id in self._ledger.held
         if why is not None and not held:
-            self._version += 1
             return self._ledger.hold_robot(rec.robot_id, why, now, wall), False
         if why is None and held:
-            self._version += 1
             return self._ledger.release_robot(rec.robot_id, now, wall), True
         return [], False
 
@@ -147,7 +145,6 @@ class OperatorControls(ServiceState):
             self._roster.set_in_service(robot_id, in_service)
             effects = [] if in_service else self._ledger.robot_decommissioned(robot_id, wall)
             batch = self._queue([*effects, self._operator_saved()], now)
-            self._version += 1
             view = Roster.view_of(rec)
         assert view is not None
         self._outbox.emit([RobotEvent(robot=view)])

@@ -59,7 +59,7 @@ class PlannerGlue(ServiceState):
             avoided = self._ledger.avoided()
             acknowledged = {t: now - at for t, at in self._ledger.acknowledged_at().items()}
             obstacles = list(self._obstacles)
-            version = self._version
+            version = self._snapshot_version()
             lead_time = self._lead_time()
             scale = self._time_scale if self._time_scale is not None else 1.0
         if not worth_planning(robots, tasks):
@@ -87,7 +87,7 @@ class PlannerGlue(ServiceState):
         with self._lock:
             if self._closed:
                 return
-            stale = plan.snapshot_version != self._version
+            stale = plan.snapshot_version != self._snapshot_version()
             for d in plan.decisions:
                 outcome, effects = self._ledger.apply(
                     d,

@@ -49,7 +49,7 @@ class ServiceState:
     _obstacles: list[Obstacle]
     _desk: ControlDesk  # what the operator asked (pause, e-stop), held to
     _keys_in_flight: dict[str, threading.Event]  # idempotency keys being stored
-    _version: int  # bumped by every change a plan depends on (not by poses)
+    _obstacles_version: int  # rises with every set_obstacles
     _time_scale: float | None  # robot seconds per service second
     _close_pairs: set[tuple[str, str]]
     _inline: bool  # no threads: effects and plans run on the calling thread
@@ -63,13 +63,19 @@ class ServiceState:
         """Queue a transition's effects (call with the lock held: keeps their order)."""
         if not effects:
             return None
-        self._version += 1
         for e in effects:  # remember cancels, so a robot driving on is told again later
             if isinstance(e, Publish) and isinstance(e.message, CancelAssignment):
                 rec = self._roster.record(e.message.robot_id)
                 if rec is not None:
                     rec.cancel_at = now
         return self._outbox.enqueue(effects)
+
+    def _snapshot_version(self) -> int:
+        """The version of everything a plan depends on (call with the lock held): owned by
+        the structures that change -- the roster, the ledger, the obstacles -- each rising
+        with its own changes (poses excepted), so a plan whose snapshot had another version
+        is stale."""
+        return self._roster.version + self._ledger.version + self._obstacles_version
 
     def _settle(self, batch: Batch | None = None, wait: bool = False) -> None:
         """After releasing the lock: apply queued effects here (no threads), or wait until

@@ -1,18 +1,19 @@
 """``parkfleet bench fleet``: scenarios through the real fleet, and navground beside it.
 
 Fleet policies (``auto``, ``cw``, ``ccw``, ``none``): each run starts, in this process, a
-:class:`FleetService` with a fresh SQLite store on a :class:`ZenohFleetBus` (one in-process
-router for the whole bench), and the robots as one ``parkfleet sim`` subprocess: lockstep,
-time-scaled, with a real robot's disturbances on by default (``--disturbed``: pose and
-actuation noise, 50-150 ms command latency) and ``--trace`` streaming every robot's true
-pose and mode at every tick. Tasks are submitted through :meth:`FleetService.submit` as an
-API client would, each at its ``arrival_s`` of simulated time (read from the robots' state
-sequence numbers). The run ends when every task succeeded or at the scenario's
+:class:`FleetService` opened as ``serve`` opens it (:func:`fleet.service.host.open_fleet`: a
+fresh SQLite store, the Zenoh bus; one in-process router for the whole bench), and the
+robots as one ``parkfleet sim`` subprocess: lockstep, time-scaled, with a real robot's
+disturbances on by default (``--disturbed``: pose and actuation noise, 50-150 ms command
+latency) and ``--trace`` streaming every robot's true pose and mode at every tick. Tasks are
+submitted through :meth:`FleetService.submit` as an API client would, each at its
+``arrival_s`` of simulated time (read from the robots' state sequence numbers). The run ends
+when every task succeeded or at the scenario's
 :attr:`~fleet.bench.scenarios.Scenario.end_s`; the bench, not the service, is the judge of
 time (the service's own task timeout is pushed out of the way). ``auto`` lets the service
 choose each law; ``cw`` / ``ccw`` fix it; ``none`` is ``ccw`` with K_avoid = 0 and a
-separation of 1 µm to keep -- no repulsion, no contact guard, no start delays or holds:
-the baseline without any avoidance.
+separation of 1 µm to keep -- no repulsion, no contact guard, no start delays or holds: the
+baseline without any avoidance.
 
 Peer policies (``orca``, ``hrvo``, ``hl``, ``socialforce``): navground in this process
 (:mod:`fleet.bench.peers`), same robots, step, tolerances and time limit, no noise.
@@ -73,8 +74,7 @@ from fleet.io.settings import Settings, load_settings
 from fleet.io.trace import read_header, read_trace
 from fleet.io.transport import listening_locators, open_session, tcp_endpoint
 from fleet.service.fleet_service import FleetService
-from fleet.service.store import SqliteTaskStore
-from fleet.service.zenoh_bus import ZenohFleetBus
+from fleet.service.host import open_fleet
 
 FLEET_POLICIES: tuple[str, ...] = ("auto", "cw", "ccw", "none")
 PEER_POLICIES: tuple[str, ...] = tuple(BEHAVIOURS)
@@ -315,7 +315,11 @@ def run_fleet_policy(
     """One run of ``scenario`` through a fresh service and fresh ``parkfleet sim`` robots."""
     began = time.monotonic()
     base = options.settings
-    update: dict[str, Any] = {"fleet_name": fleet_name, "task_timeout_s": _SERVICE_TIMEOUT_S}
+    update: dict[str, Any] = {
+        "fleet_name": fleet_name,
+        "task_timeout_s": _SERVICE_TIMEOUT_S,
+        "data_dir": workdir / fleet_name,  # a fresh task store per run
+    }
     if policy == "none":  # no repulsion, no filter, 1 µm to keep: the planner holds no one
         update |= {
             "avoidance": Avoidance(k_avoid=0.0),
@@ -358,18 +362,14 @@ def run_fleet_policy(
     )
     tasks: dict[int, Task] = {}
     rejected = 0
-    with contextlib.ExitStack() as stack:  # closed in reverse: sim, subscriber, service, store
-        store = SqliteTaskStore(workdir / f"{fleet_name}.db")
-        stack.callback(store.close)
-        service = FleetService(settings, ZenohFleetBus(session, keys), store)
-        stack.callback(service.close)
+    with contextlib.ExitStack() as stack:  # closed in reverse: sim, subscriber, the fleet
+        service = stack.enter_context(open_fleet(settings, session=session)).service
         service.add_listener(on_event)
         stack.callback(session.declare_subscriber(keys.state(ids[0]), clock.on_sample).undeclare)
         proc = subprocess.Popen(
             command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )
         stack.callback(terminate, proc, 15)
-        service.start()
         service.set_obstacles([o.as_obstacle() for o in scenario.obstacles])
         deadline = time.monotonic() + STARTUP_S
         while len(service.robots()) < len(ids) or clock.now() is None:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from fleet.io.settings import DB_FILE
+
 
 def add_config(p: argparse.ArgumentParser) -> None:
     """``--config FILE``: the TOML settings file (also ``PARKFLEET_CONFIG``)."""
@@ -73,9 +75,7 @@ def add_server(
         metavar="ENDPOINT",
         help="Zenoh router endpoint, repeatable (default tcp/127.0.0.1:7447)",
     )
-    p.add_argument(
-        "--data-dir", type=Path, help=f"where parkfleet.db lives (default {default_data})"
-    )
+    p.add_argument("--data-dir", type=Path, help=f"where {DB_FILE} lives (default {default_data})")
     add_site(p, default_site)
     add_config(p)
 

@@ -33,6 +33,8 @@ from fleet.core.wire import validate_id
 from fleet.io.site_file import load_site
 
 DEFAULT_ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"
+#: The SQLite task database's file name inside ``data_dir`` (spelled here only).
+DB_FILE = "parkfleet.db"
 
 _ROS_TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"
 #: A ROS 2 topic name, relative (``cmd_vel``) or absolute (``/tb4_1/cmd_vel``); no ``~``/``{}``.
@@ -246,6 +248,11 @@ class Settings(BaseSettings):
         self.yard = site.yard.as_tuple()
         self._site = site
         return self
+
+    @property
+    def db_path(self) -> Path:
+        """The fleet's SQLite task database: ``<data_dir>/parkfleet.db``."""
+        return self.data_dir / DB_FILE
 
     @property
     def site(self) -> Site | None:

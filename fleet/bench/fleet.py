@@ -4,18 +4,20 @@ Fleet policies (``auto``, ``cw``, ``ccw``, ``none``): each run starts, in this p
 :class:`FleetService` with a fresh SQLite store on a :class:`ZenohFleetBus` (one in-process
 router for the whole bench), and the robots as one ``parkfleet sim`` subprocess: lockstep,
 time-scaled, with a real robot's disturbances on by default (``--disturbed``: pose and
-actuation noise, 50-150 ms command latency) and ``--trace`` streaming every robot's true
-pose and mode at every tick. Tasks are submitted through :meth:`FleetService.submit` as an
-API client would, each at its ``arrival_s`` of simulated time (read from the robots' state
-sequence numbers). The run ends when every task succeeded or at the scenario's
-:attr:`~fleet.bench.scenarios.Scenario.end_s`; the bench, not the service, is the judge of
-time (the service's own task timeout is pushed out of the way). ``auto`` lets the service
-choose each law; ``cw`` / ``ccw`` fix it; ``none`` is ``ccw`` with K_avoid = 0 and a
-separation of 1 µm to keep -- no repulsion, no contact guard, no start delays or holds:
-the baseline without any avoidance.
+actuation noise, 50-150 ms command latency, peer states 20-200 ms late and 5 % lost) and
+``--trace`` streaming every robot's true pose and mode at every tick. Tasks are submitted
+through :meth:`FleetService.submit` as an API client would, each at its ``arrival_s`` of
+simulated time (read from the robots' state sequence numbers). The run ends when every task
+succeeded or at the scenario's :attr:`~fleet.bench.scenarios.Scenario.end_s`; the bench, not
+the service, is the judge of time (the service's own task timeout is pushed out of the way).
+``auto`` lets the service choose each law; ``cw`` / ``ccw`` fix it; ``none`` is ``ccw`` with
+K_avoid = 0 and a separation of 1 µm to keep -- no repulsion, no contact guard, no start
+delays or holds: the baseline without any avoidance.
 
-Peer policies (``orca``, ``hrvo``, ``hl``, ``socialforce``): navground in this process
-(:mod:`fleet.bench.peers`), same robots, step, tolerances and time limit, no noise.
+Peer policies (``orca``, ``hrvo``, ``hl``, ``socialforce``): navground's behaviours in this
+process (:mod:`fleet.bench.peers`) driving the same simulated robots as the fleet's
+(``BenchOptions.robots``, ``sim_agent.robots.SimRobots`` from the CLI: the same drives,
+disturbances, link and seed), with the same step, tolerances and time limit.
 
 Every run is measured by the same code (:mod:`fleet.bench.metrics`) on time-aligned true
 poses. Planning latency (fleet policies): the wall time of each of the service's plans,
@@ -47,6 +49,7 @@ from fleet.bench.metrics import ARRIVAL_RADIUS_M, RunMetrics, RunResult
 from fleet.bench.peers import (
     BEHAVIOURS,
     MODES,
+    PeerRobots,
     PeerRun,
     assign_goals,
     goals_by_robot,
@@ -122,7 +125,8 @@ class BenchOptions:
     sim`` flags; empty: perfect robots), time-limit override [s, simulated], plot folder,
     folder keeping the sim traces (else deleted), whether navground runs in a worker
     process beside the fleet runs, the robots' settings (profile, avoidance, control
-    rate)."""
+    rate), and the robots the navground peers drive (the same as ``disturbances`` give
+    the fleet's; built by the CLI, which may import the simulator)."""
 
     time_scale: float = 5.0
     disturbances: tuple[str, ...] = DISTURBED_FLAGS
@@ -131,6 +135,7 @@ class BenchOptions:
     traces: Path | None = None
     peer_worker: bool = True
     settings: Settings = field(default_factory=load_settings)
+    robots: PeerRobots | None = None
 
     def limit(self, scenario: Scenario) -> Scenario:
         """``scenario`` with the overriding time limit, if any."""
@@ -245,6 +250,7 @@ def run_peer_policy(scenario: Scenario, policy: str, options: BenchOptions) -> O
         safety_separation_m=s.safety_separation_m,
         dt=1.0 / s.control_rate_hz,
         seed=scenario_seed(scenario),
+        robots=options.robots,
     )
     for chunk in run_peer(scenario, run):
         metrics.add(chunk)

@@ -23,6 +23,7 @@ from fleet.bench.report import auto_table, policy_table
 from fleet.bench.scenarios import Scenario, full_suite, load_scenarios, quick_suite
 from fleet.cli.options import add_json, add_time_scale, positive_float
 from fleet.io.settings import load_settings
+from sim_agent.robots import SimRobots
 
 
 def register(commands: Any, bench: Any) -> None:
@@ -32,7 +33,8 @@ def register(commands: Any, bench: Any) -> None:
         description="Runs each scenario through a real FleetService (SQLite store, Zenoh) and "
         "time-scaled `parkfleet sim` robots with a real robot's disturbances, under the "
         "policies auto, cw, ccw and none (no avoidance), and through navground's ORCA, HRVO, "
-        "HL and social force on the same robots; measures success, collisions and minimum "
+        "HL and social force on the same simulated robots (same disturbances, link and seed); "
+        "measures success, collisions and minimum "
         "separation on time-aligned true poses, makespan (simulated s), path ratio, "
         "deadlocks and planning latency. Progress goes to stderr with --json.",
     )
@@ -63,7 +65,11 @@ def register(commands: Any, bench: Any) -> None:
         help="simulated seconds after the last task's arrival before a run stops "
         "(default: each scenario's, 120 s or more)",
     )
-    p.add_argument("--perfect", action="store_true", help="no disturbances on the fleet's robots")
+    p.add_argument(
+        "--perfect",
+        action="store_true",
+        help="no disturbances on anybody's robots (fleet and navground alike)",
+    )
     p.add_argument("--plots", type=Path, metavar="DIR", help="one PNG per (scenario, policy)")
     p.add_argument(
         "--markdown",
@@ -169,6 +175,7 @@ def run(args: argparse.Namespace) -> int:
         plots=args.plots,
         traces=args.traces,
         settings=load_settings(),
+        robots=SimRobots() if args.perfect else SimRobots.realistic(),
     )
     progress_out = sys.stderr if args.json else sys.stdout
     print(

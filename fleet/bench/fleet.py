@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import multiprocessing
 import os
 import subprocess
@@ -73,7 +74,7 @@ from fleet.core.wire import Keys, Pose, RobotState
 from fleet.io.decoder import Decoder
 from fleet.io.processes import sim_command, terminate
 from fleet.io.settings import Settings, load_settings
-from fleet.io.trace import read_header, read_trace
+from fleet.io.trace import TraceChunk, read_header, read_trace
 from fleet.io.transport import listening_locators, open_session, tcp_endpoint
 from fleet.service.fleet_service import FleetService
 from fleet.service.store import SqliteTaskStore
@@ -117,6 +118,12 @@ class FleetBenchRow(BaseModel):
     rejected: int
     time_limit_s: float
     wall_s: float
+    stops_per_trip: float | None = None  # standstills inside trips, per task (metrics.py)
+    cusps_per_trip: float | None = None  # reversals of the sign of u, per task
+    plan_wait_s: float | None = None  # the last-arriving task's wait for the service [sim s]
+    plan_wait_max_s: float | None = None  # the longest such wait of any task [sim s]
+    planning_sim_s: float | None = None  # every plan's wall time x the time scale [sim s]
+    time_scale: float | None = None  # simulated s per wall s of the run (fleet policies)
 
 
 @dataclass(frozen=True)
@@ -146,13 +153,17 @@ class BenchOptions:
 
 @dataclass
 class Outcome:
-    """A finished run: its metrics, task count, plan latencies [ms], rejections, wall [s]."""
+    """A finished run: its metrics, task count, plan latencies [ms], rejections, wall [s];
+    fleet runs: each task's wait for the service [sim s] (in the order of
+    ``result.task_arrivals``, NaN: never left idle) and the time scale."""
 
     result: RunResult
     tasks: int
     plan_ms: list[float]
     rejected: int = 0
     wall_s: float = 0.0
+    plan_waits: list[float] = field(default_factory=list)
+    time_scale: float | None = None
 
 
 def random_yard_scenario(n: int, seed: int, half: float | None = None) -> Scenario:
@@ -177,6 +188,12 @@ def make_row(scenario: Scenario, policy: str, outcome: Outcome) -> FleetBenchRow
     """The table row of a run (the same arithmetic for every policy)."""
     r = outcome.result
     arrived = r.success_count()
+    stops, cusps = r.smoothness(outcome.tasks)
+    waits = np.asarray(outcome.plan_waits, dtype=np.float64)
+    last_wait = None
+    if waits.size and waits.size == r.task_arrivals.size and arrived == waits.size:
+        last_wait = float(waits[int(np.nanargmax(r.task_arrivals))])
+    scale = outcome.time_scale
     return FleetBenchRow(
         scenario=scenario.name,
         family=scenario.group,
@@ -198,6 +215,14 @@ def make_row(scenario: Scenario, policy: str, outcome: Outcome) -> FleetBenchRow
         rejected=outcome.rejected,
         time_limit_s=scenario.time_limit_s,
         wall_s=round(outcome.wall_s, 1),
+        stops_per_trip=round(stops, 2),
+        cusps_per_trip=round(cusps, 2),
+        plan_wait_s=None if last_wait is None or math.isnan(last_wait) else round(last_wait, 2),
+        plan_wait_max_s=(
+            round(float(np.nanmax(waits)), 2) if waits.size and not np.isnan(waits).all() else None
+        ),
+        planning_sim_s=None if scale is None else round(sum(outcome.plan_ms) / 1e3 * scale, 2),
+        time_scale=scale,
     )
 
 
@@ -358,6 +383,7 @@ def run_fleet_policy(
         extra=[*options.disturbances, "--trace", str(trace)],
     )
     tasks: dict[int, Task] = {}
+    submitted: dict[int, float] = {}  # simulated time [s] of each task's submission
     rejected = 0
     with contextlib.ExitStack() as stack:  # closed in reverse: sim, subscriber, service, store
         store = SqliteTaskStore(workdir / f"{fleet_name}.db")
@@ -390,6 +416,7 @@ def run_fleet_policy(
                     rejected += 1
                 else:
                     tasks[k] = task
+                    submitted[k] = now
             latency.sample(service.counters)
             if not pending and all(t.id in succeeded for t in tasks.values()):
                 break
@@ -404,15 +431,25 @@ def run_fleet_policy(
         owners = {k: service.task(t.id).robot_id for k, t in tasks.items()}
     goals = np.full((len(ids), 3), np.nan)  # a robot's last task (its path, deadlocks)
     served: list[tuple[int, float, float]] = []  # every task: (robot, goal x, goal y)
+    waits = PlanWait()
     for k, robot in owners.items():
         if robot in ids:
             goal = scenario.robots[k].goal
             goals[ids.index(robot)] = goal
             served.append((ids.index(robot), goal[0], goal[1]))
-    result = _measure_trace(trace, goals, served, scenario, t0)
+            waits.expect(ids.index(robot), submitted[k])
+    result = _measure_trace(trace, goals, served, scenario, t0, waits)
     if options.traces is None:
         trace.unlink(missing_ok=True)
-    return Outcome(result, len(ids), latency.samples, rejected, time.monotonic() - began)
+    return Outcome(
+        result,
+        len(ids),
+        latency.samples,
+        rejected,
+        time.monotonic() - began,
+        plan_waits=waits.waits.tolist(),
+        time_scale=options.time_scale,
+    )
 
 
 def _submit(
@@ -433,12 +470,38 @@ def _submit(
         return None
 
 
+class PlanWait:
+    """Each task's wait for the service [simulated s]: from its submission to the first
+    tick its robot is neither idle nor arrived (assigned: waiting on a planned start delay,
+    driving, ...). At time scale S every wall second the service takes -- planning above
+    all -- is S simulated seconds of this wait."""
+
+    def __init__(self) -> None:
+        self._robot: list[int] = []
+        self._since: list[float] = []
+        self.waits = np.zeros(0)
+
+    def expect(self, robot: int, submitted_s: float) -> None:
+        self._robot.append(robot)
+        self._since.append(submitted_s)
+        self.waits = np.full(len(self._robot), np.nan)
+
+    def add(self, chunk: TraceChunk, modes: Sequence[str]) -> None:
+        passive = [k for k, m in enumerate(modes) if m in ("idle", "arrived")]
+        for task in np.nonzero(np.isnan(self.waits))[0]:
+            robot, since = self._robot[task], self._since[task]
+            going = (chunk.t >= since - 1e-9) & ~np.isin(chunk.modes[:, robot], passive)
+            if going.any():
+                self.waits[task] = float(chunk.t[int(np.argmax(going))]) - since
+
+
 def _measure_trace(
     path: Path,
     goals: FloatArray,
     tasks: Sequence[tuple[int, float, float]],
     scenario: Scenario,
     t0: float,
+    waits: PlanWait | None = None,
 ) -> RunResult:
     header = read_header(path)
     metrics = RunMetrics(
@@ -453,6 +516,8 @@ def _measure_trace(
     )
     for chunk in read_trace(path):
         metrics.add(chunk)
+        if waits is not None:
+            waits.add(chunk, header.modes)
     return metrics.result()
 
 
@@ -553,6 +618,10 @@ class SummaryRow(BaseModel):
     deadlocks_worst: int
     obstacle_hits_worst: int = 0  # robots that hit a static obstacle, worst run
     plan_p99_worst_ms: float | None
+    stops_mean: float | None = None  # per trip
+    cusps_mean: float | None = None  # per trip
+    plan_wait_mean_s: float | None = None  # the last-arriving task's wait [sim s]
+    planning_sim_mean_s: float | None = None  # plans' wall time x time scale [sim s]
 
 
 def summarise(rows: Iterable[FleetBenchRow]) -> list[SummaryRow]:
@@ -565,6 +634,11 @@ def summarise(rows: Iterable[FleetBenchRow]) -> list[SummaryRow]:
         seps = [r.min_separation_m for r in group if r.min_separation_m is not None]
         ratios = [r.path_ratio for r in group if r.path_ratio is not None]
         plans = [r.plan_p99_ms for r in group if r.plan_p99_ms is not None]
+
+        def mean(values: list[float | None]) -> float | None:
+            known = [v for v in values if v is not None]
+            return round(float(np.mean(known)), 2) if known else None
+
         out.append(
             SummaryRow(
                 family=family,
@@ -584,6 +658,10 @@ def summarise(rows: Iterable[FleetBenchRow]) -> list[SummaryRow]:
                 deadlocks_worst=max(r.deadlocks for r in group),
                 obstacle_hits_worst=max(r.obstacle_hits for r in group),
                 plan_p99_worst_ms=max(plans) if plans else None,
+                stops_mean=mean([r.stops_per_trip for r in group]),
+                cusps_mean=mean([r.cusps_per_trip for r in group]),
+                plan_wait_mean_s=mean([r.plan_wait_s for r in group]),
+                planning_sim_mean_s=mean([r.planning_sim_s for r in group]),
             )
         )
     return out

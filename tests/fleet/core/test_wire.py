@@ -133,3 +133,19 @@ def test_description_key_and_an_older_fleets_view_of_it() -> None:
     assert unlimited["max_wheel_speed"] is None
     newer = encode(RobotDescription.of("r1", UNLIMITED))[:-1] + b', "max_accel": 2.0}'
     assert Decoder().decode(RobotDescription, newer) is not None
+
+
+def test_obstacle_body_defaults_for_older_payloads_and_is_bounded() -> None:
+    from fleet.core.wire import DEFAULT_OBSTACLE_BODY_M, Obstacle, ObstacleSet, parse
+
+    older = parse(ObstacleSet, b'{"v": 1, "kind": "obstacles", "obstacles": [{"x": 1, "y": 2}]}')
+    assert isinstance(older, ObstacleSet)
+    assert older.obstacles[0].body is None
+    assert older.obstacles[0].body_radius == DEFAULT_OBSTACLE_BODY_M
+    assert Obstacle(x=0, y=0, radius=0.05).body_radius == 0.05  # never beyond the influence
+    assert Obstacle(x=0, y=0, radius=1.0, body=0.4).body_radius == 0.4
+    too_big = parse(
+        ObstacleSet,
+        b'{"v": 1, "kind": "obstacles", "obstacles": [{"x": 0, "y": 0, "radius": 0.5, "body": 1}]}',
+    )
+    assert not isinstance(too_big, ObstacleSet)

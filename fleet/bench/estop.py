@@ -186,8 +186,9 @@ def _percentiles(name: str, seconds: list[float]) -> dict[str, float]:
 DISTURBED = ("--disturbed",)
 #: Their command latency bound [s] (sim_agent.disturbances.REALISTIC).
 LATENCY_BOUND_S = 0.15
-#: How long each e-stop is held before the release [s]: beyond the latency bound, so the
-#: stop reaches the wheels (released at once, the robots would never stop moving).
+#: How long each e-stop is held before the release, and the robots drive before the next
+#: e-stop [s]: beyond the latency bound, so the stop (and the drive commands) reach the
+#: wheels; released at once, the robots would never stop moving.
 HOLD_S = 0.4
 
 
@@ -235,6 +236,7 @@ def _measure(
             rng = random.Random(7)
             for trial in range(trials):
                 _all_driving(session, keys, states, robots, trial)
+                time.sleep(HOLD_S)  # until the drive commands reach the wheels (latency)
                 time.sleep(rng.uniform(0.0, 2.0 * period))  # a random phase of the ticks
                 with states.lock:
                     states.stopped_at.clear()
@@ -291,8 +293,13 @@ def _measure(
             sub.undeclare()  # type: ignore[no-untyped-call]
             command_sub.undeclare()  # type: ignore[no-untyped-call]
     with workdir:
-        actuation = _actuation(trace, zeroing)
-    wheels = [tick + late for (_, _, tick), late in zip(zeroing, actuation, strict=True)]
+        measured = _actuation(trace, zeroing)
+    actuation = [late for late in measured if late is not None]
+    wheels = [
+        tick + late
+        for (_, _, tick), late in zip(zeroing, measured, strict=True)
+        if late is not None
+    ]
     ms = np.asarray(latencies) * 1e3
     tick_ms = np.asarray(tick_latencies) * 1e3
     period_ms = 1e3 / settings.control_rate_hz
@@ -312,6 +319,7 @@ def _measure(
         "dropped": states.decoder.dropped_total,
         "disturbed": disturbed,
         "latency_bound_ms": LATENCY_BOUND_S * 1e3 if disturbed else 0.0,
+        "wheels_samples": len(wheels),  # robots whose wheels turned when the e-stop came
         **_percentiles("wheels", wheels),
         **_percentiles("actuation", actuation),
         "cli_trials": cli_trials,
@@ -320,17 +328,23 @@ def _measure(
     }
 
 
-def _actuation(trace: Path, zeroing: list[tuple[str, int, float]]) -> list[float]:
+def _actuation(trace: Path, zeroing: list[tuple[str, int, float]]) -> list[float | None]:
     """Per e-stop (robot, seq of its zeroing tick, tick latency): seconds [simulated, = wall
-    at time scale 1] from that tick to the instant its wheels stopped, read from the trace."""
+    at time scale 1] from that tick to the instant its wheels stopped, read from the trace;
+    None for a robot whose wheels were not turning at the zeroing tick."""
     header = read_header(trace)
     chunks = list(read_trace(trace))
     t = np.concatenate([c.t for c in chunks])
     poses = np.concatenate([c.poses for c in chunks])
-    out = []
+    out: list[float | None] = []
     for robot, seq, _ in zeroing:
         zero_t = seq * header.period_s  # the sim's clock: one period per tick from 0
-        stopped = wheels_stopped(t, poses[:, header.robots.index(robot)], zero_t)
+        track = poses[:, header.robots.index(robot)]
+        k = int(np.searchsorted(t, zero_t - 1e-9))
+        if k < 1 or not np.any(track[k] != track[k - 1]):
+            out.append(None)  # its wheels were not turning when the e-stop came
+            continue
+        stopped = wheels_stopped(t, track, zero_t)
         if stopped is None:
             raise RuntimeError(f"bench estop: {robot}'s wheels never stopped after t={zero_t}")
         out.append(stopped - zero_t)

@@ -29,7 +29,7 @@ def test_bench_estop_measures_every_robot_of_every_trial() -> None:
     assert row["received_p50_ms"] <= row["received_max_ms"]
     # disturbed drives by default: the wheels stop after the zeroing tick, within the bound
     assert row["disturbed"] and row["tick_p50_ms"] < row["wheels_p50_ms"]
-    assert 0.0 < row["actuation_p50_ms"] <= row["actuation_max_ms"]
+    assert row["wheels_samples"] == 6 and 0.0 < row["actuation_p50_ms"] <= row["actuation_max_ms"]
     assert row["actuation_max_ms"] <= row["latency_bound_ms"] + row["control_period_ms"] + 1e-6
 
 

@@ -20,8 +20,8 @@ Reported per N, over N x trials samples, p50 / p99 / max [ms]:
   bound, it adds the state's trip back (encode, router, decode: ~0.3 ms here);
 * ``wheels``: from the command's stamp to the instant the robot's wheels stop: ``tick``
   plus the drive's actuation latency, read from the sim's trace of true poses (the first
-  tick after the zeroing tick from which the robot no longer moves; the trace ticks at
-  the control period, so this is an upper bound by less than one period);
+  tick after the zeroing tick from which the robot no longer moves, interpolated within
+  the last moving period from the distance covered there: :func:`wheels_stopped`);
   ``actuation`` is that second part alone. The issue's target: ``wheels`` p99 <= one
   control period + the latency bound (150 ms disturbed). Each e-stop is held
   :data:`HOLD_S` before its release (released as soon as the e-stop state arrived, a
@@ -193,12 +193,21 @@ HOLD_S = 0.4
 
 
 def wheels_stopped(t: FloatArray, poses: FloatArray, after: float) -> float | None:
-    """The first tick time [s] at or after ``after`` from which a robot's true pose no
-    longer changes (``poses`` (T, 3) at times ``t``): its wheels were stopped by then.
-    None if it still moves at the end of the trace."""
-    still = ~np.any(poses[1:] != poses[:-1], axis=1)  # no motion from tick k to k + 1
+    """When a robot's wheels stopped [s], at or after ``after``, from its true poses (T, 3)
+    at times ``t``: the first tick k from which the pose no longer changes bounds it; within
+    the last moving interval (k-1, k] the instant is interpolated from the distance covered
+    there against the interval before (constant speed within two ticks). None if the robot
+    still moves at the end of the trace."""
+    step = np.hypot(*(poses[1:, :2] - poses[:-1, :2]).T)  # distance from tick j to j + 1
+    still = ~np.any(poses[1:] != poses[:-1], axis=1)
     found = np.nonzero(still & (t[:-1] >= after - 1e-9))[0]
-    return float(t[found[0]]) if found.size else None
+    if not found.size:
+        return None
+    k = int(found[0])
+    if k < 2 or t[k - 1] < after - 1e-9 or step[k - 2] <= 0.0:
+        return float(t[k])
+    share = min(1.0, float(step[k - 1] / step[k - 2]))
+    return float(t[k - 1] + share * (t[k] - t[k - 1]))
 
 
 def _measure(

@@ -33,10 +33,10 @@ def test_bench_estop_measures_every_robot_of_every_trial() -> None:
     assert row["actuation_max_ms"] <= row["latency_bound_ms"] + row["control_period_ms"] + 1e-6
 
 
-def test_the_wheels_stop_at_the_first_tick_from_which_the_robot_no_longer_moves() -> None:
+def test_the_wheels_stop_within_the_last_moving_tick_interpolated() -> None:
     t = np.arange(8) * 0.02
-    x = np.array([0.0, 0.1, 0.2, 0.3, 0.35, 0.35, 0.35, 0.4])  # stopped at t4, moves again at t6
+    x = np.array([0.0, 0.1, 0.2, 0.3, 0.35, 0.35, 0.35, 0.4])  # half a tick's way, then still
     poses = np.stack([x, np.zeros(8), np.zeros(8)], axis=1)
-    assert wheels_stopped(t, poses, after=0.02) == pytest.approx(0.08)
-    assert wheels_stopped(t, poses, after=0.08) == pytest.approx(0.08)
+    assert wheels_stopped(t, poses, after=0.02) == pytest.approx(0.07)  # half of (0.06, 0.08]
+    assert wheels_stopped(t, poses, after=0.08) == pytest.approx(0.08)  # no interval to read
     assert wheels_stopped(t, poses, after=0.11) is None  # moving again to the end

@@ -131,7 +131,10 @@ class BenchOptions:
     """How the bench runs: time scale of the sim robots, their disturbances (``parkfleet
     sim`` flags; empty: perfect robots), time-limit override [s, simulated], plot folder,
     folder keeping the sim traces (else deleted), whether navground runs in a worker
-    process beside the fleet runs, the robots' settings (profile, avoidance, control
+    process beside the fleet runs (off by default: the peers now step the disturbed robots
+    in Python, and beside a fleet run on 2 cores they slowed the service's plans, p99
+    55 -> 1606 ms on swap-4, so the fleet waited 13 s for its first plan instead of 0.7 s),
+    the robots' settings (profile, avoidance, control
     rate), and the robots the navground peers drive (the same as ``disturbances`` give
     the fleet's; built by the CLI, which may import the simulator)."""
 
@@ -140,7 +143,7 @@ class BenchOptions:
     time_limit_s: float | None = None
     plots: Path | None = None
     traces: Path | None = None
-    peer_worker: bool = True
+    peer_worker: bool = False
     settings: Settings = field(default_factory=load_settings)
     robots: PeerRobots | None = None
 
@@ -536,7 +539,8 @@ def run_fleet_bench(
     ``starting(scenario, policy)`` before each fleet run, ``progress(done, total, row)``
     after each run. With both kinds of policies and ``options.peer_worker``, the navground
     runs go to one spawned worker process meanwhile (a fleet run mostly waits on its
-    time-scaled robots), and are reported as they finish.
+    time-scaled robots, but its service's plans then share the CPU), and are reported as
+    they finish; otherwise every run runs alone, in order.
     """
     options = options or BenchOptions()
     unknown = [p for p in policies if p not in POLICIES]

@@ -85,6 +85,8 @@ PEER_POLICIES: tuple[str, ...] = tuple(BEHAVIOURS)
 POLICIES: tuple[str, ...] = (*FLEET_POLICIES, *PEER_POLICIES)
 #: ``parkfleet sim`` flags of the disturbed robots (sim_agent.disturbances.REALISTIC).
 DISTURBED_FLAGS: tuple[str, ...] = ("--disturbed",)
+#: Seeds of a scenario's disturbance sets lie this far apart (any yard seed is smaller).
+DISTURBANCE_SEED_STRIDE = 1_000_003
 #: The service's task timeout in the bench [s, wall]: out of the way, the bench judges time.
 _SERVICE_TIMEOUT_S = 86_400.0
 #: Wall seconds without simulated time moving before a run is declared broken.
@@ -124,6 +126,7 @@ class FleetBenchRow(BaseModel):
     plan_wait_max_s: float | None = None  # the longest such wait of any task [sim s]
     planning_sim_s: float | None = None  # every plan's wall time x the time scale [sim s]
     time_scale: float | None = None  # simulated s per wall s of the run (fleet policies)
+    disturbance_seed: int = 0  # which of the scenario's disturbance sets (scenario_seed)
 
 
 @dataclass(frozen=True)
@@ -134,7 +137,8 @@ class BenchOptions:
     process beside the fleet runs (off by default: the peers now step the disturbed robots
     in Python, and beside a fleet run on 2 cores they slowed the service's plans, p99
     55 -> 1606 ms on swap-4, so the fleet waited 13 s for its first plan instead of 0.7 s),
-    the robots' settings (profile, avoidance, control
+    how many disturbance seeds each scenario runs with (every policy on each), the
+    robots' settings (profile, avoidance, control
     rate), and the robots the navground peers drive (the same as ``disturbances`` give
     the fleet's; built by the CLI, which may import the simulator)."""
 
@@ -144,6 +148,7 @@ class BenchOptions:
     plots: Path | None = None
     traces: Path | None = None
     peer_worker: bool = False
+    disturbance_seeds: int = 1
     settings: Settings = field(default_factory=load_settings)
     robots: PeerRobots | None = None
 
@@ -174,9 +179,11 @@ def random_yard_scenario(n: int, seed: int, half: float | None = None) -> Scenar
     return random_yard(n, seed, half=half)
 
 
-def scenario_seed(scenario: Scenario) -> int:
-    """A stable seed for the noise of a scenario's runs (its own seed, else from its name)."""
-    return scenario.seed if scenario.seed is not None else zlib.crc32(scenario.name.encode())
+def scenario_seed(scenario: Scenario, disturbance_seed: int = 0) -> int:
+    """A stable seed for the noise of a scenario's runs (its own seed, else from its name),
+    the same for every policy; ``disturbance_seed`` k > 0 draws the k-th other set."""
+    base = scenario.seed if scenario.seed is not None else zlib.crc32(scenario.name.encode())
+    return base + DISTURBANCE_SEED_STRIDE * disturbance_seed
 
 
 def _percentile(values: Sequence[float], q: float) -> float | None:
@@ -259,8 +266,11 @@ def _obstacle_rows(scenario: Scenario) -> list[tuple[float, float, float]]:
 # -- navground peers -----------------------------------------------------------------------
 
 
-def run_peer_policy(scenario: Scenario, policy: str, options: BenchOptions) -> Outcome:
-    """One navground run of ``scenario``, measured on its ticks."""
+def run_peer_policy(
+    scenario: Scenario, policy: str, options: BenchOptions, seed: int | None = None
+) -> Outcome:
+    """One navground run of ``scenario`` (robots seeded by ``seed``, default
+    :func:`scenario_seed`), measured on its ticks."""
     began = time.monotonic()
     s = options.settings
     owner = assign_goals(scenario)
@@ -277,7 +287,7 @@ def run_peer_policy(scenario: Scenario, policy: str, options: BenchOptions) -> O
         profile=s.profile,
         safety_separation_m=s.safety_separation_m,
         dt=1.0 / s.control_rate_hz,
-        seed=scenario_seed(scenario),
+        seed=scenario_seed(scenario) if seed is None else seed,
         robots=options.robots,
     )
     for chunk in run_peer(scenario, run):
@@ -345,6 +355,7 @@ def run_fleet_policy(
     *,
     fleet_name: str,
     workdir: Path,
+    seed: int | None = None,
 ) -> Outcome:
     """One run of ``scenario`` through a fresh service and fresh ``parkfleet sim`` robots."""
     began = time.monotonic()
@@ -363,7 +374,10 @@ def run_fleet_policy(
             ]
         )
     )
-    trace = (options.traces or workdir) / f"{scenario.name}--{policy}.trace"
+    other = seed is not None and seed != scenario_seed(scenario)  # another disturbance set
+    trace = (options.traces or workdir) / (
+        f"{scenario.name}--{policy}{f'--seed{seed}' if other else ''}.trace"
+    )
     keys = Keys(fleet_name)
     clock = _SimClock(1.0 / settings.control_rate_hz)
     latency = _PlanLatency()
@@ -382,7 +396,7 @@ def run_fleet_policy(
         len(ids),
         time_scale=options.time_scale,
         spawn=str(spawn),
-        seed=scenario_seed(scenario),
+        seed=scenario_seed(scenario) if seed is None else seed,
         extra=[*options.disturbances, "--trace", str(trace)],
     )
     tasks: dict[int, Task] = {}
@@ -546,15 +560,22 @@ def run_fleet_bench(
     unknown = [p for p in policies if p not in POLICIES]
     if unknown:
         raise ValueError(f"unknown policy {unknown}; expected some of {list(POLICIES)}")
-    runs = [(k, options.limit(s), p) for k, s in enumerate(scenarios) for p in policies]
+    cases = [(s, d) for s in scenarios for d in range(options.disturbance_seeds)]
+    runs = [(k, options.limit(s), p) for k, (s, _) in enumerate(cases) for p in policies]
+
+    def seed(k: int) -> int:
+        return scenario_seed(*cases[k])
+
     fleet_runs = [r for r in runs if r[2] in FLEET_POLICIES]
     peer_runs = [r for r in runs if r[2] not in FLEET_POLICIES]
     done: dict[tuple[int, str], FleetBenchRow] = {}
 
     def finish(k: int, scenario: Scenario, policy: str, outcome: Outcome) -> None:
-        row = make_row(scenario, policy, outcome)
+        row = make_row(scenario, policy, outcome).model_copy(
+            update={"disturbance_seed": cases[k][1]}
+        )
         if options.plots is not None:
-            name = f"{scenario.name}--{policy}.png"
+            name = f"{scenario.name}--{policy}{f'--d{cases[k][1]}' if cases[k][1] else ''}.png"
             plot_run(scenario, outcome.result, metrics_title(row), options.plots / name)
         done[k, policy] = row
         if progress is not None:
@@ -569,7 +590,7 @@ def run_fleet_bench(
             stack.callback(pool.join)
             stack.callback(pool.terminate)
             pending = [
-                (k, s, p, pool.apply_async(run_peer_policy, (s, p, options)))
+                (k, s, p, pool.apply_async(run_peer_policy, (s, p, options, seed(k))))
                 for k, s, p in peer_runs
             ]
         else:
@@ -592,10 +613,17 @@ def run_fleet_bench(
             if policy in FLEET_POLICIES:
                 name = f"bench{os.getpid()}-{k}-{policy}"
                 outcome = run_fleet_policy(
-                    session, endpoint, scenario, policy, options, fleet_name=name, workdir=Path(tmp)
+                    session,
+                    endpoint,
+                    scenario,
+                    policy,
+                    options,
+                    fleet_name=name,
+                    workdir=Path(tmp),
+                    seed=seed(k),
                 )
             else:
-                outcome = run_peer_policy(scenario, policy, options)
+                outcome = run_peer_policy(scenario, policy, options, seed(k))
             finish(k, scenario, policy, outcome)
             collect(wait=False)
         collect(wait=True)

@@ -21,7 +21,7 @@ from fleet.bench.fleet import (
 )
 from fleet.bench.report import auto_table, planning_wait_table, policy_table, smoothness_table
 from fleet.bench.scenarios import Scenario, full_suite, load_scenarios, quick_suite
-from fleet.cli.options import add_json, add_time_scale, positive_float
+from fleet.cli.options import add_json, add_time_scale, positive_float, positive_int
 from fleet.io.settings import load_settings
 from sim_agent.robots import SimRobots
 
@@ -69,6 +69,14 @@ def register(commands: Any, bench: Any) -> None:
         "--perfect",
         action="store_true",
         help="no disturbances on anybody's robots (fleet and navground alike)",
+    )
+    p.add_argument(
+        "--disturbance-seeds",
+        type=positive_int,
+        default=1,
+        metavar="N",
+        help="run every scenario with N sets of disturbances (seeds), every policy on each "
+        "(default 1; the issue's targets use 3)",
     )
     p.add_argument("--plots", type=Path, metavar="DIR", help="one PNG per (scenario, policy)")
     p.add_argument(
@@ -188,6 +196,7 @@ def run(args: argparse.Namespace) -> int:
         traces=args.traces,
         settings=load_settings(),
         robots=SimRobots() if args.perfect else SimRobots.realistic(),
+        disturbance_seeds=args.disturbance_seeds,
     )
     progress_out = sys.stderr if args.json else sys.stdout
     print(

@@ -134,9 +134,7 @@ class BenchOptions:
     """How the bench runs: time scale of the sim robots, their disturbances (``parkfleet
     sim`` flags; empty: perfect robots), time-limit override [s, simulated], plot folder,
     folder keeping the sim traces (else deleted), whether navground runs in a worker
-    process beside the fleet runs (off by default: the peers now step the disturbed robots
-    in Python, and beside a fleet run on 2 cores they slowed the service's plans, p99
-    55 -> 1606 ms on swap-4, so the fleet waited 13 s for its first plan instead of 0.7 s),
+    process beside the fleet runs,
     how many disturbance seeds each scenario runs with (every policy on each), the
     robots' settings (profile, avoidance, control
     rate), and the robots the navground peers drive (the same as ``disturbances`` give
@@ -147,7 +145,7 @@ class BenchOptions:
     time_limit_s: float | None = None
     plots: Path | None = None
     traces: Path | None = None
-    peer_worker: bool = False
+    peer_worker: bool = True
     disturbance_seeds: int = 1
     settings: Settings = field(default_factory=load_settings)
     robots: PeerRobots | None = None
@@ -553,8 +551,7 @@ def run_fleet_bench(
     ``starting(scenario, policy)`` before each fleet run, ``progress(done, total, row)``
     after each run. With both kinds of policies and ``options.peer_worker``, the navground
     runs go to one spawned worker process meanwhile (a fleet run mostly waits on its
-    time-scaled robots, but its service's plans then share the CPU), and are reported as
-    they finish; otherwise every run runs alone, in order.
+    time-scaled robots), and are reported as they finish.
     """
     options = options or BenchOptions()
     unknown = [p for p in policies if p not in POLICIES]

@@ -57,7 +57,7 @@ from fleet.bench.peers import (
     run_peer,
 )
 from fleet.bench.plots import plot_run
-from fleet.bench.scenarios import Scenario, random_yard
+from fleet.bench.scenarios import Scenario, random_yard, swap
 from fleet.core.params import Avoidance
 from fleet.core.tasks import (
     Direction,
@@ -85,6 +85,10 @@ PEER_POLICIES: tuple[str, ...] = tuple(BEHAVIOURS)
 POLICIES: tuple[str, ...] = (*FLEET_POLICIES, *PEER_POLICIES)
 #: ``parkfleet sim`` flags of the disturbed robots (sim_agent.disturbances.REALISTIC).
 DISTURBED_FLAGS: tuple[str, ...] = ("--disturbed",)
+#: The unmeasured fleet run before the first measured one: the planner's compiled code is
+#: built (numba, first use in a fresh checkout: seconds of wall time, which at time scale
+#: 5 were 15-23 s of a robot's wait for its first plan) or loaded from its cache.
+WARM_UP = swap(2, "left").model_copy(update={"name": "warm-up", "time_limit_s": 5.0})
 #: Seeds of a scenario's disturbance sets lie this far apart (any yard seed is smaller).
 DISTURBANCE_SEED_STRIDE = 1_000_003
 #: The service's task timeout in the bench [s, wall]: out of the way, the bench judges time.
@@ -135,7 +139,8 @@ class BenchOptions:
     sim`` flags; empty: perfect robots), time-limit override [s, simulated], plot folder,
     folder keeping the sim traces (else deleted), whether navground runs in a worker
     process beside the fleet runs,
-    how many disturbance seeds each scenario runs with (every policy on each), the
+    how many disturbance seeds each scenario runs with (every policy on each), whether a
+    short unmeasured fleet run comes first (:data:`WARM_UP`), the
     robots' settings (profile, avoidance, control
     rate), and the robots the navground peers drive (the same as ``disturbances`` give
     the fleet's; built by the CLI, which may import the simulator)."""
@@ -147,6 +152,7 @@ class BenchOptions:
     traces: Path | None = None
     peer_worker: bool = True
     disturbance_seeds: int = 1
+    warm_up: bool = True
     settings: Settings = field(default_factory=load_settings)
     robots: PeerRobots | None = None
 
@@ -604,6 +610,16 @@ def run_fleet_bench(
         if any(p in FLEET_POLICIES for _, _, p in fleet_runs):
             session = stack.enter_context(open_session(load_settings(listen=[LOOPBACK]), "router"))
             endpoint = tcp_endpoint(listening_locators(session))
+        if options.warm_up and any(p in FLEET_POLICIES for _, _, p in fleet_runs):
+            run_fleet_policy(
+                session,
+                endpoint,
+                WARM_UP,
+                "auto",
+                options,
+                fleet_name=f"bench{os.getpid()}-warm-up",
+                workdir=Path(tmp),
+            )
         for k, scenario, policy in fleet_runs:
             if starting is not None:
                 starting(scenario, policy)

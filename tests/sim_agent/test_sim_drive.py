@@ -89,3 +89,12 @@ def test_commands_above_the_wheel_limit_are_refused() -> None:
     with pytest.raises(ValueError, match="exceeds"):
         drive.command_wheels(5.1, 0.0)
     drive.command_wheels(5.0, -5.0)
+
+
+def test_a_hair_of_time_is_integrated_not_divided_by_zero_steps() -> None:
+    clock = SteppedClock()
+    drive = SimDrive((0.0, 0.0, 0.0), RobotProfile(), clock, max_step=0.02)
+    drive.command_wheels(10.0, 10.0)
+    clock.advance(1e-12)
+    pose, _ = drive.read_pose()
+    assert 0.0 < pose.x < 1e-9

@@ -441,8 +441,12 @@ class PlannerOut(BaseModel):
     stale_dropped: int = Field(description="plans on a stale snapshot dropped whole")
     decisions_stale_dropped: int = Field(description="decisions on tasks changed meanwhile")
     unsafe_dropped: int = Field(
-        description="decisions that would have started a robot in a plan predicted unsafe "
-        "(never sent; 0 unless the planner has a bug)"
+        description="decisions that would have started a robot in a plan predicted to come "
+        "closer than the separation (never sent; the robots' safety filter acts regardless)"
+    )
+    relaxed: int = Field(
+        description="plans made at the standstill margin because no robot could move "
+        "keeping the separation (also parkfleet_service_events_total{event=plans_relaxed})"
     )
 
     @classmethod

@@ -122,8 +122,8 @@ class _HubView(WorldView):
     """The shared feed's view under link disturbances: obstacles and remote robots' states
     (other processes, over real Zenoh) go on to every agent's own view at once."""
 
-    def __init__(self) -> None:
-        super().__init__()
+    def __init__(self, clock: SteppedClock) -> None:
+        super().__init__(clock.now)
         self.views: list[WorldView] = []
 
     def update_state(self, state: RobotState) -> None:
@@ -142,7 +142,7 @@ class _LinkedView(WorldView):
     (one copy per peer), its peers' arrive only from it."""
 
     def __init__(self, owner: str, index: int, link: DelayedLink[RobotState], clock: SteppedClock):
-        super().__init__()
+        super().__init__(clock.now)  # peers' silence in simulated seconds
         self.owner, self.index, self.link, self.clock = owner, index, link, clock
 
     def update_state(self, state: RobotState) -> None:
@@ -186,8 +186,8 @@ class SimFleet:
             [(s.x, s.y, s.theta) for s in spawns], settings.profile, seed, self.period, self.clock
         )
         self.robot_link = robots.link
-        hub = _HubView() if robots.link is not None else None
-        self.world = hub or WorldView()
+        hub = _HubView(self.clock) if robots.link is not None else None
+        self.world = hub or WorldView(self.clock.now)  # peers' silence in simulated seconds
         self.feed = feed = WorldFeed(self.world, Keys(settings.fleet_name))
         self.link = LinkMonitor(  # one link per session, shared by its agents
             session,

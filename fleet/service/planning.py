@@ -108,12 +108,17 @@ class PlannerGlue(ServiceState):
         self._counters.add("decisions_stale_dropped", outcomes[Outcome.STALE])
         self._counters.add("plan_fallbacks", held)
         self._counters.add("replans", revised)
+        if any(note.startswith("standstill") for note in plan.notes):
+            # No robot could move keeping the separation: planned at the standstill margin.
+            self._counters.add("plans_relaxed")
+            _log.warning("relaxed plan: %s", next(n for n in plan.notes if "standstill" in n))
         if outcomes[Outcome.UNSAFE]:
-            # The planner holds robots it cannot move safely; this is a planner bug.
+            # A scene the plan could not keep apart (the robots' safety filter still keeps
+            # their bodies apart): the decisions that would start robots in it are dropped.
             self._counters.add("plans_unsafe_dropped", outcomes[Outcome.UNSAFE])
-            _log.error(
-                "dropped %d decision(s) that would start a robot in a plan predicted unsafe "
-                "(min separation %.2f m)",
+            _log.warning(
+                "dropped %d decision(s) that would start a robot in a plan predicted to come "
+                "closer than the separation (min separation %.2f m); those robots stand",
                 outcomes[Outcome.UNSAFE],
                 plan.min_separation_m,
             )
@@ -133,6 +138,7 @@ class PlannerGlue(ServiceState):
             stale_dropped=count.get("plans_stale_dropped", 0),
             decisions_stale_dropped=count.get("decisions_stale_dropped", 0),
             unsafe_dropped=count.get("plans_unsafe_dropped", 0),
+            relaxed=count.get("plans_relaxed", 0),
         )
 
     def _positions(self) -> list[tuple[str, float, float, bool]]:

@@ -46,6 +46,7 @@ class PlannerStats:
     stale_dropped: int  # plans made on a stale snapshot with nothing left to apply
     decisions_stale_dropped: int  # decisions on tasks that changed meanwhile
     unsafe_dropped: int  # decisions that would start a robot in a plan predicted unsafe
+    relaxed: int = 0  # plans made at the standstill margin (no robot could move otherwise)
 
 
 class LatencyWindow:

@@ -117,6 +117,7 @@ class Submission(ServiceState):
                 self.settings.avoidance.peer_radius,
                 () if site is None else site.keep_out,
                 margin=self._profile_of(rid).radius,
+                contact_margin=self.settings.safety.contact_margin_m,
             )
             # Reserve the goal and bay while the task is written (outside the lock, so
             # concurrent submits share one commit): a concurrent submit near it (or for the

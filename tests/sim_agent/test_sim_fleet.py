@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from fleet.core.params import Gains, Tolerance
-from fleet.core.simulate import BatchProblem, simulate
+from fleet.core.simulate import BatchProblem, batch_filter, simulate
 from fleet.core.wire import ParkAssignment, Pose, RobotMode
 from fleet.io.settings import load_settings
 from sim_agent.fleet import SimFleet, Spawn, spawn_layout
@@ -75,7 +75,7 @@ def test_crossing_robots_keep_apart_in_lockstep_without_zenoh() -> None:
 
 
 def test_without_avoidance_the_same_crossing_collides() -> None:
-    settings = load_settings(avoidance={"k_avoid": 0.0})
+    settings = load_settings(avoidance={"k_avoid": 0.0}, safety={"enabled": False})
     spawns = [Spawn("a", -3.0, 0.0, 0.0), Spawn("b", 0.0, -3.0, math.pi / 2)]
     fleet = SimFleet(None, settings, spawns)
     fleet.agent("a").submit(
@@ -96,9 +96,11 @@ def test_a_lockstep_fleet_among_peers_is_the_batch_simulation_of_the_same_scene(
     """Agents on simulated drives, ticked in two phases (all sense at t, then all act), follow
     the batch simulator step for step: the same compiled control step, peers read at the
     same time t. The moving robots a, c and d pass within each other's influence radius;
-    a weak repulsion lets a reach the contact range of the idle robot b next to its goal,
-    where only the contact guard holds it off."""
-    settings = load_settings(avoidance={"k_avoid": 0.05})
+    a weak repulsion lets a reach the idle robot b next to its goal, where only the safety
+    filter holds it off. The filter sees every peer exactly (no latency, link or pose error
+    in this scene), as the batch does."""
+    exact = {"pose_error_m": 0.0, "max_latency_s": 0.0, "link_delay_s": 0.0}
+    settings = load_settings(avoidance={"k_avoid": 0.05}, safety=exact)
     avoid, period = settings.avoidance, 1.0 / settings.control_rate_hz
     spawns = [
         Spawn("a", -2.0, -1.0, 0.0),
@@ -111,7 +113,7 @@ def test_a_lockstep_fleet_among_peers_is_the_batch_simulation_of_the_same_scene(
     fleet = SimFleet(None, settings, spawns)
     for rid, goal in goals.items():
         fleet.agent(rid).submit(_park(rid, goal).model_copy(update={"law": laws[rid]}))
-    ticks = 2000  # 40 s: c and d arrive, a stays held off by the guard
+    ticks = 2000  # 40 s: c arrives, a stays held off b by the filter
     poses, modes, controls = [], [], []
     for _ in range(ticks):
         fleet.tick()
@@ -131,26 +133,30 @@ def test_a_lockstep_fleet_among_peers_is_the_batch_simulation_of_the_same_scene(
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius,
         min_x_oa=avoid.min_x_oa,
+        safety=batch_filter(settings.safety),
     )
     batch = simulate(problem, dt=period, max_time=ticks * period, record=True)
     assert batch.trajectory is not None
     np.testing.assert_allclose(np.array(poses), batch.trajectory.poses[:ticks], rtol=0, atol=1e-9)
     # arrivals on the same tick: the stop rule's step k is reported at tick k
     for i, rid in enumerate(s.robot_id for s in spawns):
+        if rid == "b":
+            continue  # idle: a row done from the start, an agent without a task
         arrived = [k for k, m in enumerate(modes) if m[i] is RobotMode.ARRIVED]
-        if rid in ("c", "d"):
-            assert batch.done[i] and arrived[0] == round(batch.time[i] / period) - 1
-        elif rid == "a":
-            assert not batch.done[i] and not arrived
-    # the contact guard acted: a turned on the spot next to b instead of driving into it
-    contact = 2 * settings.profile.radius + avoid.min_x_oa
+        assert bool(arrived) == bool(batch.done[i])
+        if arrived:
+            assert arrived[0] == round(batch.time[i] / period) - 1
+        if rid == "a":
+            assert not batch.done[i]
+        if rid == "c":
+            assert batch.done[i]
+    # the filter acted: a is held off b by the margin, never closer
     a, b = np.array(poses)[:, 0, :2], np.array(poses)[:, 1, :2]
-    guarded = [
-        k for k in range(ticks)
-        if np.hypot(*(a[k] - b[k])) < contact and controls[k][0][0] == 0.0 and controls[k][0][1]
-    ]  # fmt: skip
-    assert guarded
-    assert np.hypot(*(a - b).T).min() > 2 * settings.profile.radius
+    gap = np.hypot(*(a - b).T)
+    margin = 2 * settings.profile.radius + settings.safety.contact_margin_m
+    assert gap.min() >= margin - 1e-9
+    near = [k for k in range(ticks) if gap[k] < margin + 0.1]
+    assert near and any(modes[k][0] is RobotMode.AVOIDING for k in near)
     # moving peers interacted (a one-phase tick, reading some peers a period late, diverges)
     c, d = np.array(poses)[:, 2, :2], np.array(poses)[:, 3, :2]
     assert np.hypot(*(c - d).T).min() < avoid.peer_radius

@@ -44,9 +44,10 @@ def assign_queued(law: Law = "cw", **kw: Any) -> Decide:
 class ScriptedPlanner:
     """A planner whose decisions come from ``decide``; it can be made to block."""
 
-    def __init__(self, decide: Decide, safe: bool = True) -> None:
+    def __init__(self, decide: Decide, safe: bool = True, notes: tuple[str, ...] = ()) -> None:
         self.decide = decide
         self.safe = safe
+        self.notes = notes
         self.snapshots: list[PlanningSnapshot] = []
         self.gate: threading.Event | None = None  # when set up: wait for it before answering
         self.entered = threading.Event()
@@ -56,7 +57,8 @@ class ScriptedPlanner:
         self.entered.set()
         if self.gate is not None:
             assert self.gate.wait(30.0), "the test never released the planner"
-        return Plan(snapshot.version, tuple(self.decide(snapshot)), self.safe, 1.0)
+        decisions = tuple(self.decide(snapshot))
+        return Plan(snapshot.version, decisions, self.safe, 1.0, notes=self.notes)
 
 
 class Fleet:

@@ -155,6 +155,19 @@ def test_a_decision_that_would_start_a_robot_in_an_unsafe_plan_is_never_sent(
     assert y.service.planner_stats().fallbacks == 1
 
 
+def test_a_relaxed_plan_is_counted_in_the_stats_and_the_counters(
+    yards: Callable[..., Yard],
+) -> None:
+    note = "standstill: no robot could move keeping 0.50 m; planned keeping 0.42 m"
+    y = yards(ScriptedPlanner(assign_queued(), notes=(note,)))
+    y.join("r1", 0.0)
+    assert y.service.planner_stats().relaxed == 0
+    y.service.submit(req(3.0, 0.0))
+    y.service.tick()
+    assert y.service.planner_stats().relaxed == 1
+    assert y.service.counters["plans_relaxed"] == 1
+
+
 def test_the_worker_replans_as_the_yard_changes_and_resends_only_changes(
     yards: Callable[..., Yard],
 ) -> None:

@@ -8,15 +8,14 @@ import os
 import subprocess
 import sys
 import threading
-from contextlib import ExitStack
 from pathlib import Path
 
 import pytest
 from support import wait_for
 
-from api.app import open_fleet
 from fleet.io.heap import HeapTrimmer, can_trim, limit_arenas, trim_heap
 from fleet.io.settings import load_settings
+from fleet.service.host import open_fleet
 
 pytestmark = pytest.mark.skipif(not can_trim(), reason="no malloc_trim in this C library")
 
@@ -118,7 +117,6 @@ def test_limit_arenas_caps_the_arenas_of_threads_allocating_at_once() -> None:
 
 def test_the_server_runs_a_trimmer_while_open(tmp_path: Path) -> None:
     settings = load_settings(data_dir=tmp_path, listen=["tcp/127.0.0.1:0"])
-    with ExitStack() as stack:
-        open_fleet(settings, stack)
+    with open_fleet(settings):
         assert any(t.name == "heap-trim" for t in threading.enumerate())
     assert not any(t.name == "heap-trim" for t in threading.enumerate())

@@ -45,6 +45,17 @@ def positive_float(text: str) -> float:
     return value
 
 
+def positive_int(text: str) -> int:
+    """argparse type: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {text}")
+    return value
+
+
 def add_time_scale(p: argparse.ArgumentParser, default: float = 1.0) -> None:
     """``--time-scale S``: simulated seconds per wall-clock second (lockstep simulation)."""
     p.add_argument(

@@ -40,7 +40,7 @@ from pydantic_settings import (
     TomlConfigSettingsSource,
 )
 
-from fleet.core.params import Avoidance, RobotProfile
+from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
 from fleet.core.site import Site
 from fleet.core.wire import validate_id
 from fleet.io.site_file import load_site
@@ -193,6 +193,7 @@ class RobotSettings(ZenohSettings):
     may_reverse: bool = True
     robot_model: Annotated[str, Field(max_length=64)] | None = None
     avoidance: Avoidance = Avoidance()
+    safety: SafetyConfig = SafetyConfig()  # README "Safety": the filter and its assumptions
     pose_stale_s: Annotated[float, Field(gt=0)] = 0.5  # own pose older than this -> stop
     # Router link silent this long (no peer, service or echo reply) -> hold; a silent peer
     # is never forgotten: it stays an obstacle at its last pose.

@@ -56,7 +56,7 @@ from fleet.core.wire import (
     encode,
 )
 from fleet.io.decoder import CallbackGuard, Decoder
-from fleet.io.settings import Settings
+from fleet.io.settings import RobotSettings
 from robot_agent.clock import Clock, MonotonicClock, run_periodic
 from robot_agent.drive import Drive
 from robot_agent.faults import FaultBook, current_faults
@@ -108,7 +108,7 @@ class RobotAgent:
         robot_id: str,
         drive: Drive,
         session: Any,
-        settings: Settings,
+        settings: RobotSettings,
         *,
         clock: Clock | None = None,
         feed: WorldFeed | None = None,

@@ -23,7 +23,7 @@ import numpy as np
 from fleet.core.params import RobotProfile
 from fleet.core.step import integrate_wheels
 from fleet.core.wire import Pose
-from fleet.io.settings import Settings
+from fleet.io.settings import RobotSettings
 from robot_agent.clock import Clock, MonotonicClock
 from robot_agent.drive import PoseReading
 
@@ -107,7 +107,7 @@ class SimDrive:
             self.right = self.left = 0.0
 
 
-def make_drive(settings: Settings) -> SimDrive:
+def make_drive(settings: RobotSettings) -> SimDrive:
     """Drive factory of ``parkfleet agent --drive sim``: a simulated unicycle starting at
     ``settings.sim_start`` with the robot's profile, stepped at the control period."""
     return SimDrive(settings.sim_start, settings.profile, max_step=1.0 / settings.control_rate_hz)

@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel
 
-from fleet.bench.metrics import ARRIVAL_RADIUS_M, RunMetrics, RunResult
+from fleet.bench.metrics import ARRIVAL_RADIUS_M, RunMetrics, RunResult, percentile
 from fleet.bench.peers import (
     BEHAVIOURS,
     MODES,
@@ -191,7 +191,7 @@ def scenario_seed(scenario: Scenario, disturbance_seed: int = 0) -> int:
 
 
 def _percentile(values: Sequence[float], q: float) -> float | None:
-    return round(float(np.percentile(values, q)), 1) if values else None
+    return round(percentile(values, q), 1) if values else None
 
 
 def _round(value: float | None, digits: int = 3) -> float | None:

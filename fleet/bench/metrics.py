@@ -16,8 +16,10 @@ for plots). Definitions:
   ``arrival_radius_m`` of the task's goal (a robot may serve several tasks in a run: a
   stream's later task can go to a robot that has already parked); success counts tasks,
   makespan is the last task's arrival from the run's start;
-* **path ratio** -- distance driven (true poses, every tick) / straight line from the
-  robot's pose at the run's start to its goal;
+* **path ratio** -- per task that arrived: the distance its robot drove for it (true
+  poses, every tick, from the robot's previous arrival or the run's start to this arrival)
+  / the straight line from where that leg began to the task's goal; the mean over the
+  tasks that arrived;
 * **deadlock** -- a robot with a task, not arrived, not waiting on purpose (a planned start
   delay or hold, mode ``waiting``), farther than :data:`NEAR_GOAL_M` from its goal, whose
   distance to the goal has not dropped :data:`PROGRESS_M` below its best for
@@ -71,6 +73,12 @@ STOP_MIN_S = 0.2
 _BLOCK = 1_000_000
 
 
+def percentile(values: npt.ArrayLike, q: float) -> float:
+    """The ``q``-th percentile of ``values``, NaN when there are none (every benchmark's)."""
+    data = np.asarray(values, dtype=np.float64)
+    return float(np.percentile(data, q)) if data.size else float("nan")
+
+
 @dataclass(frozen=True)
 class Event:
     """Something worth marking on a plot: time [s], robots involved, where (x, y) [m]."""
@@ -102,6 +110,8 @@ class RunResult:
     paths: FloatArray  # (S, N, 3) subsampled true poses
     final: FloatArray  # (N, 3) last true pose
     task_arrivals: FloatArray  # (T,) time each task arrived [s], NaN if never
+    task_driven: FloatArray = field(default_factory=lambda: np.zeros(0))  # (T,) [m], NaN
+    task_straight: FloatArray = field(default_factory=lambda: np.zeros(0))  # (T,) [m], NaN
     stops: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # (N,)
     cusps: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # (N,)
 
@@ -128,12 +138,12 @@ class RunResult:
         return (float(self.stops.sum()) / trips, float(self.cusps.sum()) / trips)
 
     def path_ratio(self) -> float | None:
-        """Mean over tasked robots of distance driven / straight line (None if none)."""
-        straight = np.hypot(*(self.goals[:, :2] - self.starts[:, :2]).T)
-        use = self.tasked & (straight > 1e-9)
+        """Mean over the tasks that arrived of the distance driven for the task / its
+        straight line (None if none arrived)."""
+        use = ~np.isnan(self.task_driven) & (np.nan_to_num(self.task_straight) > 1e-9)
         if not use.any():
             return None
-        return float(np.mean(self.driven[use] / straight[use]))
+        return float(np.mean(self.task_driven[use] / self.task_straight[use]))
 
 
 class _Smoothness:
@@ -199,6 +209,10 @@ class RunMetrics:
         self._task_robot = np.array([t[0] for t in tasks], dtype=np.intp)
         self._task_xy = np.array([t[1:] for t in tasks], dtype=np.float64).reshape(-1, 2)
         self._task_arrivals = np.full(len(tasks), np.nan)
+        self._task_driven = np.full(len(tasks), np.nan)
+        self._task_straight = np.full(len(tasks), np.nan)
+        self._leg_driven = np.zeros(n)  # distance driven when the robot's leg began [m]
+        self._leg_start: FloatArray | None = None  # (N, 2) where each robot's leg began
         self.arrival_radius_m = arrival_radius_m
         self.obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
         self._n = n
@@ -240,6 +254,7 @@ class RunMetrics:
         t, poses, modes = chunk.t[keep], chunk.poses[keep], chunk.modes[keep]
         if self._starts is None:
             self._starts = poses[0].copy()
+            self._leg_start = poses[0, :, :2].copy()
         self._distances(t, poses)
         self._motion(t, poses, modes)
         first = self._ticks
@@ -281,9 +296,9 @@ class RunMetrics:
     def _motion(self, t: FloatArray, poses: FloatArray, modes: ModeArray) -> None:
         before = poses[:1] if self._last is None else self._last[None]
         previous = np.concatenate([before, poses[:-1]])
-        self._driven += np.hypot(*(poses[:, :, :2] - previous[:, :, :2]).transpose(2, 0, 1)).sum(
-            axis=0
-        )
+        steps = np.hypot(*(poses[:, :, :2] - previous[:, :, :2]).transpose(2, 0, 1))  # (T, N)
+        driven_at = self._driven[None, :] + np.cumsum(steps, axis=0)  # after each tick
+        self._driven = driven_at[-1].copy()
         t_before = self._t_last if self._last is not None else float(t[0])
         self._last = poses[-1].copy()
         on_trip = ~np.isin(modes, self._off_trip)
@@ -301,7 +316,10 @@ class RunMetrics:
             near = np.hypot(poses[:, robot, 0] - goal[:, 0], poses[:, robot, 1] - goal[:, 1])
             there = arrived[:, robot] & (near <= self.arrival_radius_m)  # (T, waiting)
             done = there.any(axis=0)
-            self._task_arrivals[waiting[done]] = t[there.argmax(axis=0)[done]]
+            ticks = there.argmax(axis=0)
+            self._task_arrivals[waiting[done]] = t[ticks[done]]
+            for j in sorted(np.nonzero(done)[0], key=lambda j: int(ticks[j])):
+                self._leg(int(waiting[j]), int(robot[j]), int(ticks[j]), driven_at, poses)
         goals = self.goals
         tasked = ~np.isnan(goals[:, 0])
         moving = ~np.isin(modes, self._passive) & tasked[None, :]
@@ -322,6 +340,17 @@ class RunMetrics:
                 self._deadlocks.append(
                     Event(float(t[k]), (int(r),), float(p[r, 0]), float(p[r, 1]))
                 )
+
+    def _leg(
+        self, task: int, robot: int, tick: int, driven_at: FloatArray, poses: FloatArray
+    ) -> None:
+        """Task ``task`` arrived at ``tick``: its leg's distance and straight line; the
+        robot's next leg begins here."""
+        assert self._leg_start is not None
+        self._task_driven[task] = driven_at[tick, robot] - self._leg_driven[robot]
+        self._task_straight[task] = math.dist(self._leg_start[robot], self._task_xy[task])
+        self._leg_driven[robot] = driven_at[tick, robot]
+        self._leg_start[robot] = poses[tick, robot, :2]
 
     def result(self) -> RunResult:
         n = self._n
@@ -344,6 +373,8 @@ class RunMetrics:
             paths=np.asarray(self._paths).reshape(-1, n, 3),
             final=empty if self._last is None else self._last,
             task_arrivals=self._task_arrivals.copy(),
+            task_driven=self._task_driven.copy(),
+            task_straight=self._task_straight.copy(),
             stops=self._smooth.stops.copy(),
             cusps=self._smooth.cusps.copy(),
         )

@@ -28,7 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 from pydantic import BaseModel
 
-from fleet.bench.closed_loop import arrival_times, percentile, run_closed_loop, yard
+from fleet.bench.closed_loop import arrival_times, run_closed_loop, yard
+from fleet.bench.metrics import percentile
 from fleet.bench.scenarios import Scenario, swap
 from fleet.core.planner import Plan, PlanningSnapshot, plan
 

@@ -7,9 +7,6 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-import numpy.typing as npt
-
 
 def cpu_seconds(pid: int) -> float:
     """utime + stime [s] of a process."""
@@ -37,9 +34,3 @@ def holdings(pid: int) -> Holdings:
         open_fds=len(os.listdir(f"/proc/{pid}/fd")),
         threads=int(status["Threads"]),
     )
-
-
-def percentile(values: npt.ArrayLike, q: float) -> float:
-    """The ``q``-th percentile, NaN when there are no values."""
-    data = np.asarray(values, dtype=np.float64)
-    return float(np.percentile(data, q)) if data.size else float("nan")

@@ -75,14 +75,19 @@ def policy_table(rows: Sequence[FleetBenchRow]) -> str:
 
 
 def _fastest_clean(family: str, summary: dict[tuple[str, str], SummaryRow]) -> SummaryRow | None:
-    """The other policy that touched no robot and no obstacle in any run, with the
-    shortest mean makespan (the most successful first among equals)."""
+    """The other policy that parked every task and touched no robot and no obstacle in any
+    run, with the shortest mean makespan (a policy that failed a task is no yardstick: its
+    makespan is the time limit, or it stood still and touched nothing)."""
     clean = [
         s
         for (f, p), s in summary.items()
-        if f == family and p != "auto" and s.collisions_worst == 0 and s.obstacle_hits_worst == 0
+        if f == family
+        and p != "auto"
+        and s.success_worst >= 1.0
+        and s.collisions_worst == 0
+        and s.obstacle_hits_worst == 0
     ]
-    return min(clean, key=lambda s: (s.makespan_mean_s, -s.success_mean), default=None)
+    return min(clean, key=lambda s: s.makespan_mean_s, default=None)
 
 
 def _misses(auto: SummaryRow, family: str, summary: dict[tuple[str, str], SummaryRow]) -> list[str]:

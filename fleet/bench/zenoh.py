@@ -39,7 +39,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Literal
 
-from fleet.bench.procstat import cpu_seconds, percentile
+from fleet.bench.metrics import percentile
+from fleet.bench.procstat import cpu_seconds
 from fleet.core.wire import (
     CancelAssignment,
     ControlCommand,

@@ -16,7 +16,7 @@ from typing import Any
 
 from fleet.cli.options import add_config, add_connect, add_rate
 from fleet.cli.signals import stop_on_signals
-from fleet.io.settings import Settings, load_settings
+from fleet.io.settings import RobotSettings, load_robot_settings
 from fleet.io.transport import open_session
 from robot_agent.agent import RobotAgent
 from robot_agent.drive import Drive
@@ -49,7 +49,7 @@ DRIVES = {
 }
 
 
-def load_drive(spec: str | None, settings: Settings) -> Drive:
+def load_drive(spec: str | None, settings: RobotSettings) -> Drive:
     """Build the Drive named by ``--drive`` (a name in :data:`DRIVES` or ``module:factory``)."""
     if not spec:
         raise ValueError(NO_DRIVE_HELP)
@@ -60,7 +60,7 @@ def load_drive(spec: str | None, settings: Settings) -> Drive:
     if not sep or not module_name or not attr:
         names = ", ".join(sorted(DRIVES))
         raise ValueError(f"--drive must be module:factory or one of {names}, got {spec!r}")
-    factory: Callable[[Settings], Any] = getattr(importlib.import_module(module_name), attr)
+    factory: Callable[[RobotSettings], Any] = getattr(importlib.import_module(module_name), attr)
     drive = factory(settings)
     missing = [m for m in ("read_pose", "command_wheels", "stop") if not hasattr(drive, m)]
     if missing:
@@ -85,7 +85,7 @@ def register(commands: Any, bench: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    settings = load_settings(
+    settings = load_robot_settings(  # a robot's settings: no host (api_*, service) fields
         args.config,
         connect=args.connect,
         robot_id=args.id,

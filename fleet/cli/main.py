@@ -12,6 +12,7 @@ import importlib
 import logging
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from fleet.cli.signals import interrupt_on_sigterm
 
@@ -35,6 +36,16 @@ COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.bench_plan",
     "fleet.cli.bench_soak",
 )
+#: Packages that only some installs have -> the extra that brings them (``pyproject.toml``).
+EXTRA_OF: dict[str, str] = {
+    "fastapi": "server",
+    "uvicorn": "server",
+    "prometheus_client": "server",
+    "httpx": "bench",
+    "scipy": "server",
+    "matplotlib": "bench",
+    "navground": "bench",
+}
 #: Commands whose module alone builds their parser: an operator's e-stop must not wait for
 #: every other command's imports (numba, matplotlib: ~2 s) before it publishes.
 URGENT_COMMANDS: dict[str, str] = {
@@ -66,8 +77,38 @@ def build_parser(modules: Sequence[str] = COMMAND_MODULES) -> argparse.ArgumentP
     bench_parser = commands.add_parser("bench", help="benchmarks that print numbers and ratios")
     bench = bench_parser.add_subparsers(dest="bench", metavar="BENCH", required=True)
     for name in modules:
-        importlib.import_module(name).register(commands, bench)
+        try:
+            importlib.import_module(name).register(commands, bench)
+        except ModuleNotFoundError as exc:
+            extra = _missing_extra(exc)
+            if extra is None:
+                raise
+            _register_unavailable(commands, bench, name, _install_hint(exc, extra))
     return parser
+
+
+def _missing_extra(exc: ModuleNotFoundError) -> str | None:
+    """The extra that would bring the missing module, if it is one an install may lack."""
+    top = (exc.name or "").split(".")[0]
+    return EXTRA_OF.get(top)
+
+
+def _install_hint(exc: ModuleNotFoundError, extra: str) -> str:
+    return f"needs parkfleet[{extra}] (no module {exc.name} here): pip install 'parkfleet[{extra}]'"
+
+
+def _register_unavailable(commands: Any, bench: Any, module: str, hint: str) -> None:
+    """A command whose module needs a package this install lacks (a robot's ``robot``
+    extra has no server or bench packages): it stays listed, and says what to install."""
+    short = module.rsplit(".", 1)[-1]
+    parent, name = (bench, short[6:]) if short.startswith("bench_") else (commands, short)
+    p = parent.add_parser(name, help=hint, description=hint)
+    p.set_defaults(func=lambda _args: _unavailable(hint))
+
+
+def _unavailable(hint: str) -> int:
+    print(f"parkfleet: error: this command {hint}", file=sys.stderr)
+    return 2
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -81,6 +122,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             return int(args.func(args) or 0)
     except KeyboardInterrupt:
         return 130
+    except ModuleNotFoundError as exc:
+        extra = _missing_extra(exc)
+        if extra is None:
+            raise
+        return _unavailable(_install_hint(exc, extra))
     except (ValueError, FileNotFoundError, ConnectionError) as exc:
         print(f"parkfleet: error: {exc}", file=sys.stderr)
         return 2

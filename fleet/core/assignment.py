@@ -24,7 +24,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from fleet.core.params import Avoidance, Gains, RobotProfile, Tolerance
 from fleet.core.simulate import BatchProblem, simulate
@@ -115,6 +114,9 @@ def optimal_assignment(cost: FloatArray) -> list[tuple[int, int]]:
     Rectangular matrices are fine: min(R, T) pairs are returned, sorted by task index.
     Infinite entries are treated as forbidden (never chosen if avoidable).
     """
+    # scipy on first use: the fleet service plans with it, a robot (``robot`` extra) never.
+    from scipy.optimize import linear_sum_assignment
+
     c = np.asarray(cost, dtype=np.float64)
     if c.size == 0:
         return []

@@ -1,4 +1,17 @@
-"""One settings model for every entry point: env prefix ``PARKFLEET_``, optional TOML file.
+"""Settings by role: env prefix ``PARKFLEET_``, optional TOML file.
+
+Three models, each the one before plus its role's fields:
+
+- :class:`ZenohSettings` -- what every process needs: the fleet's name, Zenoh endpoints,
+  lease, credentials and TLS;
+- :class:`RobotSettings` -- a robot computer (``parkfleet agent``): its id, profile,
+  control rate, avoidance, holds, drive (sim, ROS 2); no ``api_*``, service or ACL fields;
+- :class:`Settings` -- the fleet host and every tool (``serve``, ``sim``, benchmarks): also
+  access control, the service and the API.
+
+One TOML file can serve every machine: a robot reading it skips the host's fields
+(:class:`RobotSettings` drops keys that only :class:`Settings` knows; anything unknown to
+both is still an error), so files written for the single model keep loading.
 
 Precedence (highest first): explicit arguments (CLI flags), ``PARKFLEET_*`` environment
 variables, the TOML file named by ``--config`` or ``PARKFLEET_CONFIG``, the defaults here.
@@ -9,7 +22,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, Self, TypeVar
 
 from pydantic import (
     BaseModel,
@@ -96,8 +109,9 @@ class Ros2Settings(BaseModel):
     clock_step_s: Annotated[float, Field(gt=0)] = 1.0
 
 
-class Settings(BaseSettings):
-    """Every tunable of parkfleet; see README "Configuration" for the list."""
+class ZenohSettings(BaseSettings):
+    """What every process needs to join the fleet's Zenoh network; see README
+    "Configuration"."""
 
     model_config = SettingsConfigDict(
         env_prefix="PARKFLEET_", env_nested_delimiter="__", extra="forbid", validate_default=True
@@ -125,19 +139,50 @@ class Settings(BaseSettings):
     tls_cert: Path | None = None
     tls_key: Path | None = None
     tls_verify_name: bool = True  # check the router's certificate names the address dialled
-    # Access control on a router (fleet/acl.py): default deny; a robot may publish only its
-    # own state and liveliness; only service identities may send assignments.
-    acl: bool = False
-    acl_identity: Literal["username", "cert_common_name"] = "username"
-    acl_robot_ids: list[str] = Field(default_factory=list)  # [] -> the credentials file's users
-    acl_service_users: list[str] = Field(default_factory=lambda: ["fleet"])
-    # Operators' tools (parkfleet estop | pause | resume): operator commands and states only.
-    acl_operator_users: list[str] = Field(default_factory=list)
-    acl_file: Path | None = None  # a hand-written access_control block (JSON5) used verbatim
-    # Robots whose ROS 2 traffic crosses this router (the robot's rmw_zenoh router pointed
-    # at the fleet host): robot id -> its ROS namespace, on ROS domain acl_ros2_domain_id.
-    acl_ros2_namespaces: dict[str, RosNamespace] = Field(default_factory=dict)
-    acl_ros2_domain_id: Annotated[int, Field(ge=0, le=232)] = 0
+
+    @model_validator(mode="before")
+    @classmethod
+    def _skip_other_roles_fields(cls, data: Any) -> Any:
+        """Drop the keys of a larger role's fields (a host's ``api_port`` in a file a robot
+        reads too); a key no role knows still fails (``extra="forbid"``)."""
+        if not isinstance(data, dict) or cls is Settings:
+            return data
+        others = Settings.model_fields.keys() - cls.model_fields.keys()
+        return {k: v for k, v in data.items() if k not in others}
+
+    @field_validator("fleet_name")
+    @classmethod
+    def _fleet_name_is_key_safe(cls, value: str) -> str:
+        return validate_id(value, "fleet name")
+
+    @model_validator(mode="after")
+    def _security_settings_come_in_pairs(self) -> Self:
+        if (self.zenoh_user is None) != (self.zenoh_password is None):
+            raise ValueError("zenoh_user and zenoh_password must be set together")
+        if (self.tls_cert is None) != (self.tls_key is None):
+            raise ValueError("tls_cert and tls_key must be set together")
+        if self.tls_cert is not None and self.tls_root_ca is None:
+            raise ValueError("tls_cert needs tls_root_ca (the CA that signs the peers' certs)")
+        return self
+
+    @classmethod
+    def settings_customise_sources(
+        cls,
+        settings_cls: type[BaseSettings],
+        init_settings: PydanticBaseSettingsSource,
+        env_settings: PydanticBaseSettingsSource,
+        dotenv_settings: PydanticBaseSettingsSource,
+        file_secret_settings: PydanticBaseSettingsSource,
+    ) -> tuple[PydanticBaseSettingsSource, ...]:
+        sources: list[PydanticBaseSettingsSource] = [init_settings, env_settings]
+        toml_path = os.environ.get("PARKFLEET_CONFIG")
+        if toml_path:
+            sources.append(TomlConfigSettingsSource(settings_cls, toml_file=Path(toml_path)))
+        return tuple(sources)
+
+
+class RobotSettings(ZenohSettings):
+    """A robot computer's settings (``parkfleet agent``): no host fields."""
 
     # Robot agent
     robot_id: str | None = None
@@ -158,6 +203,30 @@ class Settings(BaseSettings):
     drive: str | None = None
     sim_start: tuple[float, float, float] = (0.0, 0.0, 0.0)
     ros2: Ros2Settings = Ros2Settings()  # the ``ros2`` drive (README "Driving a ROS 2 robot")
+
+    @field_validator("robot_id")
+    @classmethod
+    def _robot_id_is_key_safe(cls, value: str | None) -> str | None:
+        return None if value is None else validate_id(value)
+
+
+class Settings(RobotSettings):
+    """Every tunable of parkfleet (the fleet host's and every tool's); see README
+    "Configuration" for the list."""
+
+    # Access control on a router (fleet/acl.py): default deny; a robot may publish only its
+    # own state and liveliness; only service identities may send assignments.
+    acl: bool = False
+    acl_identity: Literal["username", "cert_common_name"] = "username"
+    acl_robot_ids: list[str] = Field(default_factory=list)  # [] -> the credentials file's users
+    acl_service_users: list[str] = Field(default_factory=lambda: ["fleet"])
+    # Operators' tools (parkfleet estop | pause | resume): operator commands and states only.
+    acl_operator_users: list[str] = Field(default_factory=list)
+    acl_file: Path | None = None  # a hand-written access_control block (JSON5) used verbatim
+    # Robots whose ROS 2 traffic crosses this router (the robot's rmw_zenoh router pointed
+    # at the fleet host): robot id -> its ROS namespace, on ROS domain acl_ros2_domain_id.
+    acl_ros2_namespaces: dict[str, RosNamespace] = Field(default_factory=dict)
+    acl_ros2_domain_id: Annotated[int, Field(ge=0, le=232)] = 0
 
     # Fleet service / API
     data_dir: Path = Path("var")
@@ -201,16 +270,6 @@ class Settings(BaseSettings):
     malloc_arenas: Annotated[int, Field(ge=0)] = 2
     heap_trim_interval_s: Annotated[float, Field(ge=0)] = 60.0
 
-    @field_validator("fleet_name")
-    @classmethod
-    def _fleet_name_is_key_safe(cls, value: str) -> str:
-        return validate_id(value, "fleet name")
-
-    @field_validator("robot_id")
-    @classmethod
-    def _robot_id_is_key_safe(cls, value: str | None) -> str | None:
-        return None if value is None else validate_id(value)
-
     @field_validator("acl_robot_ids", "acl_service_users", "acl_operator_users")
     @classmethod
     def _acl_ids_are_key_safe(cls, value: list[str]) -> list[str]:
@@ -220,16 +279,6 @@ class Settings(BaseSettings):
     @classmethod
     def _acl_ros2_robots_are_key_safe(cls, value: dict[str, str]) -> dict[str, str]:
         return {validate_id(robot, "access-control id"): ns for robot, ns in value.items()}
-
-    @model_validator(mode="after")
-    def _security_settings_come_in_pairs(self) -> Settings:
-        if (self.zenoh_user is None) != (self.zenoh_password is None):
-            raise ValueError("zenoh_user and zenoh_password must be set together")
-        if (self.tls_cert is None) != (self.tls_key is None):
-            raise ValueError("tls_cert and tls_key must be set together")
-        if self.tls_cert is not None and self.tls_root_ca is None:
-            raise ValueError("tls_cert needs tls_root_ca (the CA that signs the peers' certs)")
-        return self
 
     @model_validator(mode="after")
     def _load_site(self) -> Settings:
@@ -259,34 +308,34 @@ class Settings(BaseSettings):
         """The site map of ``site_file`` (None without one)."""
         return self._site
 
-    @classmethod
-    def settings_customise_sources(
-        cls,
-        settings_cls: type[BaseSettings],
-        init_settings: PydanticBaseSettingsSource,
-        env_settings: PydanticBaseSettingsSource,
-        dotenv_settings: PydanticBaseSettingsSource,
-        file_secret_settings: PydanticBaseSettingsSource,
-    ) -> tuple[PydanticBaseSettingsSource, ...]:
-        sources: list[PydanticBaseSettingsSource] = [init_settings, env_settings]
-        toml_path = os.environ.get("PARKFLEET_CONFIG")
-        if toml_path:
-            sources.append(TomlConfigSettingsSource(settings_cls, toml_file=Path(toml_path)))
-        return tuple(sources)
+
+_S = TypeVar("_S", bound=ZenohSettings)
 
 
 def load_settings(config_file: Path | None = None, **overrides: Any) -> Settings:
-    """Settings from an optional TOML file, the environment and explicit overrides.
+    """Settings (every field: the fleet host, tools) from an optional TOML file, the
+    environment and explicit overrides.
 
     ``None`` overrides are ignored so CLI flags left unset fall through to lower layers.
     """
+    return load_role(Settings, config_file, **overrides)
+
+
+def load_robot_settings(config_file: Path | None = None, **overrides: Any) -> RobotSettings:
+    """A robot computer's settings (:class:`RobotSettings`), as :func:`load_settings`."""
+    return load_role(RobotSettings, config_file, **overrides)
+
+
+def load_role(model: type[_S], config_file: Path | None = None, **overrides: Any) -> _S:
+    """Settings of one role's ``model`` from an optional TOML file, the environment and
+    explicit overrides (``None`` overrides ignored)."""
     given = {k: v for k, v in overrides.items() if v is not None}
     if config_file is None:
-        return Settings(**given)
+        return model(**given)
     if not config_file.is_file():
         raise FileNotFoundError(f"config file not found: {config_file}")
 
-    class _FromFile(Settings):
+    class _FromFile(model):  # type: ignore[valid-type,misc]
         @classmethod
         def settings_customise_sources(
             cls,
@@ -303,4 +352,4 @@ def load_settings(config_file: Path | None = None, **overrides: Any) -> Settings
             )
 
     loaded = _FromFile(**given)
-    return Settings.model_validate(loaded.model_dump() | {"config_file": config_file})
+    return model.model_validate(loaded.model_dump() | {"config_file": config_file})

@@ -15,7 +15,7 @@ import zenoh
 
 from fleet.core.wire import Keys
 from fleet.io.acl import credential_users, fleet_acl
-from fleet.io.settings import DEFAULT_ROUTER_ENDPOINT, Settings
+from fleet.io.settings import DEFAULT_ROUTER_ENDPOINT, Settings, ZenohSettings
 
 _log = logging.getLogger(__name__)
 
@@ -23,7 +23,7 @@ Role = Literal["router", "client", "peer"]
 LOOPBACK_PREFIXES = ("tcp/127.0.0.1:", "tcp/[::1]:", "tcp/localhost:")
 
 
-def zenoh_config(settings: Settings, role: Role) -> zenoh.Config:
+def zenoh_config(settings: ZenohSettings, role: Role) -> zenoh.Config:
     """Build the ``zenoh.Config`` for an entry point.
 
     ``role`` is the default mode (``router`` for the fleet host and ``parkfleet router``,
@@ -73,8 +73,11 @@ def zenoh_config(settings: Settings, role: Role) -> zenoh.Config:
                 "enable_mtls": True,
             }
         conf.insert_json5("transport/link/tls", json.dumps(tls))
-    # Access control is the router's job (robots may share the fleet's settings file).
-    access_control = access_control_json(settings) if mode == "router" else None
+    # Access control is the router's job (robots may share the fleet's settings file, and
+    # a robot's own settings have no ACL fields at all).
+    access_control = None
+    if mode == "router" and isinstance(settings, Settings):
+        access_control = access_control_json(settings)
     if access_control is not None:
         try:
             conf.insert_json5("access_control", access_control)
@@ -111,7 +114,7 @@ def access_control_json(settings: Settings) -> str | None:
     return json.dumps(block)
 
 
-def open_session(settings: Settings, role: Role) -> zenoh.Session:
+def open_session(settings: ZenohSettings, role: Role) -> zenoh.Session:
     """Open a session; raises ``ConnectionError`` with a clear message if no router answers."""
     conf = zenoh_config(settings, role)
     try:

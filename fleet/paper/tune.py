@@ -32,7 +32,6 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import differential_evolution
 
 from fleet.core.params import Gains, RobotProfile, Tolerance
 from fleet.core.simulate import PAPER_DT, BatchProblem, simulate
@@ -301,6 +300,10 @@ def tune(
         if progress is not None:
             best = min(float(s.cost.min()) for s in seen_scores)
             progress(count[0], best)
+
+    # scipy on first use: ``parkfleet`` builds every command's parser, also on a robot's
+    # install (the ``robot`` extra), which has no scipy.
+    from scipy.optimize import differential_evolution
 
     found = differential_evolution(
         cost,

@@ -67,7 +67,7 @@ from fleet.core.control import body_velocities
 from fleet.core.params import RobotProfile
 from fleet.core.wire import MAX_PAYLOAD_BYTES, Pose, Rejected
 from fleet.io.decoder import CallbackGuard, Decoder
-from fleet.io.settings import Ros2Settings, Settings
+from fleet.io.settings import RobotSettings, Ros2Settings
 from fleet.io.transport import zenoh_config
 from robot_agent.drive import PoseReading
 from robot_agent.drives.ros2_attachment import Attachment, encode_attachment, entity_gid
@@ -114,9 +114,7 @@ _FLEET_ONLY: dict[str, object] = {
     "tls_root_ca": None,
     "tls_cert": None,
     "tls_key": None,
-    "acl": False,
-    "acl_file": None,
-}
+}  # (a client session applies no access control: that is a router's, fleet.io.transport)
 
 
 def default_node_name(robot_id: str | None) -> str:
@@ -466,15 +464,15 @@ class Ros2Drive:
             self._session.close()
 
 
-def robot_session_settings(settings: Settings) -> Settings:
+def robot_session_settings(settings: RobotSettings) -> RobotSettings:
     """Settings of the drive's session: the agent's own when ``ros2.connect`` is empty, else a
-    plain client of the robot's router (the fleet's TLS, credentials and ACL left out)."""
+    plain client of the robot's router (the fleet's TLS and credentials left out)."""
     if not settings.ros2.connect:
         return settings
     return settings.model_copy(update={**_FLEET_ONLY, "connect": list(settings.ros2.connect)})
 
 
-def make_drive(settings: Settings) -> Ros2Drive:
+def make_drive(settings: RobotSettings) -> Ros2Drive:
     """Factory of ``parkfleet agent --drive ros2``: opens the robot-side session, declares the
     drive and waits (``ros2.first_pose_timeout_s``) for the robot's first usable pose."""
     robot = robot_session_settings(settings)

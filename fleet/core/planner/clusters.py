@@ -27,8 +27,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from fleet.core.types import BoolArray, FloatArray
 
@@ -163,6 +161,10 @@ def near_standing(
 
 def components(n: int, pairs: Sequence[tuple[int, int]]) -> list[list[int]]:
     """Connected components of ``n`` nodes under ``pairs``, each sorted, ordered by first."""
+    # scipy on first use: the fleet service plans with it, a robot (``robot`` extra) never.
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
     if n == 0:
         return []
     rows = np.array([p[0] for p in pairs], dtype=np.int64)

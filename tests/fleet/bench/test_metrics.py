@@ -125,7 +125,14 @@ def test_arrival_makespan_path_ratio_and_obstacle_hits() -> None:
     assert r.success_count() == 1 and r.arrivals[0] == pytest.approx(290 * DT)
     assert r.makespan(1, 99.0) == pytest.approx(290 * DT)
     assert r.makespan(2, 99.0) == 99.0  # a task never arrived: the time limit
-    assert r.path_ratio() == pytest.approx(1.0)  # robot b has no task
+    # per task that arrived: driven until its arrival (2.9 m) / straight line (3 m); b has none
+    assert r.path_ratio() == pytest.approx(2.9 / 3.0)
+    never = modes.copy()
+    never[:, 0] = DRIVING  # the task never arrives: no path ratio, whatever was driven
+    assert (
+        _run(np.stack([a, b], axis=1), never, goals=[(3.0, 0.0, 0.0), (np.nan,) * 3]).path_ratio()
+        is None
+    )
     assert r.obstacle_hits == 1 and r.min_obstacle_clearance_m == pytest.approx(0.3 - 0.35)
 
 

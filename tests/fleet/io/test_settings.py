@@ -8,7 +8,14 @@ from pathlib import Path
 import pytest
 from pydantic import ValidationError
 
-from fleet.io.settings import DEFAULT_ROUTER_ENDPOINT, load_settings
+from fleet.io.settings import (
+    DEFAULT_ROUTER_ENDPOINT,
+    RobotSettings,
+    Settings,
+    ZenohSettings,
+    load_robot_settings,
+    load_settings,
+)
 from fleet.io.transport import zenoh_config
 
 
@@ -52,3 +59,37 @@ def test_zenoh_config_turns_multicast_off_and_uses_default_endpoints() -> None:
     router = json.loads(str(zenoh_config(load_settings(listen=["tcp/127.0.0.1:0"]), "router")))
     assert router["mode"] == "router" and router["listen"]["endpoints"] == ["tcp/127.0.0.1:0"]
     assert router["transport"]["link"]["tx"]["lease"] == 1000
+
+
+def test_a_robot_s_settings_have_no_host_fields() -> None:
+    robot = set(RobotSettings.model_fields)
+    host_only = set(Settings.model_fields) - robot
+    assert not any(name.startswith(("api_", "acl")) for name in robot)
+    assert {"api_port", "api_token", "data_dir", "acl", "task_timeout_s"} <= host_only
+    assert {"robot_id", "profile", "ros2", "connect", "tls_cert"} <= robot
+    assert set(ZenohSettings.model_fields) < robot  # every role joins the network
+
+
+def test_one_settings_file_serves_the_host_and_its_robots(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    config = tmp_path / "fleet.toml"
+    config.write_text(
+        'fleet_name = "yard2"\napi_port = 9001\nacl = true\ncontrol_rate_hz = 25.0\n'
+        'robot_id = "r7"\n[profile]\nmax_wheel_speed = 15.0\n'
+    )
+    robot = load_robot_settings(config)
+    assert (robot.fleet_name, robot.robot_id, robot.control_rate_hz) == ("yard2", "r7", 25.0)
+    assert robot.profile.max_wheel_speed == 15.0
+    assert not hasattr(robot, "api_port") and not hasattr(robot, "acl")
+    host = load_settings(config)
+    assert (host.api_port, host.acl, host.control_rate_hz) == (9001, True, 25.0)
+    monkeypatch.setenv("PARKFLEET_CONFIG", str(config))  # the file named in the environment
+    assert RobotSettings().robot_id == "r7"
+
+
+def test_a_key_no_role_knows_is_still_an_error_for_a_robot(tmp_path: Path) -> None:
+    config = tmp_path / "typo.toml"
+    config.write_text("control_rate_hx = 25.0\n")
+    with pytest.raises(ValidationError, match="control_rate_hx"):
+        load_robot_settings(config)

@@ -1,7 +1,9 @@
-"""TaskStore contract on a real SQLite file (and the in-memory twin)."""
+"""TaskStore contract on a real SQLite file, a real PostgreSQL server (and the in-memory
+twin)."""
 
 from __future__ import annotations
 
+import socket
 import sqlite3
 import tempfile
 import threading
@@ -15,6 +17,7 @@ from hypothesis import strategies as st
 from fleet.core.tasks import Task, TaskRequest, TaskStatus
 from fleet.core.wire import Pose
 from fleet.service.store import MemoryTaskStore, SqliteTaskStore, TaskStore
+from fleet.service.store_postgres import PostgresTaskStore, StoreUnavailable
 
 
 def _task(task_id: str, t: float = 1.0, robot: str | None = None) -> Task:
@@ -22,13 +25,15 @@ def _task(task_id: str, t: float = 1.0, robot: str | None = None) -> Task:
     return Task(id=task_id, request=request, created_at=t, updated_at=t)
 
 
-@pytest.fixture(params=["sqlite", "memory"])
+@pytest.fixture(params=["sqlite", "postgres", "memory"])
 def store(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[TaskStore]:
-    s: TaskStore = (
-        SqliteTaskStore(tmp_path / "nested" / "tasks.db")
-        if request.param == "sqlite"
-        else MemoryTaskStore()
-    )
+    s: TaskStore
+    if request.param == "sqlite":
+        s = SqliteTaskStore(tmp_path / "nested" / "tasks.db")
+    elif request.param == "postgres":
+        s = PostgresTaskStore(request.getfixturevalue("postgres_dsn"))
+    else:
+        s = MemoryTaskStore()
     yield s
     s.close()
 
@@ -304,3 +309,33 @@ def test_a_page_costs_the_same_however_many_tasks_are_stored(
         assert all(big <= 2 * small for small, big in zip(*costs, strict=True)), costs
     finally:
         store.close()
+
+
+def test_postgres_is_shared_a_second_store_sees_every_write(postgres_dsn: str) -> None:
+    """Two stores on one database (a leader and a standby) see the same tasks and history."""
+    first, second = PostgresTaskStore(postgres_dsn), PostgresTaskStore(postgres_dsn)
+    try:
+        a = first.save_new(_task("a"), "k")
+        first.save(a.model_copy(update={"status": TaskStatus.ASSIGNED, "robot_id": "r1"}), "x")
+        got = second.get("a")
+        assert got is not None and got.status == TaskStatus.ASSIGNED and got.robot_id == "r1"
+        assert second.find_by_idempotency_key("k") == got
+        assert [t.id for t in second.unfinished()] == ["a"] and len(second.history("a")) == 2
+        assert second.save_new(_task("b"), "k").id == "a"  # the key is the database's
+    finally:
+        first.close()
+        second.close()
+    first.close()  # idempotent
+    with pytest.raises(RuntimeError, match="closed"):
+        first.get("a")
+
+
+def test_postgres_unreachable_at_open_says_where_without_the_password() -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # nobody listens here once closed
+    with pytest.raises(
+        StoreUnavailable, match=rf"unreachable at postgresql://127.0.0.1:{port}/"
+    ) as e:
+        PostgresTaskStore(f"postgresql://u:secret@127.0.0.1:{port}/db", timeout_s=1.0)
+    assert "secret" not in str(e.value)

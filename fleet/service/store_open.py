@@ -1,0 +1,32 @@
+"""Which task store a location names: ``postgresql://`` (or ``postgres://``) URLs open
+:class:`~fleet.service.store_postgres.PostgresTaskStore`, anything else is a SQLite file;
+unset is SQLite at ``<data_dir>/parkfleet.db`` (the embedded default)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fleet.io.settings import Settings
+from fleet.service.store import SqliteTaskStore, TaskStore
+
+DB_FILE = "parkfleet.db"
+
+_POSTGRES = ("postgresql://", "postgres://")
+
+
+def is_postgres(location: str | None) -> bool:
+    """Whether ``location`` is a PostgreSQL URL."""
+    return location is not None and location.startswith(_POSTGRES)
+
+
+def open_store(settings: Settings) -> TaskStore:
+    """The store ``settings.store`` names (module docstring); PostgreSQL unreachable raises
+    :class:`~fleet.service.store_postgres.StoreUnavailable` (a ``ConnectionError``)."""
+    location = settings.store
+    if is_postgres(location):
+        from fleet.service.store_postgres import PostgresTaskStore
+
+        assert location is not None
+        return PostgresTaskStore(location)
+    path = settings.data_dir / DB_FILE if location is None else Path(location)
+    return SqliteTaskStore(path)

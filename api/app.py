@@ -1,7 +1,8 @@
 """The FastAPI application: ``create_app(settings)``.
 
-Its lifespan owns the fleet: the Zenoh router session, the SQLite task store, the Zenoh
-bus and the fleet service, opened in that order and closed in reverse however startup or
+Its lifespan owns the fleet: the Zenoh router session, the task store (SQLite, or
+PostgreSQL with a leader or standby :class:`~fleet.service.standby.FailoverService`), the
+Zenoh bus and the fleet service, opened in that order and closed in reverse however startup or
 shutdown goes (an unclosed Zenoh session would hang interpreter exit). What a client can
 make the server hold is bounded by the ``api_*`` settings: request bodies
 (:mod:`api.body_limit`), event streams (:mod:`api.streaming`), task pages
@@ -11,6 +12,8 @@ make the server hold is bounded by the ``api_*`` settings: request bodies
 from __future__ import annotations
 
 import logging
+import os
+import socket
 from collections.abc import AsyncIterator
 from contextlib import ExitStack, asynccontextmanager
 from typing import Any
@@ -42,12 +45,11 @@ from fleet.io.heap import HeapTrimmer
 from fleet.io.settings import Settings
 from fleet.io.transport import listening_locators, open_session
 from fleet.service.fleet_service import FleetService
-from fleet.service.store import SqliteTaskStore, TaskStore
+from fleet.service.store import TaskStore
+from fleet.service.store_open import is_postgres, open_store
 from fleet.service.zenoh_bus import ZenohFleetBus
 
 _log = logging.getLogger(__name__)
-
-DB_FILE = "parkfleet.db"
 
 DESCRIPTION = """\
 Parking tasks for a fleet of self-parking robots (Lyapunov posture control, laws (17)
@@ -64,13 +66,32 @@ def open_fleet(settings: Settings, stack: ExitStack) -> tuple[FleetAPI, TaskStor
     session = open_session(settings, "router")
     stack.callback(session.close)
     locators = listening_locators(session)
-    store = SqliteTaskStore(settings.data_dir / DB_FILE)
+    store = open_store(settings)
     stack.callback(store.close)
-    bus = ZenohFleetBus(session, Keys(settings.fleet_name))
-    stack.callback(bus.close)
-    service = FleetService(settings, bus, store)
-    service.start()
-    stack.callback(service.close)
+    service: FleetAPI
+    if is_postgres(settings.store):  # a leader or a standby (fleet.service.standby)
+        from fleet.service.standby import FailoverService
+        from fleet.service.store_postgres import PostgresTaskStore
+
+        assert isinstance(store, PostgresTaskStore)
+        keys = Keys(settings.fleet_name)
+        failover = FailoverService(
+            settings,
+            store,
+            lambda: ZenohFleetBus(session, keys),
+            name=f"{socket.gethostname()}:{os.getpid()}",
+            address=settings.advertise_url or f"http://{settings.api_host}:{settings.api_port}",
+        )
+        failover.start()
+        stack.callback(failover.close)
+        service = failover
+    else:
+        bus = ZenohFleetBus(session, Keys(settings.fleet_name))
+        stack.callback(bus.close)
+        fleet = FleetService(settings, bus, store)
+        fleet.start()
+        stack.callback(fleet.close)
+        service = fleet
     trimmer = HeapTrimmer(settings.heap_trim_interval_s)
     trimmer.start()
     stack.callback(trimmer.close)

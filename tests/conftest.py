@@ -45,9 +45,10 @@ def client_settings(router_endpoint: str) -> Settings:
 
 @pytest.fixture(scope="session")
 def postgres_server() -> Iterator[str]:
-    """The DSN of a real PostgreSQL server for the whole run: ``PARKFLEET_TEST_POSTGRES`` if
-    set, else a throwaway cluster (:class:`fleet.io.postgres_cluster.TempCluster`, torn down
-    at the end). Without PostgreSQL the tests skip locally and fail under CI (``CI=true``)."""
+    """The URL of a real PostgreSQL server for the whole run: ``PARKFLEET_TEST_POSTGRES``
+    (``postgresql://user@host:port/db``) if set, else a throwaway cluster
+    (:class:`fleet.io.postgres_cluster.TempCluster`, torn down at the end). Without
+    PostgreSQL the tests skip locally and fail under CI (``CI=true``)."""
     given = os.environ.get("PARKFLEET_TEST_POSTGRES")
     if given:
         yield given
@@ -72,7 +73,7 @@ def postgres_dsn(postgres_server: str) -> Iterator[str]:
     name = f"t_{uuid.uuid4().hex[:12]}"
     with psycopg.connect(postgres_server, autocommit=True) as admin:
         admin.execute(sql.SQL("CREATE DATABASE {}").format(sql.Identifier(name)))
-    info = psycopg.conninfo.conninfo_to_dict(postgres_server)
-    yield psycopg.conninfo.make_conninfo(**(info | {"dbname": name}))
+    base, _, _ = postgres_server.rpartition("/")  # a URL, as users give --store
+    yield f"{base}/{name}"
     with psycopg.connect(postgres_server, autocommit=True) as admin:
         admin.execute(sql.SQL("DROP DATABASE {} WITH (FORCE)").format(sql.Identifier(name)))

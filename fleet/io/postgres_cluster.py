@@ -2,7 +2,8 @@
 
 :class:`TempCluster` runs Debian's (or any) PostgreSQL binaries: ``initdb`` into a fresh
 directory, ``pg_ctl start`` on a free loopback port (trust authentication, listening on
-127.0.0.1 only, ``fsync=off``: a throwaway cluster need not survive a power loss), and on
+127.0.0.1 only, ``fsync=off``: a throwaway cluster need not survive a power loss, but
+commits reach the OS, so it survives its server being killed), and on
 close ``pg_ctl stop -m immediate`` and the directory removed.
 
 ``initdb`` refuses to run as root: as root the cluster runs as an unprivileged user
@@ -86,27 +87,35 @@ class TempCluster:
             self._run("initdb", "-D", str(self.data), "-A", "trust", "-U", "postgres", "-E",
                       "UTF8", "--no-sync")  # fmt: skip
             self.port = _free_port()
-            options = (
-                f"-c listen_addresses=127.0.0.1 -c port={self.port} "
-                f"-c unix_socket_directories={self.root} -c fsync=off "
-                "-c synchronous_commit=off -c full_page_writes=off -c max_connections=100"
-            )
-            log = self.root / "server.log"
-            self._run("pg_ctl", "-D", str(self.data), "-l", str(log), "-o", options, "-w",
-                      "-t", "60", "start")  # fmt: skip
-            self._started = True
+            self.start_server()
         except BaseException:
             self.close()
             raise
         self.dsn = f"postgresql://postgres@127.0.0.1:{self.port}/postgres"
         return self
 
+    def start_server(self) -> None:
+        """Start the server (again) on its port; waits until it accepts connections."""
+        options = (
+            f"-c listen_addresses=127.0.0.1 -c port={self.port} "
+            f"-c unix_socket_directories={self.root} -c fsync=off "
+            "-c full_page_writes=off -c max_connections=100"
+        )
+        log = self.root / "server.log"
+        self._run("pg_ctl", "-D", str(self.data), "-l", str(log), "-o", options, "-w",
+                  "-t", "60", "start")  # fmt: skip
+        self._started = True
+
+    def kill_server(self) -> None:
+        """Stop the server the hard way (``-m immediate``: as if it crashed)."""
+        self._started = False
+        self._run("pg_ctl", "-D", str(self.data), "-m", "immediate", "-w", "stop")
+
     def close(self) -> None:
         """Stop the server (immediately) and remove its directory; idempotent."""
         if self._started:
-            self._started = False
             with contextlib.suppress(RuntimeError):  # already gone: the directory still goes
-                self._run("pg_ctl", "-D", str(self.data), "-m", "immediate", "-w", "stop")
+                self.kill_server()
         shutil.rmtree(self.root, ignore_errors=True)
 
     def __enter__(self) -> TempCluster:

@@ -30,3 +30,13 @@ def open_store(settings: Settings) -> TaskStore:
         return PostgresTaskStore(location)
     path = settings.data_dir / DB_FILE if location is None else Path(location)
     return SqliteTaskStore(path)
+
+
+def check_store(settings: Settings) -> None:
+    """Fail before serving if the PostgreSQL store is unreachable (a clear
+    ``StoreUnavailable``, a ``ConnectionError``); nothing to check for SQLite."""
+    if is_postgres(settings.store):
+        from fleet.service.store_postgres import connect
+
+        assert settings.store is not None
+        connect(settings.store).close()

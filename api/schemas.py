@@ -20,6 +20,7 @@ from fleet.core.params import Gains, Tolerance
 from fleet.core.tasks import Direction, RobotStatus, RobotView, Task, TaskRequest, TaskStatus
 from fleet.core.types import Law
 from fleet.core.wire import (
+    DEFAULT_OBSTACLE_BODY_M,
     ControlAction,
     ControlCommand,
     ErrorLevel,
@@ -146,14 +147,26 @@ class ControlIn(_In):
 
 
 class ObstacleIn(_In):
-    """A static circular obstacle: centre inside the yard [m], influence radius [m]."""
+    """A static circular obstacle: centre inside the yard [m], influence radius [m] of
+    Eq. (27) and body radius [m] that robots keep ``contact_margin_m`` from."""
 
     x: Coordinate
     y: Coordinate
     radius: Annotated[float, Field(gt=0.0, le=20.0, allow_inf_nan=False)] = 1.0
+    body: Annotated[float, Field(ge=0.0, le=20.0, allow_inf_nan=False)] | None = Field(
+        default=None,
+        description="solid radius [m], at most the influence radius; omitted: "
+        f"{DEFAULT_OBSTACLE_BODY_M} m (a post)",
+    )
+
+    @model_validator(mode="after")
+    def _body_within_influence(self) -> ObstacleIn:
+        if self.body is not None and self.body > self.radius:
+            raise ValueError(f"body: {self.body} m exceeds the influence radius {self.radius} m")
+        return self
 
     def to_obstacle(self) -> Obstacle:
-        return Obstacle(x=self.x, y=self.y, radius=self.radius)
+        return Obstacle(x=self.x, y=self.y, radius=self.radius, body=self.body)
 
 
 ObstaclesIn = Annotated[list[ObstacleIn], Field(max_length=1000)]
@@ -397,11 +410,12 @@ class ControlStateOut(BaseModel):
 class ObstacleOut(BaseModel):
     x: float
     y: float
-    radius: float
+    radius: float = Field(description="influence radius of Eq. (27) [m]")
+    body: float = Field(description="body radius [m] (the default when none was given)")
 
     @classmethod
     def of(cls, obstacle: Obstacle) -> ObstacleOut:
-        return cls(x=obstacle.x, y=obstacle.y, radius=obstacle.radius)
+        return cls(x=obstacle.x, y=obstacle.y, radius=obstacle.radius, body=obstacle.body_radius)
 
 
 class PathPointOut(BaseModel):

@@ -95,7 +95,7 @@ class ObstacleSpec(BaseModel):
         return self
 
     def as_obstacle(self) -> Obstacle:
-        return Obstacle(x=self.x, y=self.y, radius=self.radius)
+        return Obstacle(x=self.x, y=self.y, radius=self.radius, body=self.body)
 
 
 class Scenario(BaseModel):

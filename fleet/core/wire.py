@@ -94,7 +94,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 from typing import Annotated, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 from fleet.core.params import Avoidance, Gains, RobotProfile, Tolerance
 from fleet.core.types import Law
@@ -471,14 +471,41 @@ def obeys(action: ControlAction, mode: RobotMode) -> bool:
     return mode is not RobotMode.PAUSED  # RESUME
 
 
+#: Body radius [m] of an obstacle sent without one (a post; see :class:`Obstacle`).
+DEFAULT_OBSTACLE_BODY_M = 0.1
+
+
 class Obstacle(BaseModel):
-    """A static circular obstacle: centre (x, y) [m] and influence radius [m] (Section 6)."""
+    """A static circular obstacle: centre (x, y) [m], influence radius ``radius`` [m] of
+    Eq. (27) (Section 6) and ``body`` radius [m], the solid part no robot's body may come
+    within ``contact_margin_m`` of (the safety filter, :mod:`fleet.core.step`).
+
+    Compatibility rule: ``body`` is an additive field (``v`` stays 1). A payload without it
+    gets :data:`DEFAULT_OBSTACLE_BODY_M` (a post), capped at the influence radius; an older
+    robot ignores it and sees the paper's point obstacle. ``extra="forbid"`` is kept for
+    the API's input, so the obstacle *set* on the wire ignores unknown fields of the set
+    only.
+    """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     x: FiniteFloat
     y: FiniteFloat
     radius: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 1.0
+    body: Annotated[float, Field(ge=0, allow_inf_nan=False)] | None = None
+
+    @model_validator(mode="after")
+    def _body_within_influence(self) -> Obstacle:
+        if self.body is not None and self.body > self.radius:
+            raise ValueError(
+                f"body ({self.body} m) must not exceed the influence radius ({self.radius} m)"
+            )
+        return self
+
+    @property
+    def body_radius(self) -> float:
+        """The body radius [m]: ``body``, or the default for a payload without one."""
+        return min(DEFAULT_OBSTACLE_BODY_M, self.radius) if self.body is None else self.body
 
 
 class ObstacleSet(_Message):

@@ -32,10 +32,13 @@ async def test_unknown_robot_is_404(client: httpx.AsyncClient, robot_id: str) ->
 
 async def test_obstacles_put_then_get(client: httpx.AsyncClient) -> None:
     assert (await client.get("/obstacles")).json() == []
-    body = [{"x": 1, "y": 2, "radius": 0.5}, {"x": -3, "y": 0}]
+    body = [{"x": 1, "y": 2, "radius": 0.5, "body": 0.3}, {"x": -3, "y": 0}]
     r = await client.put("/obstacles", json=body)
     assert r.status_code == 200
-    expected = [{"x": 1.0, "y": 2.0, "radius": 0.5}, {"x": -3.0, "y": 0.0, "radius": 1.0}]
+    expected = [
+        {"x": 1.0, "y": 2.0, "radius": 0.5, "body": 0.3},
+        {"x": -3.0, "y": 0.0, "radius": 1.0, "body": 0.1},  # the documented default body
+    ]
     assert r.json() == expected
     assert (await client.get("/obstacles")).json() == expected
     assert (await client.put("/obstacles", json=[])).json() == []
@@ -48,6 +51,8 @@ async def test_obstacles_put_then_get(client: httpx.AsyncClient) -> None:
         ('[{"x": 0, "y": 0}, {"x": NaN, "y": 0}]', "1.x"),
         ('[{"x": 0, "y": 0, "radius": 0}]', "0.radius"),
         ('[{"x": 0, "y": 0, "radius": Infinity}]', "0.radius"),
+        ('[{"x": 0, "y": 0, "body": -0.1}]', "0.body"),
+        ('[{"x": 0, "y": 0, "radius": 0.5, "body": 0.6}]', "body"),
         ('{"x": 0, "y": 0}', ""),
     ],
 )

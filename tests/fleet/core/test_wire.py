@@ -188,3 +188,19 @@ def test_operator_commands_without_a_term_are_always_obeyed_service_ones_are_fen
     assert fence.accept(_control(4)) and fence.highest == 4
     assert not fence.accept(_park(3))
     assert fence.dropped == 2
+
+
+def test_obstacle_body_defaults_for_older_payloads_and_is_bounded() -> None:
+    from fleet.core.wire import DEFAULT_OBSTACLE_BODY_M, Obstacle, ObstacleSet, parse
+
+    older = parse(ObstacleSet, b'{"v": 1, "kind": "obstacles", "obstacles": [{"x": 1, "y": 2}]}')
+    assert isinstance(older, ObstacleSet)
+    assert older.obstacles[0].body is None
+    assert older.obstacles[0].body_radius == DEFAULT_OBSTACLE_BODY_M
+    assert Obstacle(x=0, y=0, radius=0.05).body_radius == 0.05  # never beyond the influence
+    assert Obstacle(x=0, y=0, radius=1.0, body=0.4).body_radius == 0.4
+    too_big = parse(
+        ObstacleSet,
+        b'{"v": 1, "kind": "obstacles", "obstacles": [{"x": 0, "y": 0, "radius": 0.5, "body": 1}]}',
+    )
+    assert not isinstance(too_big, ObstacleSet)

@@ -34,6 +34,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.bench_on_state",
     "fleet.cli.bench_plan",
     "fleet.cli.bench_soak",
+    "fleet.cli.bench_failover",
 )
 #: Commands whose module alone builds their parser: an operator's e-stop must not wait for
 #: every other command's imports (numba, matplotlib: ~2 s) before it publishes.

@@ -32,6 +32,7 @@ import json
 import os
 import signal
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -179,7 +180,8 @@ def _wait(predicate: Any, timeout: float, what: str) -> None:
 
 
 def _bays(robots: int) -> list[tuple[float, float]]:
-    """Goals 1.5 m apart on a grid of the default yard, outside the square the spawn grid
+    """Goals (more than the robots) 1.5 m apart on a grid of the default yard, outside the
+    square the spawn grid
     (``parkfleet sim --spawn grid``, 1.5 m apart round the origin) covers, in a shuffled
     but fixed order."""
     half = 1.5 * (np.ceil(np.sqrt(robots)) - 1) / 2 + 1.5
@@ -257,6 +259,7 @@ def run(
             return out
 
         failovers: list[float] = []
+        started = time.monotonic()
         for _ in range(kills):
             _wait(lambda: sorted(v for k, v in roles().items() if k != "term")
                   == ["leader", "standby"], 120, "a leader and a standby")  # fmt: skip
@@ -273,6 +276,9 @@ def run(
             seen = wire.term_after(term)
             assert seen is not None
             failovers.append(seen - t0)
+            print(f"bench failover: kill {len(failovers)}/{kills}: term {term} -> new term "
+                  f"commanding after {seen - t0:.3f} s ({time.monotonic() - started:.0f} s in)",
+                  file=sys.stderr, flush=True)  # fmt: skip
             if mode == "stop":
                 time.sleep(max(0.0, t0 + LEASE_S + 1.0 - time.monotonic()))
                 leader.process.send_signal(signal.SIGCONT)  # wakes deposed: stays a standby

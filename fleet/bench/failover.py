@@ -16,7 +16,10 @@ measure until an assignment of a higher term is seen; start a new standby in the
 place. Reported:
 
 * ``failover`` p50 / p99 / max [s]: from the kill to the first assignment (or cancel) of the
-  new term seen on the wire;
+  new term seen on the wire (the new leader needs work to send: the stream's next task, or
+  a recovered assignment not yet acknowledged);
+* ``elected`` p50 / p99 [s]: from the kill to the successor's term committed (the database's
+  ``now()`` against this host's wall clock: same host);
 * ``lost``: tasks answered 201 that the store no longer has, plus those unfinished at the
   end after a drain (``--drain`` s);
 * ``duplicated``: idempotency keys that yielded two task ids, plus tasks assigned to two
@@ -51,6 +54,7 @@ from fleet.io.postgres_cluster import TempCluster
 from fleet.io.processes import ServerProcess, running_server, sim_command, terminate
 from fleet.io.settings import load_settings
 from fleet.io.transport import listening_locators, open_session, tcp_endpoint
+from fleet.service.store_postgres import connect
 
 DEFAULT_ROBOTS = 20
 DEFAULT_KILLS = 20
@@ -131,7 +135,7 @@ class Stream:
             k += 1
             try:
                 r = httpx.post(f"{url}/tasks", json=body, headers={"Idempotency-Key": key},
-                               timeout=5.0)  # fmt: skip
+                               timeout=2.0)  # fmt: skip
             except httpx.HTTPError:
                 self.retried += 1
                 self.stop.wait(0.05)
@@ -259,6 +263,7 @@ def run(
             return out
 
         failovers: list[float] = []
+        elections: list[float] = []  # kill -> the successor's term committed [s, wall]
         started = time.monotonic()
         for _ in range(kills):
             _wait(lambda: sorted(v for k, v in roles().items() if k != "term")
@@ -267,7 +272,7 @@ def run(
             term = int(now_roles["term"])
             leader = next(s for s in services if now_roles[s.url] == "leader")
             _wait(lambda t=term: t in wire.first_seen, 120, f"term {term} commanding")
-            t0 = time.monotonic()
+            t0, wall0 = time.monotonic(), time.time()
             if mode == "stop":
                 leader.process.send_signal(signal.SIGSTOP)
             else:
@@ -276,6 +281,7 @@ def run(
             seen = wire.term_after(term)
             assert seen is not None
             failovers.append(seen - t0)
+            elections.append(_elected_at(store, term) - wall0)
             print(f"bench failover: kill {len(failovers)}/{kills}: term {term} -> new term "
                   f"commanding after {seen - t0:.3f} s ({time.monotonic() - started:.0f} s in)",
                   file=sys.stderr, flush=True)  # fmt: skip
@@ -297,10 +303,21 @@ def run(
             "failover_p50_s": float(np.percentile(failovers, 50)),
             "failover_p99_s": float(np.percentile(failovers, 99)),
             "failover_max_s": max(failovers),
+            "elected_p50_s": float(np.percentile(elections, 50)),
+            "elected_p99_s": float(np.percentile(elections, 99)),
             "load_1min": os.getloadavg()[0],
         }
     _print(result, as_json)
     return 0
+
+
+def _elected_at(dsn: str, term: int) -> float:
+    """When the term after ``term`` was committed [s since epoch, the database's clock]."""
+    with connect(dsn) as db:
+        row = db.execute(
+            "SELECT since FROM parkfleet_leader WHERE id = 1 AND term > %s", (term,)
+        ).fetchone()
+    return float("nan") if row is None else float(row[0])
 
 
 def _tally(
@@ -357,6 +374,8 @@ def _print(result: dict[str, Any], as_json: bool) -> None:
     print(f"bench failover: {result['robots']} robots, {result['kills']} leader "
           f"{'SIGKILLs' if result['mode'] == 'kill' else 'SIGSTOP/SIGCONTs'}, load "
           f"{result['load_1min']:.1f}")  # fmt: skip
+    print(f"  elected (kill -> successor's term committed): p50 {result['elected_p50_s']:.3f} s"
+          f"  p99 {result['elected_p99_s']:.3f} s")  # fmt: skip
     print(f"  failover (kill -> first assignment of the new term): p50 "
           f"{result['failover_p50_s']:.3f} s  p99 {result['failover_p99_s']:.3f} s  max "
           f"{result['failover_max_s']:.3f} s")  # fmt: skip

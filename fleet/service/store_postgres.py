@@ -48,8 +48,10 @@ TASKS_CHANNEL = "parkfleet_tasks"
 LEADER_CHANNEL = "parkfleet_leader"
 
 _SCHEMA = """
+-- id in byte order ("C"), as SQLite and Python compare it, whatever the database's locale:
+-- the task list's cursor is (created_at, id).
 CREATE TABLE IF NOT EXISTS tasks (
-    id TEXT PRIMARY KEY,
+    id TEXT COLLATE "C" PRIMARY KEY,
     status TEXT NOT NULL,
     robot_id TEXT,
     idempotency_key TEXT UNIQUE,

@@ -10,8 +10,9 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
+import psycopg
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fleet.core.tasks import Task, TaskRequest, TaskStatus
@@ -208,7 +209,7 @@ _listed = st.lists(
 )
 
 
-@settings(max_examples=40)
+@settings(max_examples=40, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     rows=_listed,
     page=st.integers(1, 5),
@@ -217,6 +218,7 @@ _listed = st.lists(
     robot=st.sampled_from([None, "r1"]),
 )
 def test_pages_walk_the_filtered_list_in_order_once_each(
+    postgres_dsn: str,
     rows: list[tuple[float, TaskStatus, str | None]],
     page: int,
     newest_first: bool,
@@ -224,9 +226,13 @@ def test_pages_walk_the_filtered_list_in_order_once_each(
     robot: str | None,
 ) -> None:
     """Following the cursor page by page yields every matching task once, in
-    ``(created_at, id)`` order (reversed for newest first); SQLite and memory agree."""
+    ``(created_at, id)`` order (reversed for newest first); SQLite, PostgreSQL (one database,
+    emptied for each example) and memory agree."""
     with tempfile.TemporaryDirectory() as tmp:
-        stores: list[TaskStore] = [SqliteTaskStore(Path(tmp) / "t.db"), MemoryTaskStore()]
+        postgres = PostgresTaskStore(postgres_dsn)
+        with psycopg.connect(postgres_dsn, autocommit=True) as db:  # a fresh start per example
+            db.execute("TRUNCATE tasks, task_history")
+        stores: list[TaskStore] = [SqliteTaskStore(Path(tmp) / "t.db"), MemoryTaskStore(), postgres]
         try:
             for k, (t, task_status, rid) in enumerate(rows):
                 task = _task(f"id{(k * 7) % 13:02d}-{k}", t, rid)
@@ -248,7 +254,7 @@ def test_pages_walk_the_filtered_list_in_order_once_each(
                 walks.append(walked)
             everything = sorted(stores[1].list(status, robot), key=lambda t: (t.created_at, t.id))
             expected = [t.id for t in everything][:: -1 if newest_first else 1]
-            assert walks == [expected, expected]
+            assert walks == [expected, expected, expected]
             assert [t.id for t in stores[0].list(status, robot)] == [t.id for t in everything]
         finally:
             for store in stores:

@@ -1,9 +1,10 @@
 """The FastAPI application: ``create_app(settings)``.
 
-Its lifespan owns the fleet: the Zenoh router session, the task store (SQLite, or
-PostgreSQL with a leader or standby :class:`~fleet.service.standby.FailoverService`), the
-Zenoh bus and the fleet service, opened in that order and closed in reverse however startup or
-shutdown goes (an unclosed Zenoh session would hang interpreter exit). What a client can
+Its lifespan owns the fleet, opened by :func:`fleet.service.host.open_fleet` (the Zenoh
+router session, the task store, the Zenoh bus, the fleet service and the heap trimmer, in
+that order; with a PostgreSQL store :func:`fleet.service.standby.open_failover`, a leader or
+a standby) and closed in reverse however startup or shutdown goes (an unclosed Zenoh
+session would hang interpreter exit). What a client can
 make the server hold is bounded by the ``api_*`` settings: request bodies
 (:mod:`api.body_limit`), event streams (:mod:`api.streaming`), task pages
 (:mod:`api.routes.tasks`) and plot renders (:mod:`api.plot_cache`).
@@ -12,8 +13,6 @@ make the server hold is bounded by the ``api_*`` settings: request bodies
 from __future__ import annotations
 
 import logging
-import os
-import socket
 from collections.abc import AsyncIterator
 from contextlib import ExitStack, asynccontextmanager
 from typing import Any
@@ -40,14 +39,10 @@ from api.routes import (
 )
 from api.schemas import ValidationErrorOut
 from api.streaming import EventHub
-from fleet.core.wire import Keys
-from fleet.io.heap import HeapTrimmer
 from fleet.io.settings import Settings
-from fleet.io.transport import listening_locators, open_session
-from fleet.service.fleet_service import FleetService
+from fleet.service.host import StoreFactory, open_fleet, sqlite_store
 from fleet.service.store import TaskStore
 from fleet.service.store_open import is_postgres, open_store
-from fleet.service.zenoh_bus import ZenohFleetBus
 
 _log = logging.getLogger(__name__)
 
@@ -58,51 +53,16 @@ ccw and (20) cw). When `PARKFLEET_API_TOKEN` is set, POST and PUT need
 """
 
 
-def open_fleet(settings: Settings, stack: ExitStack) -> tuple[FleetAPI, TaskStore, list[str]]:
-    """Open router session, store, bus and service on ``stack`` (and the heap trimmer,
-    :mod:`fleet.io.heap`); return the service, the store (for task pages) and the Zenoh
-    endpoints the router really listens on."""
-    settings.data_dir.mkdir(parents=True, exist_ok=True)
-    session = open_session(settings, "router")
-    stack.callback(session.close)
-    locators = listening_locators(session)
-    store = open_store(settings)
-    stack.callback(store.close)
-    service: FleetAPI
-    if is_postgres(settings.store):  # a leader or a standby (fleet.service.standby)
-        from fleet.service.standby import FailoverService
-        from fleet.service.store_postgres import PostgresTaskStore
-
-        assert isinstance(store, PostgresTaskStore)
-        keys = Keys(settings.fleet_name)
-        failover = FailoverService(
-            settings,
-            store,
-            lambda: ZenohFleetBus(session, keys),
-            name=f"{socket.gethostname()}:{os.getpid()}",
-            address=settings.advertise_url or f"http://{settings.api_host}:{settings.api_port}",
-        )
-        failover.start()
-        stack.callback(failover.close)
-        service = failover
-    else:
-        bus = ZenohFleetBus(session, Keys(settings.fleet_name))
-        stack.callback(bus.close)
-        fleet = FleetService(settings, bus, store)
-        fleet.start()
-        stack.callback(fleet.close)
-        service = fleet
-    trimmer = HeapTrimmer(settings.heap_trim_interval_s)
-    trimmer.start()
-    stack.callback(trimmer.close)
-    return service, store, locators
-
-
 def create_app(
-    settings: Settings, *, service: FleetAPI | None = None, store: TaskStore | None = None
+    settings: Settings,
+    *,
+    service: FleetAPI | None = None,
+    store: TaskStore | None = None,
+    store_factory: StoreFactory = sqlite_store,
 ) -> FastAPI:
     """The API app. With ``service`` and its ``store`` given (tests), the lifespan uses
-    them and opens nothing."""
+    them and opens nothing; else it opens the fleet with ``store_factory``'s store (with
+    ``settings.store`` set: that SQLite file, or a PostgreSQL leader or standby)."""
     if (service is None) != (store is None):
         raise ValueError("create_app: give both the service and its task store, or neither")
     hub = EventHub(
@@ -114,8 +74,17 @@ def create_app(
         with ExitStack() as stack:
             if service is None:
                 try:
-                    opened = open_fleet(settings, stack)
-                    app.state.service, app.state.tasks, app.state.zenoh_locators = opened
+                    if is_postgres(settings.store):  # leader or standby (fleet.service.standby)
+                        from fleet.service.standby import open_failover
+
+                        ha = stack.enter_context(open_failover(settings))
+                        app.state.service, app.state.tasks = ha.service, ha.store
+                        app.state.zenoh_locators = ha.locators
+                    else:
+                        factory = store_factory if settings.store is None else open_store
+                        fleet = stack.enter_context(open_fleet(settings, store=factory))
+                        app.state.service, app.state.tasks = fleet.service, fleet.store
+                        app.state.zenoh_locators = fleet.locators
                 except Exception as exc:
                     app.state.startup_error = exc  # for the CLI's one-line error
                     raise

@@ -43,7 +43,6 @@ from fleet.bench.procstat import cpu_seconds, percentile
 from fleet.core.wire import (
     CancelAssignment,
     ControlCommand,
-    Keys,
     ObstacleSet,
     ParkAssignment,
     RobotDescription,
@@ -51,11 +50,9 @@ from fleet.core.wire import (
 )
 from fleet.io.processes import parkfleet_command, terminate
 from fleet.io.settings import load_settings
-from fleet.io.transport import listening_locators, open_session, tcp_endpoint
-from fleet.service.bus import FleetSink
-from fleet.service.fleet_service import FleetService
-from fleet.service.store import SqliteTaskStore
-from fleet.service.zenoh_bus import ZenohFleetBus
+from fleet.io.transport import tcp_endpoint
+from fleet.service.bus import FleetBus, FleetSink
+from fleet.service.host import open_fleet
 
 Source = Literal["agents", "stream"]
 
@@ -112,7 +109,7 @@ class _TimedSink:
 class _TimedBus:
     """The real Zenoh bus, delivering to a timed sink (``FleetBus``)."""
 
-    def __init__(self, bus: ZenohFleetBus, timing: _Timing) -> None:
+    def __init__(self, bus: FleetBus, timing: _Timing) -> None:
         self._bus = bus
         self._timing = timing
 
@@ -203,20 +200,14 @@ def measure(
     source: Source = "agents",
 ) -> dict[str, Any]:
     """One row: ``robots`` robots at ``rate`` Hz into a live fleet service."""
-    keys = Keys(fleet)
-    router_settings = load_settings(listen=["tcp/127.0.0.1:0"], fleet_name=fleet)
     timing = _Timing()
-    with (
-        tempfile.TemporaryDirectory(prefix="parkfleet-bench-") as tmp,
-        open_session(router_settings, "router") as router,
-    ):
-        endpoint = tcp_endpoint(listening_locators(router))
-        store = SqliteTaskStore(Path(tmp) / "parkfleet.db")
-        service = FleetService(
-            router_settings, _TimedBus(ZenohFleetBus(router, keys), timing), store
+    with tempfile.TemporaryDirectory(prefix="parkfleet-bench-") as tmp:
+        router_settings = load_settings(
+            listen=["tcp/127.0.0.1:0"], fleet_name=fleet, data_dir=Path(tmp)
         )
-        try:
-            service.start()
+        with open_fleet(router_settings, wrap_bus=lambda bus: _TimedBus(bus, timing)) as running:
+            service = running.service
+            endpoint = tcp_endpoint(running.locators)
             log = Path(tmp) / "sim.log"
             with _robots(endpoint, fleet, robots, rate, log, source) as proc:
                 deadline = time.monotonic() + 60
@@ -234,9 +225,6 @@ def measure(
                 child_cpu = cpu_seconds(proc.pid) - child0
                 counters1 = service.counters
             overran = _overruns(log.read_text(errors="replace"))
-        finally:
-            service.close()
-            store.close()
     delivered = len(timing.ages)
     ages_ms = [1e3 * a for a in timing.ages]
     inside_us = [1e6 * d for d in timing.inside]

@@ -23,11 +23,16 @@ fencing term on assignments, cancels and the service's control commands and drop
 from __future__ import annotations
 
 import logging
+import os
+import socket
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass
 from typing import Any
 
 import psycopg
+import zenoh
 
 from fleet.core.tasks import (
     FleetEvent,
@@ -44,12 +49,15 @@ from fleet.core.wire import (
     ControlAction,
     ControlCommand,
     Hold,
+    Keys,
     Obstacle,
     ObstacleSet,
     ParkAssignment,
     Pose,
 )
+from fleet.io.heap import HeapTrimmer
 from fleet.io.settings import Settings
+from fleet.io.transport import listening_locators, open_session
 from fleet.service.bays import BayState
 from fleet.service.bus import FleetBus, FleetSink
 from fleet.service.control_desk import ControlState
@@ -58,6 +66,7 @@ from fleet.service.leadership import LeaderRecord, Leadership, read_leader
 from fleet.service.roles import FailoverStatus, NotLeader, Role
 from fleet.service.stats import PlannerStats
 from fleet.service.store_postgres import TASKS_CHANNEL, PostgresTaskStore, connect
+from fleet.service.zenoh_bus import ZenohFleetBus
 
 _log = logging.getLogger(__name__)
 
@@ -350,3 +359,43 @@ class FailoverService:
     def sizes(self) -> dict[str, int]:
         service = self.leading
         return {} if service is None else service.sizes()
+
+
+@dataclass(frozen=True)
+class RunningFailover:
+    """A leader-or-standby opened by :func:`open_failover`, open until the ``with`` ends."""
+
+    session: zenoh.Session
+    store: PostgresTaskStore
+    service: FailoverService
+    locators: list[str]
+
+
+@contextmanager
+def open_failover(settings: Settings) -> Iterator[RunningFailover]:
+    """Like :func:`fleet.service.host.open_fleet` for a PostgreSQL ``settings.store``: the
+    router session, the store, the :class:`FailoverService` (a Zenoh bus per term it leads)
+    and the heap trimmer; closed in reverse. The service is named ``<host>:<pid>``; it gives
+    ``settings.advertise_url`` (else its API address) as its address when it leads."""
+    if settings.store is None:
+        raise ValueError("open_failover needs a postgresql:// store")
+    with ExitStack() as stack:
+        session = open_session(settings, "router")
+        stack.callback(session.close)
+        locators = listening_locators(session)
+        store = PostgresTaskStore(settings.store)
+        stack.callback(store.close)
+        keys = Keys(settings.fleet_name)
+        service = FailoverService(
+            settings,
+            store,
+            lambda: ZenohFleetBus(session, keys),
+            name=f"{socket.gethostname()}:{os.getpid()}",
+            address=settings.advertise_url or f"http://{settings.api_host}:{settings.api_port}",
+        )
+        stack.callback(service.close)
+        service.start()
+        trimmer = HeapTrimmer(settings.heap_trim_interval_s)
+        stack.callback(trimmer.close)
+        trimmer.start()
+        yield RunningFailover(session, store, service, locators)

@@ -9,8 +9,6 @@ from pathlib import Path
 from fleet.io.settings import Settings
 from fleet.service.store import SqliteTaskStore, TaskStore
 
-DB_FILE = "parkfleet.db"
-
 _POSTGRES = ("postgresql://", "postgres://")
 
 
@@ -28,8 +26,10 @@ def open_store(settings: Settings) -> TaskStore:
 
         assert location is not None
         return PostgresTaskStore(location)
-    path = settings.data_dir / DB_FILE if location is None else Path(location)
-    return SqliteTaskStore(path)
+    if location is None:
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+        return SqliteTaskStore(settings.db_path)
+    return SqliteTaskStore(Path(location))
 
 
 def check_store(settings: Settings) -> None:

@@ -2,7 +2,8 @@
 
 Its lifespan owns the fleet, opened by :func:`fleet.service.host.open_fleet` (the Zenoh
 router session, the task store, the Zenoh bus, the fleet service and the heap trimmer, in
-that order) and closed in reverse however startup or shutdown goes (an unclosed Zenoh
+that order; with a PostgreSQL store :func:`fleet.service.standby.open_failover`, a leader or
+a standby) and closed in reverse however startup or shutdown goes (an unclosed Zenoh
 session would hang interpreter exit). What a client can
 make the server hold is bounded by the ``api_*`` settings: request bodies
 (:mod:`api.body_limit`), event streams (:mod:`api.streaming`), task pages
@@ -41,6 +42,7 @@ from api.streaming import EventHub
 from fleet.io.settings import Settings
 from fleet.service.host import StoreFactory, open_fleet, sqlite_store
 from fleet.service.store import TaskStore
+from fleet.service.store_open import is_postgres, open_store
 
 _log = logging.getLogger(__name__)
 
@@ -59,7 +61,8 @@ def create_app(
     store_factory: StoreFactory = sqlite_store,
 ) -> FastAPI:
     """The API app. With ``service`` and its ``store`` given (tests), the lifespan uses
-    them and opens nothing; else it opens the fleet with ``store_factory``'s store."""
+    them and opens nothing; else it opens the fleet with ``store_factory``'s store (with
+    ``settings.store`` set: that SQLite file, or a PostgreSQL leader or standby)."""
     if (service is None) != (store is None):
         raise ValueError("create_app: give both the service and its task store, or neither")
     hub = EventHub(
@@ -71,9 +74,17 @@ def create_app(
         with ExitStack() as stack:
             if service is None:
                 try:
-                    fleet = stack.enter_context(open_fleet(settings, store=store_factory))
-                    app.state.service, app.state.tasks = fleet.service, fleet.store
-                    app.state.zenoh_locators = fleet.locators
+                    if is_postgres(settings.store):  # leader or standby (fleet.service.standby)
+                        from fleet.service.standby import open_failover
+
+                        ha = stack.enter_context(open_failover(settings))
+                        app.state.service, app.state.tasks = ha.service, ha.store
+                        app.state.zenoh_locators = ha.locators
+                    else:
+                        factory = store_factory if settings.store is None else open_store
+                        fleet = stack.enter_context(open_fleet(settings, store=factory))
+                        app.state.service, app.state.tasks = fleet.service, fleet.store
+                        app.state.zenoh_locators = fleet.locators
                 except Exception as exc:
                     app.state.startup_error = exc  # for the CLI's one-line error
                     raise

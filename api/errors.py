@@ -24,6 +24,7 @@ from fleet.core.tasks import (
     TaskConflict,
     TaskNotFound,
 )
+from fleet.service.roles import NotLeader
 
 _log = logging.getLogger(__name__)
 
@@ -82,7 +83,22 @@ async def _on_unexpected(request: Request, exc: Exception) -> JSONResponse:
     return JSONResponse({"detail": "internal error"}, status_code=500)
 
 
+async def _on_not_leader(request: Request, exc: Exception) -> JSONResponse:
+    """A write sent to a standby: 503, the leader's API in ``X-Parkfleet-Leader`` (if one is
+    elected) and in the reason; retry there (or here after a take-over)."""
+    assert isinstance(exc, NotLeader)
+    headers = {"Retry-After": "1"}
+    if exc.address:
+        headers["X-Parkfleet-Leader"] = exc.address
+    return JSONResponse(
+        {"detail": str(exc), "leader": exc.address},
+        status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
+        headers=headers,
+    )
+
+
 def install(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, _on_validation_error)
+    app.add_exception_handler(NotLeader, _on_not_leader)
     app.add_exception_handler(FleetError, _on_fleet_error)
     app.add_exception_handler(Exception, _on_unexpected)

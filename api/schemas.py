@@ -466,6 +466,13 @@ class HealthOut(BaseModel):
         description="entries held by the service's bounded structures (robots, active tasks, "
         "recorded path samples, queued effects ...)"
     )
+    store: Literal["sqlite", "postgresql"] = "sqlite"
+    role: Literal["leader", "standby"] = Field(
+        "leader", description="a standby serves reads and answers writes with 503 + the leader"
+    )
+    term: int = Field(0, description="fencing term of the current leader (0: no election)")
+    leader: str | None = Field(None, description="API address of the current leader")
+    service: str | None = Field(None, description="this service's own name (host:pid)")
 
 
 class ErrorOut(BaseModel):

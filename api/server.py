@@ -25,6 +25,7 @@ from fastapi import FastAPI
 from api.app import create_app
 from fleet.io.heap import limit_arenas
 from fleet.io.settings import Settings
+from fleet.service.store_open import check_store
 
 _log = logging.getLogger(__name__)
 
@@ -121,16 +122,19 @@ async def serve(
 ) -> int:
     """Serve until SIGINT/SIGTERM; 0 after a graceful stop, 1 if startup failed.
 
-    Raises ``ValueError`` (exposed without a token) or ``ConnectionError`` (busy port) before
-    anything is opened.
+    Raises ``ValueError`` (exposed without a token) or ``ConnectionError`` (busy port,
+    PostgreSQL store unreachable) before anything is opened.
     """
     check_bind(settings)
+    check_store(settings)  # PostgreSQL unreachable: a clear error, before anything opens
     limit_arenas(settings.malloc_arenas)  # before the fleet's threads (fleet/io/heap.py)
     sock = bind_socket(settings.api_host, settings.api_port)
     try:
         host, port = sock.getsockname()[:2]
         shown = f"[{host}]" if ":" in host else host
         url = f"http://{shown}:{port}"
+        if settings.advertise_url is None:  # what a standby names for this one when it leads
+            settings = settings.model_copy(update={"advertise_url": url})
         app = create_app(settings)
         config = uvicorn.Config(
             app,

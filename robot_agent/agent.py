@@ -19,6 +19,9 @@ wall clock). Zenoh edges:
   tick commands zero wheels (``drive.stop()``) whatever the task says. The e-stop takes
   effect on the next tick (at most one control period later), not from the Zenoh callback:
   the Drive contract keeps every drive call on the control thread;
+* the fencing term (:class:`fleet.core.wire.TermFence`): an assignment, cancel or service
+  command with a term below the highest seen (a deposed leader's) is dropped on the control
+  thread and counted in ``fence.dropped``; operator commands without a term always count;
 * a :class:`~robot_agent.world_feed.WorldFeed` filling a :class:`~robot_agent.world.WorldView`
   with peers' states (``keys.all_states``) and the
   obstacles (subscribed and queried once at start), owned or shared with other agents;
@@ -53,6 +56,7 @@ from fleet.core.wire import (
     RobotError,
     RobotMode,
     RobotState,
+    TermFence,
     encode,
 )
 from fleet.io.decoder import CallbackGuard, Decoder
@@ -141,6 +145,9 @@ class RobotAgent:
         self._inbox: queue.SimpleQueue[Inbound] = queue.SimpleQueue()
         self._task: AgentTask | None = None
         self.operator = OperatorLatch(robot_id)
+        #: Fencing term (``fleet.core.wire``): fleet messages below the highest term seen are
+        #: dropped, counted in ``fence.dropped`` (a deposed leader's assignments and commands).
+        self.fence = TermFence()
         self.faults = FaultBook()
         self._seq = 0
         self._pose = Pose(x=0.0, y=0.0, theta=0.0)
@@ -364,6 +371,15 @@ class RobotAgent:
                 message = self._inbox.get_nowait()
             except queue.Empty:
                 return
+            if not self.fence.accept(message):
+                _log.info(
+                    "%s: dropped a %s of term %d (highest seen %d)",
+                    self.robot_id,
+                    message.kind,
+                    message.term,
+                    self.fence.highest,
+                )
+                continue
             if isinstance(message, ControlCommand):
                 if self.operator.apply(message):
                     _log.info("%s: %s by %s", self.robot_id, message.command.value, message.issuer)

@@ -1,7 +1,9 @@
-"""Shared fixtures: a real Zenoh router on a free loopback port."""
+"""Shared fixtures: a real Zenoh router on a free loopback port; a real PostgreSQL server."""
 
 from __future__ import annotations
 
+import os
+import uuid
 from collections.abc import Iterator
 
 import pytest
@@ -39,3 +41,39 @@ def router_endpoint() -> Iterator[str]:
 def client_settings(router_endpoint: str) -> Settings:
     """Settings of a client session connected to the test router."""
     return load_settings(connect=[router_endpoint])
+
+
+@pytest.fixture(scope="session")
+def postgres_server() -> Iterator[str]:
+    """The URL of a real PostgreSQL server for the whole run: ``PARKFLEET_TEST_POSTGRES``
+    (``postgresql://user@host:port/db``) if set, else a throwaway cluster
+    (:class:`fleet.io.postgres_cluster.TempCluster`, torn down at the end). Without
+    PostgreSQL the tests skip locally and fail under CI (``CI=true``)."""
+    given = os.environ.get("PARKFLEET_TEST_POSTGRES")
+    if given:
+        yield given
+        return
+    from fleet.io.postgres_cluster import TempCluster, find_bindir
+
+    found = find_bindir()
+    if isinstance(found, str):
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"PostgreSQL tests cannot run in CI: {found}")
+        pytest.skip(found)
+    with TempCluster(found) as cluster:
+        yield cluster.dsn
+
+
+@pytest.fixture
+def postgres_dsn(postgres_server: str) -> Iterator[str]:
+    """A fresh, empty database on the test server for one test (dropped after it)."""
+    import psycopg
+    from psycopg import sql
+
+    name = f"t_{uuid.uuid4().hex[:12]}"
+    with psycopg.connect(postgres_server, autocommit=True) as admin:
+        admin.execute(sql.SQL("CREATE DATABASE {}").format(sql.Identifier(name)))
+    base, _, _ = postgres_server.rpartition("/")  # a URL, as users give --store
+    yield f"{base}/{name}"
+    with psycopg.connect(postgres_server, autocommit=True) as admin:
+        admin.execute(sql.SQL("DROP DATABASE {} WITH (FORCE)").format(sql.Identifier(name)))

@@ -64,6 +64,7 @@ export const api = {
   robots: () => request("GET", "robots"),
   tasks: (limit) => request("GET", `tasks?order=newest&limit=${limit}`), // the newest `limit`
   obstacles: () => request("GET", "obstacles"),
+  health: () => request("GET", "healthz"),
   submitTask: (body, token, key) =>
     request("POST", "tasks", { body, token, headers: { "Idempotency-Key": key } }),
   cancelTask: (id, token) => request("POST", `tasks/${encodeURIComponent(id)}/cancel`, { token }),

@@ -220,6 +220,24 @@ function applyConfig(config) {
   dirty.map = true;
 }
 
+const SERVICE_POLL_MS = 5000;
+
+/** Which fleet service this console talks to: its address, and with a PostgreSQL store its
+ * role (a standby's writes are refused with 503 and the leader's address) and term. */
+async function pollService() {
+  try {
+    const h = await api.health();
+    const role = h.store === "postgresql"
+      ? (h.role === "leader" ? ` · leader, term ${h.term}` : ` · standby (leader ${h.leader || "none yet"})`)
+      : "";
+    $("service-id").textContent = `service ${location.host}${role}`;
+    $("service-id").dataset.role = h.role;
+  } catch {
+    $("service-id").textContent = `service ${location.host} · unreachable`;
+  }
+  setTimeout(pollService, SERVICE_POLL_MS);
+}
+
 async function pollObstacles() {
   if (state.connection === "live") {
     try {
@@ -974,5 +992,6 @@ map.setLegendWidth($("legend").offsetWidth + 16);
 map.resize();
 stream.start();
 pollObstacles();
+pollService();
 pollOperator();
 requestAnimationFrame(frame);

@@ -35,6 +35,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "fleet.cli.bench_on_state",
     "fleet.cli.bench_plan",
     "fleet.cli.bench_soak",
+    "fleet.cli.bench_failover",
 )
 #: Packages that only some installs have -> the extra that brings them (``pyproject.toml``).
 EXTRA_OF: dict[str, str] = {
@@ -45,6 +46,7 @@ EXTRA_OF: dict[str, str] = {
     "scipy": "server",
     "matplotlib": "bench",
     "navground": "bench",
+    "psycopg": "postgres",  # serve --store postgresql://...; bench failover
 }
 #: Commands whose module alone builds their parser: an operator's e-stop must not wait for
 #: every other command's imports (numba, matplotlib: ~2 s) before it publishes.

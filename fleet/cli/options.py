@@ -77,8 +77,8 @@ def add_spawn(p: argparse.ArgumentParser, default: str) -> None:
 def add_server(
     p: argparse.ArgumentParser, *, default_data: str, default_site: str = "none"
 ) -> None:
-    """``--port``, ``--zenoh-listen``, ``--data-dir``, ``--site``, ``--config`` of the API
-    server."""
+    """``--port``, ``--zenoh-listen``, ``--data-dir``, ``--store``, ``--site``, ``--config`` of
+    the API server."""
     p.add_argument("--port", type=int, help="API port (default 8000; 0: any free port)")
     p.add_argument(
         "--zenoh-listen",
@@ -87,6 +87,12 @@ def add_server(
         help="Zenoh router endpoint, repeatable (default tcp/127.0.0.1:7447)",
     )
     p.add_argument("--data-dir", type=Path, help=f"where {DB_FILE} lives (default {default_data})")
+    p.add_argument(
+        "--store",
+        metavar="URL_OR_FILE",
+        help=f"task store: a SQLite file (default <data-dir>/{DB_FILE}) or a "
+        "postgresql://user@host/db URL: leader or standby on a shared database",
+    )
     add_site(p, default_site)
     add_config(p)
 

@@ -29,6 +29,7 @@ def server_settings(args: argparse.Namespace, **extra: Any) -> Settings:
     overrides: dict[str, Any] = {
         "api_port": args.port,
         "data_dir": args.data_dir,
+        "store": getattr(args, "store", None),
         "listen": args.zenoh_listen,
         "site_file": None if args.site in (None, "none") else Path(args.site),
         **extra,

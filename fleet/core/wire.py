@@ -62,6 +62,24 @@ the fleet service is down:
   ``seq`` is above the last one it applied from that issuer, so repeats (send a command a
   few times: delivery is best effort) and reordered copies are harmless. One-shot tools use
   the wall clock in microseconds as ``seq``.
+Fencing term (:class:`TermFence`, high availability on PostgreSQL, README "Standby and
+fencing"). Compatibility rule: one additive field, ``v`` stays 1.
+
+* ``term`` (>= 0) on ``ParkAssignment``, ``CancelAssignment`` and ``ControlCommand``: the
+  leadership term of the fleet service that sent it; each new leader's term is one above the
+  last (kept in the database). **Absent = 0**: a service without a leader election (the
+  SQLite default, or an older release) sends term 0.
+* A robot remembers the highest term it has seen on assignments, cancels and the service's
+  control commands, and **drops (and counts) any of those with a lower term**: a deposed
+  leader can no longer command a robot that has heard its successor. A higher term raises the
+  highest; an equal one is obeyed as before (revision and ``seq`` rules unchanged).
+* ``ControlCommand`` with term 0 (``parkfleet estop`` and other operator tools) is **always
+  obeyed** (an emergency stop must never be fenced off); it does not raise the highest.
+* The highest term lives in the agent's memory: a restarted agent obeys the first leader it
+  hears. A robot that saw term N ignores a term-0 service until its agent restarts (do not
+  switch a running fleet from PostgreSQL back to SQLite without restarting the agents).
+* An older robot ignores the field (unknown fields are ignored): it is not fenced.
+
 * A robot says why it does not move: ``mode`` plus ``RobotState.detail`` (e.g. ``holding``
   with ``pose stale``), and its active faults in ``RobotState.errors`` (code, level,
   message, since).
@@ -325,6 +343,8 @@ class ParkAssignment(_Message):
     start_delay_s: Annotated[float, Field(ge=0.0, le=3600.0, allow_inf_nan=False)] = 0.0
     #: Stand still until a higher revision arrives (no safe option was found yet).
     hold: bool = False
+    #: Leadership term of the sending service (0: no election); see the module docstring.
+    term: Annotated[int, Field(ge=0)] = 0
 
 
 class CancelAssignment(_Message):
@@ -333,6 +353,8 @@ class CancelAssignment(_Message):
     kind: Literal["cancel"] = "cancel"
     robot_id: RobotId
     task_id: Annotated[str, Field(min_length=1, max_length=64)]
+    #: Leadership term of the sending service (0: no election); see the module docstring.
+    term: Annotated[int, Field(ge=0)] = 0
 
 
 Assignment = Annotated[ParkAssignment | CancelAssignment, Field(discriminator="kind")]
@@ -358,6 +380,8 @@ class ControlCommand(_Message):
     seq: Annotated[int, Field(ge=0)]
     stamp: FiniteFloat  # issuer's wall clock [s since epoch]
     reason: Annotated[str, Field(max_length=200)] | None = None
+    #: Leadership term of a fleet service that sent it; 0 (operator tools): always obeyed.
+    term: Annotated[int, Field(ge=0)] = 0
 
 
 @dataclass(frozen=True)
@@ -412,6 +436,26 @@ class IssuerOrder:
         self._last_seq.move_to_end(command.issuer)
         while len(self._last_seq) > self.max_issuers:
             self._last_seq.popitem(last=False)
+        return True
+
+
+class TermFence:
+    """The one fencing rule of a receiver (module docstring): a fleet message counts only if
+    its ``term`` is not below the highest seen; operator commands (``ControlCommand`` with
+    term 0) always count. ``dropped`` counts the fenced-off messages. Not thread-safe."""
+
+    def __init__(self) -> None:
+        self.highest = 0
+        self.dropped = 0
+
+    def accept(self, message: ParkAssignment | CancelAssignment | ControlCommand) -> bool:
+        """Whether to obey ``message`` (then its term is the highest if it is higher)."""
+        if isinstance(message, ControlCommand) and message.term == 0:
+            return True
+        if message.term < self.highest:
+            self.dropped += 1
+            return False
+        self.highest = message.term
         return True
 
 

@@ -230,6 +230,15 @@ class Settings(RobotSettings):
 
     # Fleet service / API
     data_dir: Path = Path("var")
+    # Task store: unset = SQLite at data_dir/parkfleet.db; a path = that SQLite file;
+    # ``postgresql://...`` = PostgreSQL, shared by a leader and its standbys (README "Standby
+    # and fencing"). Leader lease [s]: a leader that cannot reach PostgreSQL stops commanding
+    # within it; a standby tries to take over every leader_poll_s [s]; advertise_url is the
+    # API address a standby names for this service when it leads (default: its own URL).
+    store: str | None = None
+    leader_lease_s: Annotated[float, Field(gt=0)] = 3.0
+    leader_poll_s: Annotated[float, Field(gt=0)] = 0.1
+    advertise_url: str | None = None
     api_host: str = "127.0.0.1"
     api_port: Annotated[int, Field(ge=0, le=65535)] = 8000
     api_token: SecretStr | None = None

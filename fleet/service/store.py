@@ -91,7 +91,7 @@ class _Write(Generic[_T]):
         self.error: BaseException | None = None
 
 
-def _robot_of(task: Task) -> str | None:
+def robot_of(task: Task) -> str | None:
     """The robot a task belongs to: its assigned robot, else the one its request names."""
     return task.robot_id or task.request.robot_id
 
@@ -193,7 +193,7 @@ class MemoryTaskStore:
                 t.model_copy(deep=True)
                 for t in ordered
                 if (status is None or t.status == status)
-                and (robot_id is None or _robot_of(t) == robot_id)
+                and (robot_id is None or robot_of(t) == robot_id)
                 and (
                     after is None
                     or (_page_key(t) < after if newest_first else _page_key(t) > after)
@@ -282,7 +282,7 @@ class SqliteTaskStore:
             (
                 task.id,
                 task.status.value,
-                _robot_of(task),
+                robot_of(task),
                 key,
                 task.created_at,
                 task.updated_at,

@@ -20,6 +20,9 @@ from support import StateWatcher, assign_until_acked, park, read_line, wait_for
 from fleet.core.params import Gains, Tolerance
 from fleet.core.step import pose_error
 from fleet.core.wire import (
+    CancelAssignment,
+    ControlAction,
+    ControlCommand,
     Keys,
     Obstacle,
     ObstacleSet,
@@ -308,3 +311,40 @@ def test_late_joiner_gets_obstacles_by_query_and_follows_updates(
             wait_for(lambda: fleet.world.obstacles()[0].shape == (2, 2), 10, "obstacle update")
     finally:
         queryable.undeclare()
+
+
+def test_a_deposed_leaders_assignments_and_commands_are_dropped_operators_still_obeyed(
+    client_settings: Settings, fleet_session: Any, watcher: tuple[Any, StateWatcher]
+) -> None:
+    """Fencing term on real Zenoh: after term 2 was heard, term-1 assignments, cancels and
+    service commands are dropped and counted; an operator's term-0 e-stop is obeyed."""
+    service, states = watcher
+    with SimFleet(fleet_session, client_settings, [Spawn("r1", 0, 0, 0)], time_scale=5) as fleet:
+        fleet.start()
+        agent = fleet.agents[0]
+        assign_until_acked(service, states, park("r1", "t2", (3.0, 0.0, 0.0), term=2))
+        for message in (
+            park("r1", "t1", (-3.0, 0.0, 0.0), term=1),  # a deposed leader's new task
+            park("r1", "t2", (-3.0, 0.0, 0.0), term=1, revision=5),  # and a "re-plan"
+            CancelAssignment(robot_id="r1", task_id="t2", term=1),
+        ):
+            service.put(KEYS.assignment("r1"), encode(message), congestion_control=BLOCK)
+        stale = ControlCommand(
+            command=ControlAction.PAUSE, robot_id="r1", issuer="fleet-service", seq=1, stamp=0.0,
+            term=1,
+        )  # fmt: skip
+        service.put(KEYS.control("r1"), encode(stale), congestion_control=BLOCK)
+        wait_for(lambda: agent.fence.dropped == 4, 10, "four stale messages dropped")
+        mark = states.latest("r1").seq  # type: ignore[union-attr]
+        wait_for(lambda: len(states.since("r1", mark)) >= 10, 10, "more states")
+        after = states.since("r1", mark)
+        assert {(s.task_id, s.revision) for s in after} == {("t2", 0)}
+        assert RobotMode.PAUSED not in {s.mode for s in after}
+        estop = ControlCommand(command=ControlAction.ESTOP, issuer="cli", seq=1, stamp=0.0)
+        service.put(KEYS.control(), encode(estop), congestion_control=BLOCK)
+        wait_for(
+            lambda: (s := states.latest("r1")) is not None and s.mode is RobotMode.ESTOP,
+            10,
+            "the operator's e-stop obeyed",
+        )
+    assert agent.fence.highest == 2 and agent.fence.dropped == 4

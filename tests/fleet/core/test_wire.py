@@ -12,11 +12,14 @@ from fleet.core.params import UNLIMITED, Gains, RobotProfile
 from fleet.core.wire import (
     MAX_PAYLOAD_BYTES,
     CancelAssignment,
+    ControlAction,
+    ControlCommand,
     Keys,
     ParkAssignment,
     Pose,
     RobotDescription,
     RobotState,
+    TermFence,
     encode,
     validate_id,
 )
@@ -133,6 +136,58 @@ def test_description_key_and_an_older_fleets_view_of_it() -> None:
     assert unlimited["max_wheel_speed"] is None
     newer = encode(RobotDescription.of("r1", UNLIMITED))[:-1] + b', "max_accel": 2.0}'
     assert Decoder().decode(RobotDescription, newer) is not None
+
+
+# -- fencing term -----------------------------------------------------------------------------
+def _park(term: int | None, task: str = "t1") -> ParkAssignment:
+    extra = {} if term is None else {"term": term}
+    return ParkAssignment(
+        robot_id="r1",
+        task_id=task,
+        goal=Pose(x=1.0, y=0.0),
+        law="cw",
+        gains=Gains(kx=1, ky=2, ktheta=3),
+        **extra,
+    )
+
+
+def _control(term: int, seq: int = 1) -> ControlCommand:
+    return ControlCommand(command=ControlAction.ESTOP, issuer="tool", seq=seq, stamp=0.0, term=term)
+
+
+def test_a_message_without_a_term_is_term_zero_and_an_old_payload_still_parses() -> None:
+    """Older senders send no term: it reads as 0, and a payload without the field parses."""
+    legacy = json.loads(encode(_park(None)))
+    assert legacy["term"] == 0
+    del legacy["term"]
+    got = Decoder().decode(ParkAssignment, json.dumps(legacy).encode())
+    assert got is not None and got.term == 0
+    assert CancelAssignment(robot_id="r1", task_id="t1").term == 0
+
+
+@given(terms=st.lists(st.integers(0, 5), max_size=30))
+def test_the_fence_obeys_exactly_the_messages_not_below_the_highest_term(terms: list[int]) -> None:
+    fence = TermFence()
+    obeyed = [t for t in terms if fence.accept(_park(t))]
+    highest = 0
+    expected = []
+    for t in terms:
+        if t >= highest:
+            expected.append(t)
+            highest = t
+    assert obeyed == expected
+    assert fence.highest == highest and fence.dropped == len(terms) - len(expected)
+
+
+def test_operator_commands_without_a_term_are_always_obeyed_service_ones_are_fenced() -> None:
+    fence = TermFence()
+    assert fence.accept(CancelAssignment(robot_id="r1", task_id="t", term=3))
+    assert fence.accept(_control(0))  # an operator tool (term 0): never fenced
+    assert fence.highest == 3
+    assert not fence.accept(_control(2))  # a deposed service's command
+    assert fence.accept(_control(4)) and fence.highest == 4
+    assert not fence.accept(_park(3))
+    assert fence.dropped == 2
 
 
 def test_obstacle_body_defaults_for_older_payloads_and_is_bounded() -> None:

@@ -1,20 +1,24 @@
-"""TaskStore contract on a real SQLite file (and the in-memory twin)."""
+"""TaskStore contract on a real SQLite file, a real PostgreSQL server (and the in-memory
+twin)."""
 
 from __future__ import annotations
 
+import socket
 import sqlite3
 import tempfile
 import threading
 from collections.abc import Iterator
 from pathlib import Path
 
+import psycopg
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fleet.core.tasks import Task, TaskRequest, TaskStatus
 from fleet.core.wire import Pose
 from fleet.service.store import MemoryTaskStore, SqliteTaskStore, TaskStore
+from fleet.service.store_postgres import PostgresTaskStore, StoreUnavailable
 
 
 def _task(task_id: str, t: float = 1.0, robot: str | None = None) -> Task:
@@ -22,13 +26,15 @@ def _task(task_id: str, t: float = 1.0, robot: str | None = None) -> Task:
     return Task(id=task_id, request=request, created_at=t, updated_at=t)
 
 
-@pytest.fixture(params=["sqlite", "memory"])
+@pytest.fixture(params=["sqlite", "postgres", "memory"])
 def store(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[TaskStore]:
-    s: TaskStore = (
-        SqliteTaskStore(tmp_path / "nested" / "tasks.db")
-        if request.param == "sqlite"
-        else MemoryTaskStore()
-    )
+    s: TaskStore
+    if request.param == "sqlite":
+        s = SqliteTaskStore(tmp_path / "nested" / "tasks.db")
+    elif request.param == "postgres":
+        s = PostgresTaskStore(request.getfixturevalue("postgres_dsn"))
+    else:
+        s = MemoryTaskStore()
     yield s
     s.close()
 
@@ -203,7 +209,7 @@ _listed = st.lists(
 )
 
 
-@settings(max_examples=40)
+@settings(max_examples=40, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     rows=_listed,
     page=st.integers(1, 5),
@@ -212,6 +218,7 @@ _listed = st.lists(
     robot=st.sampled_from([None, "r1"]),
 )
 def test_pages_walk_the_filtered_list_in_order_once_each(
+    postgres_dsn: str,
     rows: list[tuple[float, TaskStatus, str | None]],
     page: int,
     newest_first: bool,
@@ -219,9 +226,13 @@ def test_pages_walk_the_filtered_list_in_order_once_each(
     robot: str | None,
 ) -> None:
     """Following the cursor page by page yields every matching task once, in
-    ``(created_at, id)`` order (reversed for newest first); SQLite and memory agree."""
+    ``(created_at, id)`` order (reversed for newest first); SQLite, PostgreSQL (one database,
+    emptied for each example) and memory agree."""
     with tempfile.TemporaryDirectory() as tmp:
-        stores: list[TaskStore] = [SqliteTaskStore(Path(tmp) / "t.db"), MemoryTaskStore()]
+        postgres = PostgresTaskStore(postgres_dsn)
+        with psycopg.connect(postgres_dsn, autocommit=True) as db:  # a fresh start per example
+            db.execute("TRUNCATE tasks, task_history")
+        stores: list[TaskStore] = [SqliteTaskStore(Path(tmp) / "t.db"), MemoryTaskStore(), postgres]
         try:
             for k, (t, task_status, rid) in enumerate(rows):
                 task = _task(f"id{(k * 7) % 13:02d}-{k}", t, rid)
@@ -243,7 +254,7 @@ def test_pages_walk_the_filtered_list_in_order_once_each(
                 walks.append(walked)
             everything = sorted(stores[1].list(status, robot), key=lambda t: (t.created_at, t.id))
             expected = [t.id for t in everything][:: -1 if newest_first else 1]
-            assert walks == [expected, expected]
+            assert walks == [expected, expected, expected]
             assert [t.id for t in stores[0].list(status, robot)] == [t.id for t in everything]
         finally:
             for store in stores:
@@ -304,3 +315,33 @@ def test_a_page_costs_the_same_however_many_tasks_are_stored(
         assert all(big <= 2 * small for small, big in zip(*costs, strict=True)), costs
     finally:
         store.close()
+
+
+def test_postgres_is_shared_a_second_store_sees_every_write(postgres_dsn: str) -> None:
+    """Two stores on one database (a leader and a standby) see the same tasks and history."""
+    first, second = PostgresTaskStore(postgres_dsn), PostgresTaskStore(postgres_dsn)
+    try:
+        a = first.save_new(_task("a"), "k")
+        first.save(a.model_copy(update={"status": TaskStatus.ASSIGNED, "robot_id": "r1"}), "x")
+        got = second.get("a")
+        assert got is not None and got.status == TaskStatus.ASSIGNED and got.robot_id == "r1"
+        assert second.find_by_idempotency_key("k") == got
+        assert [t.id for t in second.unfinished()] == ["a"] and len(second.history("a")) == 2
+        assert second.save_new(_task("b"), "k").id == "a"  # the key is the database's
+    finally:
+        first.close()
+        second.close()
+    first.close()  # idempotent
+    with pytest.raises(RuntimeError, match="closed"):
+        first.get("a")
+
+
+def test_postgres_unreachable_at_open_says_where_without_the_password() -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # nobody listens here once closed
+    with pytest.raises(
+        StoreUnavailable, match=rf"unreachable at postgresql://127.0.0.1:{port}/"
+    ) as e:
+        PostgresTaskStore(f"postgresql://u:secret@127.0.0.1:{port}/db", timeout_s=1.0)
+    assert "secret" not in str(e.value)

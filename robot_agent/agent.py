@@ -3,8 +3,9 @@
 Each tick (default 50 Hz, ``Settings.control_rate_hz``, on the agent's monotonic clock) has
 two phases: :meth:`RobotAgent.sense` reads the pose and applies pending assignment
 messages; :meth:`RobotAgent.act` decides with the pure :func:`robot_agent.logic.decide`,
-commands the wheels and publishes ``RobotState`` on ``keys.state(id)`` (stamped with the
-wall clock). Zenoh edges:
+commands the wheels and publishes ``RobotState`` (stamped with the wall clock) through
+:class:`~robot_agent.state_streams.StateStreams`: every tick on its grid cell's peer key,
+and at the fleet rate (and on every change) on ``keys.state(id)``. Zenoh edges:
 
 * liveliness token ``keys.alive(id)``, and right after it the robot's
   :class:`~fleet.core.wire.RobotDescription` (its profile, ``Settings.may_reverse`` and
@@ -20,8 +21,9 @@ wall clock). Zenoh edges:
   effect on the next tick (at most one control period later), not from the Zenoh callback:
   the Drive contract keeps every drive call on the control thread;
 * a :class:`~robot_agent.world_feed.WorldFeed` filling a :class:`~robot_agent.world.WorldView`
-  with peers' states (``keys.all_states``) and the
-  obstacles (subscribed and queried once at start), owned or shared with other agents;
+  with the states of peers in the cells around the robot (re-subscribed as it moves, told
+  the robot's position each tick) and the obstacles (subscribed and queried once at
+  start), owned or shared with other agents;
 * a :class:`~robot_agent.link.LinkMonitor` (owned or shared): when the link to the router
   is lost (no router, or nothing heard for ``Settings.link_timeout_s``) an active task
   holds (``holding``, wheels stopped) and resumes when the link returns. A fleet *service*
@@ -48,7 +50,6 @@ import numpy as np
 from fleet.core.wire import (
     CancelAssignment,
     ControlCommand,
-    Keys,
     ParkAssignment,
     Pose,
     RobotDescription,
@@ -65,6 +66,7 @@ from robot_agent.faults import FaultBook, current_faults
 from robot_agent.link import LinkMonitor
 from robot_agent.logic import AgentTask, AgentTaskStatus, TickResult, apply_assignment, decide
 from robot_agent.operator import OperatorLatch
+from robot_agent.state_streams import StateStreams
 from robot_agent.world import WorldView
 from robot_agent.world_feed import WorldFeed
 
@@ -112,7 +114,7 @@ class RobotAgent:
         wall_clock: Callable[[], float] = time.time,
         describe: bool = True,
     ) -> None:
-        self.keys = Keys(settings.fleet_name)
+        self.keys = settings.keys()
         self.robot_id = robot_id
         self.keys.state(robot_id)  # validates the id
         self.drive = drive
@@ -145,7 +147,13 @@ class RobotAgent:
         self.tick_errors = 0
         self.last: AgentSnapshot | None = None
         self._handles: list[Any] = []
-        self._publisher: Any = None
+        self.streams = StateStreams(
+            session,
+            self.keys,
+            robot_id,
+            fleet_rate_hz=settings.fleet_rate_hz,
+            encoding=settings.state_encoding,
+        )
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._opened = False
@@ -210,8 +218,7 @@ class RobotAgent:
                 self.feed.attach(self.session)
             if self._owns_link:
                 self.link.attach()
-            self._publisher = self.session.declare_publisher(self.keys.state(self.robot_id))
-            self._handles.append(self._publisher)
+            self.streams.open()
             self._handles.append(
                 self.session.declare_subscriber(
                     self.keys.assignment(self.robot_id), self.guard.wrap(self._on_assignment)
@@ -259,6 +266,7 @@ class RobotAgent:
             now = self.clock.now()
             self._pose = pose
             self.world.update_position(self.robot_id, pose.x, pose.y)
+            self.feed.follow(self.robot_id, pose.x, pose.y)
             self._reading = (pose, stamp, now)
         except Exception as exc:
             self._failure = self._tick_failed(phase, exc)
@@ -387,10 +395,8 @@ class RobotAgent:
         )
         self._seq += 1
         self.world.update_state(state)  # agents sharing this session see it without Zenoh
-        if self._publisher is None:
-            return snapshot
         try:
-            self._publisher.put(encode(state))
+            self.streams.publish(state)
         except Exception:
             self.tick_errors += 1
             _log.exception("%s: publishing state failed", self.robot_id)
@@ -432,7 +438,8 @@ class RobotAgent:
         self._thread = None
         self._safe_stop()
         handles, self._handles = self._handles, []
-        self._publisher = None
+        self.streams.close()
+        self.feed.unfollow(self.robot_id)
         for handle in reversed(handles):
             try:
                 handle.undeclare()

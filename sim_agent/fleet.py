@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from fleet.core.wire import Keys, RobotMode, validate_id
+from fleet.core.wire import RobotMode, validate_id
 from fleet.io.settings import Settings
 from fleet.io.trace import TraceHeader, TraceWriter
 from robot_agent.agent import RobotAgent
@@ -140,10 +140,10 @@ class SimFleet:
         self.period = 1.0 / settings.control_rate_hz  # control period = Euler step [sim s]
         self.clock = SteppedClock()
         self.world = WorldView()
-        self.feed = feed = WorldFeed(self.world, Keys(settings.fleet_name))
+        self.feed = feed = WorldFeed(self.world, settings.keys())
         self.link = LinkMonitor(  # one link per session, shared by its agents
             session,
-            Keys(settings.fleet_name),
+            settings.keys(),
             settings.link_timeout_s,
             check_router=(settings.zenoh_mode or "client") == "client",
             heard_elsewhere=lambda: feed.last_heard,

@@ -1,8 +1,9 @@
 """The FastAPI application: ``create_app(settings)``.
 
-Its lifespan owns the fleet: the Zenoh router session, the SQLite task store, the Zenoh
-bus and the fleet service, opened in that order and closed in reverse however startup or
-shutdown goes (an unclosed Zenoh session would hang interpreter exit). What a client can
+Its lifespan owns the fleet, opened by :func:`fleet.service.host.open_fleet` (the Zenoh
+router session, the task store, the Zenoh bus, the fleet service and the heap trimmer, in
+that order) and closed in reverse however startup or shutdown goes (an unclosed Zenoh
+session would hang interpreter exit). What a client can
 make the server hold is bounded by the ``api_*`` settings: request bodies
 (:mod:`api.body_limit`), event streams (:mod:`api.streaming`), task pages
 (:mod:`api.routes.tasks`) and plot renders (:mod:`api.plot_cache`).
@@ -37,17 +38,11 @@ from api.routes import (
 )
 from api.schemas import ValidationErrorOut
 from api.streaming import EventHub
-from fleet.core.wire import Keys
-from fleet.io.heap import HeapTrimmer
 from fleet.io.settings import Settings
-from fleet.io.transport import listening_locators, open_session
-from fleet.service.fleet_service import FleetService
-from fleet.service.store import SqliteTaskStore, TaskStore
-from fleet.service.zenoh_bus import ZenohFleetBus
+from fleet.service.host import StoreFactory, open_fleet, sqlite_store
+from fleet.service.store import TaskStore
 
 _log = logging.getLogger(__name__)
-
-DB_FILE = "parkfleet.db"
 
 DESCRIPTION = """\
 Parking tasks for a fleet of self-parking robots (Lyapunov posture control, laws (17)
@@ -56,32 +51,15 @@ ccw and (20) cw). When `PARKFLEET_API_TOKEN` is set, POST and PUT need
 """
 
 
-def open_fleet(settings: Settings, stack: ExitStack) -> tuple[FleetAPI, TaskStore, list[str]]:
-    """Open router session, store, bus and service on ``stack`` (and the heap trimmer,
-    :mod:`fleet.io.heap`); return the service, the store (for task pages) and the Zenoh
-    endpoints the router really listens on."""
-    settings.data_dir.mkdir(parents=True, exist_ok=True)
-    session = open_session(settings, "router")
-    stack.callback(session.close)
-    locators = listening_locators(session)
-    store = SqliteTaskStore(settings.data_dir / DB_FILE)
-    stack.callback(store.close)
-    bus = ZenohFleetBus(session, Keys(settings.fleet_name))
-    stack.callback(bus.close)
-    service = FleetService(settings, bus, store)
-    service.start()
-    stack.callback(service.close)
-    trimmer = HeapTrimmer(settings.heap_trim_interval_s)
-    trimmer.start()
-    stack.callback(trimmer.close)
-    return service, store, locators
-
-
 def create_app(
-    settings: Settings, *, service: FleetAPI | None = None, store: TaskStore | None = None
+    settings: Settings,
+    *,
+    service: FleetAPI | None = None,
+    store: TaskStore | None = None,
+    store_factory: StoreFactory = sqlite_store,
 ) -> FastAPI:
     """The API app. With ``service`` and its ``store`` given (tests), the lifespan uses
-    them and opens nothing."""
+    them and opens nothing; else it opens the fleet with ``store_factory``'s store."""
     if (service is None) != (store is None):
         raise ValueError("create_app: give both the service and its task store, or neither")
     hub = EventHub(
@@ -93,8 +71,9 @@ def create_app(
         with ExitStack() as stack:
             if service is None:
                 try:
-                    opened = open_fleet(settings, stack)
-                    app.state.service, app.state.tasks, app.state.zenoh_locators = opened
+                    fleet = stack.enter_context(open_fleet(settings, store=store_factory))
+                    app.state.service, app.state.tasks = fleet.service, fleet.store
+                    app.state.zenoh_locators = fleet.locators
                 except Exception as exc:
                     app.state.startup_error = exc  # for the CLI's one-line error
                     raise

@@ -45,8 +45,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from fleet.core.wire import (
     CancelAssignment,
     ControlCommand,
@@ -64,14 +62,20 @@ from robot_agent.clock import Clock, MonotonicClock, run_periodic
 from robot_agent.drive import Drive
 from robot_agent.faults import FaultBook, current_faults
 from robot_agent.link import LinkMonitor
-from robot_agent.logic import AgentTask, AgentTaskStatus, TickResult, apply_assignment, decide
+from robot_agent.logic import (
+    NO_PEERS,
+    AgentTask,
+    AgentTaskStatus,
+    TickResult,
+    apply_assignment,
+    decide,
+)
 from robot_agent.operator import OperatorLatch
 from robot_agent.state_streams import StateStreams
 from robot_agent.world import WorldView
 from robot_agent.world_feed import WorldFeed
 
 _log = logging.getLogger(__name__)
-_NO_PEERS = np.zeros((0, 2))  # peers only matter while driving
 Inbound = ParkAssignment | CancelAssignment | ControlCommand
 #: Modes in which the robot stands with nothing to do: a drive with ``release()`` may fall
 #: silent there (an operator may teleop); every other stopped mode calls ``stop()`` each tick.
@@ -142,6 +146,7 @@ class RobotAgent:
         self.faults = FaultBook()
         self._seq = 0
         self._pose = Pose(x=0.0, y=0.0, theta=0.0)
+        self._last_u = 0.0  # [m/s] last commanded forward speed (own spread: in flight)
         self._reading: tuple[Pose, float, float] | None = None  # sensed (pose, stamp, now)
         self._failure: tuple[str, str] | None = None  # (phase, message) of a failed sense
         self.tick_errors = 0
@@ -265,7 +270,7 @@ class RobotAgent:
             phase = "tick_error"
             now = self.clock.now()
             self._pose = pose
-            self.world.update_position(self.robot_id, pose.x, pose.y)
+            self.world.update_position(self.robot_id, pose.x, pose.y, pose.theta)
             self.feed.follow(self.robot_id, pose.x, pose.y)
             self._reading = (pose, stamp, now)
         except Exception as exc:
@@ -297,13 +302,20 @@ class RobotAgent:
                         pose.as_tuple(),
                         pose_age,
                         self._task,
-                        self.world.peer_positions(exclude=self.robot_id) if active else _NO_PEERS,
+                        self.world.peer_bodies(
+                            self.robot_id, self.settings.safety, self.settings.profile.radius
+                        )
+                        if active
+                        else NO_PEERS,
                         self.world.obstacles(),
                         self.settings.profile,
                         self.settings.avoidance,
                         self.settings.pose_stale_s,
                         link_ok=link_ok if active else True,
                         now=now,
+                        safety=self.settings.safety,
+                        speed=self._last_u,
+                        period=self.period,
                     )
                 drive_faults = _drive_faults(self.drive)
                 if drive_faults and override is None and decision.mode not in _AT_REST:
@@ -311,6 +323,9 @@ class RobotAgent:
                         mode=RobotMode.HOLDING, task=decision.task, detail=drive_faults[0][1]
                     )
                 self._task = decision.task
+                # A bound on the speed of the commands in flight (falls at the drive's limit).
+                fall = self.settings.safety.max_accel_m_s2 * self.period
+                self._last_u = max(abs(decision.u) if decision.moving else 0.0, self._last_u - fall)
                 phase = "drive_error"
                 release = getattr(self.drive, "release", None)
                 if decision.moving:

@@ -31,9 +31,11 @@ Control of an active task (:func:`decide`) is one call of the compiled control s
 rollouts run: error of Eq. (5), stop rule, law (17) ``ccw`` or (20) ``cw``, the repulsion
 -K_avoid/x_OA of Eq. (27) from every peer within the peer influence radius and every
 static obstacle within its own radius (mode ``avoiding`` while any is inside), the
-wheel-speed limit (scaled together, curvature kept), the contact guard (no motion towards
-a peer within two body radii plus the x_OA guard; mode ``avoiding``) and Eq. (2) to wheel
-speeds. Arrival is the stop rule on the pre-step error (x_e^2 + y_e^2 < position^2 and
+wheel-speed limit (scaled together, curvature kept), the safety filter (the command
+closest to that which keeps every body ``contact_margin_m`` clear of every peer's and
+obstacle's body, with the spreads of :class:`fleet.core.params.SafetyConfig`; mode
+``avoiding`` when it acts) and Eq. (2) to wheel speeds. Arrival is the stop rule on the
+pre-step error (x_e^2 + y_e^2 < position^2 and
 |theta_e| < heading); as in the batch simulator, that tick's command is still applied
 (``arrived`` with the last, small, wheel command) and the robot stops at the next tick.
 Importing this module compiles the step (or loads it from numba's cache): never in a tick.
@@ -48,7 +50,7 @@ from enum import StrEnum
 import numpy as np
 
 from fleet.core import step
-from fleet.core.params import Avoidance, RobotProfile
+from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
 from fleet.core.types import FloatArray
 from fleet.core.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
 
@@ -134,12 +136,24 @@ def within_tolerance(pose: Sequence[float] | FloatArray, assignment: ParkAssignm
 
 
 def obstacle_arrays(obstacles: Sequence[Obstacle]) -> tuple[FloatArray, FloatArray]:
-    """Static obstacles as centres (M, 2) [m] and influence radii (M,) [m]."""
+    """Static obstacles as centres (M, 2) [m] and radii (M, 2) [m]: influence, body."""
     if not obstacles:
-        return np.zeros((0, 2)), np.zeros(0)
+        return np.zeros((0, 2)), np.zeros((0, 2))
     centres = np.array([(o.x, o.y) for o in obstacles], dtype=np.float64)
-    radii = np.array([o.radius for o in obstacles], dtype=np.float64)
+    radii = np.array([(o.radius, o.body_radius) for o in obstacles], dtype=np.float64)
     return centres, radii
+
+
+#: No peers: postures (3, 0) and shapes (2, 0).
+NO_PEERS: tuple[FloatArray, FloatArray] = (np.zeros((3, 0)), np.zeros((2, 0)))
+
+
+def filter_of(safety: SafetyConfig | None, speed: float = 0.0) -> step.Safety:
+    """The compiled step's filter parameters for ``safety`` (off when None or disabled);
+    ``speed`` [m/s]: the robot's last commanded speed, for its own spread."""
+    if safety is None:
+        return step.SAFETY_OFF
+    return step.Safety(*safety.filter_terms(safety.own_spread(speed)))
 
 
 def _step_params(assignment: ParkAssignment, profile: RobotProfile, limit: float) -> FloatArray:
@@ -166,13 +180,16 @@ def decide(
     pose: Sequence[float],
     pose_age: float,
     task: AgentTask | None,
-    peers: FloatArray,
+    peers: tuple[FloatArray, FloatArray],
     obstacles: tuple[FloatArray, FloatArray],
     profile: RobotProfile,
     avoidance: Avoidance,
     pose_stale_s: float,
     link_ok: bool = True,
     now: float = 0.0,
+    safety: SafetyConfig | None = None,
+    speed: float = 0.0,
+    period: float = 0.0,
 ) -> TickResult:
     """Decide one control tick.
 
@@ -185,10 +202,11 @@ def decide(
         (``holding``) while it has an active task.
     task : AgentTask or None
         Current task (see :func:`apply_assignment`).
-    peers : ndarray, shape (M, 2)
-        Last known centres [m] of every other robot (never forgotten, even when silent).
-    obstacles : (centres (K, 2), radii (K,))
-        Static obstacles and their influence radii [m], from :func:`obstacle_arrays`.
+    peers : (postures (3, M), shapes (2, M))
+        Every other robot's last posture (x, y, theta) and its body radius and spread [m]
+        (:meth:`robot_agent.world.WorldView.peer_bodies`; never forgotten, even when silent).
+    obstacles : (centres (K, 2), radii (K, 2))
+        Static obstacles, their influence and body radii [m], from :func:`obstacle_arrays`.
     profile : RobotProfile
         Wheel radius, half axle and wheel-speed limit of this robot.
     avoidance : Avoidance
@@ -202,6 +220,12 @@ def decide(
         peers, so an active task holds (``holding``) until the link returns.
     now : float
         Agent clock [s]: a held task, or one within its start delay, waits (``waiting``).
+    safety : SafetyConfig or None
+        The safety filter (None or ``enabled=False``: off, the paper's model).
+    speed : float
+        The robot's last commanded forward speed [m/s] (its own spread: commands in flight).
+    period : float
+        Control period [s]: the filter's step.
     """
     if task is None:
         return _stopped(RobotMode.IDLE, None)
@@ -222,15 +246,19 @@ def decide(
         limit = min(limit, a.max_wheel_speed)  # never above the robot's own limit
     centres, radii = obstacles
     hold = task.waiting(now)
+    postures, shapes = peers
     result = step.step_robot(
         (pose[0], pose[1], pose[2]),
         _step_params(a, profile, limit),
         hold=hold,
-        peers=np.ascontiguousarray(peers.T, dtype=np.float64),
-        obstacles=np.ascontiguousarray(np.vstack([centres.T, radii[None, :]]), dtype=np.float64),
+        peers=np.ascontiguousarray(postures, dtype=np.float64),
+        shapes=np.ascontiguousarray(shapes, dtype=np.float64),
+        obstacles=np.ascontiguousarray(np.vstack([centres.T, radii.T]), dtype=np.float64),
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius,
         min_x_oa=avoid.min_x_oa,
+        safety=filter_of(safety, speed),
+        dt=period,
     )
     if result.done:  # the stop rule: this step is still applied (see the module docstring)
         mode, task = RobotMode.ARRIVED, replace(task, status=AgentTaskStatus.ARRIVED)

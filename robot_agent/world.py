@@ -10,9 +10,12 @@ its last pose.
 from __future__ import annotations
 
 import threading
+import time
+from collections.abc import Callable
 
 import numpy as np
 
+from fleet.core.params import SafetyConfig
 from fleet.core.types import FloatArray
 from fleet.core.wire import Obstacle, ObstacleSet, RobotState
 from robot_agent.logic import obstacle_arrays
@@ -21,13 +24,18 @@ from robot_agent.logic import obstacle_arrays
 class WorldView:
     """Thread-safe table of peer states (by robot id) and the static obstacle set."""
 
-    def __init__(self) -> None:
+    #: Columns of a peer row: x, y, theta [m, m, rad], body radius [m], |u| [m/s], and when
+    #: it was heard [s, ``clock``].
+    _COLUMNS = 6
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
         self._lock = threading.Lock()
+        self._clock = clock
         self._states: dict[str, RobotState] = {}
         self._obstacles: list[Obstacle] = []
         self._obstacle_arrays: tuple[FloatArray, FloatArray] = obstacle_arrays([])
         self._rows: dict[str, int] = {}  # robot id -> row of _positions
-        self._positions: FloatArray = np.zeros((16, 2))
+        self._positions: FloatArray = np.zeros((16, self._COLUMNS))
 
     def update_state(self, state: RobotState) -> None:
         """Keep the newest state of a robot (by ``seq``, so reordering cannot roll back)."""
@@ -36,21 +44,25 @@ class WorldView:
             if old is not None and state.seq <= old.seq and state.stamp <= old.stamp:
                 return
             self._states[state.robot_id] = state
-            self._set_position(state.robot_id, state.pose.x, state.pose.y)
+            p = state.pose
+            self._set_row(state.robot_id, (p.x, p.y, p.theta, state.radius, abs(state.u)))
 
-    def update_position(self, robot_id: str, x: float, y: float) -> None:
-        """A robot's position [m] as its agent on this session just measured it, before its
+    def update_position(self, robot_id: str, x: float, y: float, theta: float) -> None:
+        """A robot's posture as its agent on this session just measured it, before its
         state (with mode and speeds) is published: peers deciding now see it."""
         with self._lock:
-            self._set_position(robot_id, x, y)
+            row = self._rows.get(robot_id)
+            radius, speed = (0.0, 0.0) if row is None else self._positions[row, 3:5]
+            self._set_row(robot_id, (x, y, theta, float(radius), float(speed)))
 
-    def _set_position(self, robot_id: str, x: float, y: float) -> None:
+    def _set_row(self, robot_id: str, values: tuple[float, float, float, float, float]) -> None:
         row = self._rows.get(robot_id)
         if row is None:
             row = self._rows[robot_id] = len(self._rows)
             if row >= self._positions.shape[0]:
                 self._positions = np.concatenate([self._positions, np.zeros_like(self._positions)])
-        self._positions[row] = (x, y)
+        self._positions[row, :5] = values
+        self._positions[row, 5] = self._clock()
 
     def set_obstacles(self, obstacles: ObstacleSet) -> None:
         arrays = obstacle_arrays(obstacles.obstacles)
@@ -69,9 +81,28 @@ class WorldView:
 
     def peer_positions(self, exclude: str) -> FloatArray:
         """Last known centres (M, 2) [m] of every robot except ``exclude``."""
+        return self._peer_rows(exclude)[:, :2].copy()
+
+    def _peer_rows(self, exclude: str) -> FloatArray:
         with self._lock:
             n = len(self._rows)
             own = self._rows.get(exclude)
             if own is None:
                 return self._positions[:n].copy()
             return np.delete(self._positions[:n], own, axis=0)
+
+    def peer_bodies(
+        self, exclude: str, safety: SafetyConfig, default_radius: float
+    ) -> tuple[FloatArray, FloatArray]:
+        """Every robot but ``exclude`` as the safety filter sees it: postures (3, M) (x, y,
+        theta) and shapes (2, M) (body radius, spread [m], from its speed and silence:
+        :meth:`SafetyConfig.peer_spread`). A robot not yet described by a state (only
+        measured on this session) gets ``default_radius`` [m]."""
+        rows = self._peer_rows(exclude)
+        now = self._clock()
+        shapes = np.empty((2, rows.shape[0]))
+        for k in range(rows.shape[0]):
+            radius, speed, heard = rows[k, 3], rows[k, 4], rows[k, 5]
+            shapes[0, k] = radius if radius > 0.0 else default_radius
+            shapes[1, k] = safety.peer_spread(float(speed), now - float(heard))
+        return np.ascontiguousarray(rows[:, :3].T), shapes

@@ -28,8 +28,16 @@ _log = logging.getLogger(__name__)
 class WorldFeed:
     """Feeds ``world`` from a Zenoh session: :meth:`attach`, then :meth:`detach`."""
 
-    def __init__(self, world: WorldView, keys: Keys, decoder: Decoder | None = None) -> None:
+    def __init__(
+        self,
+        world: WorldView,
+        keys: Keys,
+        decoder: Decoder | None = None,
+        *,
+        upstream: WorldFeed | None = None,
+    ) -> None:
         self.world = world
+        self.upstream = upstream  # a shared feed that subscribes for this one (never attached)
         self.keys = keys
         self.decoder = decoder or Decoder("world")
         self.guard = CallbackGuard("world")
@@ -53,6 +61,8 @@ class WorldFeed:
         """A robot this feed serves stands at (x, y) [m, world frame]: hear every peer
         within one cell size of it (its 3 x 3 block of cells). Cheap when it stays in its
         cell; called by the robot's control loop each tick."""
+        if self.upstream is not None:
+            self.upstream.follow(robot_id, x, y)
         cell = self.keys.cell(x, y)
         with self._lock:
             old = self._cell_of.get(robot_id)
@@ -76,6 +86,8 @@ class WorldFeed:
 
     def unfollow(self, robot_id: str) -> None:
         """A robot this feed served is gone: release its block."""
+        if self.upstream is not None:
+            self.upstream.unfollow(robot_id)
         with self._lock:
             old = self._cell_of.pop(robot_id, None)
             if old is None:

@@ -10,12 +10,16 @@ Wraps a simulated drive (seeded, reproducible) and adds, between the agent and t
   cannot exceed it);
 * **command latency** -- a command (``stop`` included) takes effect ``d ~ U(latency_s)``
   seconds after it is sent, in the order sent (a later command never overtakes an earlier
-  one); the robot keeps its previous wheel speeds meanwhile.
+  one); the robot keeps its previous wheel speeds meanwhile;
+* **link disturbances** (:class:`LinkDisturbances`, :class:`DelayedLink`) -- between robots
+  (robot to robot over Wi-Fi): every copy of a peer's state reaches each other robot
+  ``d ~ U(delay_s)`` seconds after it was sent, or never (probability ``loss``), each copy
+  drawn on its own; copies may overtake each other (a receiver keeps the newest by ``seq``).
 
 The wrapper owns the inner drive's clock: it moves it to each command's effective time,
 applies the command there, then to the outer clock's ``now``, so the inner forward-Euler
 integration switches commands at the right instants. :data:`REALISTIC` is the set the fleet
-benchmark uses (``parkfleet sim --disturbed``).
+benchmark uses (``parkfleet sim --disturbed``), with :data:`REALISTIC_LINK`.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import Generic, TypeVar
 
 import numpy as np
 
@@ -79,6 +84,85 @@ REALISTIC = Disturbances(
     actuation_bias=0.02,
     latency_s=(0.05, 0.15),
 )
+
+
+@dataclass(frozen=True)
+class LinkDisturbances:
+    """Imperfections of the robot-to-robot link (all zero: every state at once, none lost).
+
+    ``delay_s``: delay of each copy of a peer state, uniform in [min, max] [s]; ``loss``:
+    probability that a copy never arrives.
+    """
+
+    delay_s: tuple[float, float] = (0.0, 0.0)
+    loss: float = 0.0
+
+    def __post_init__(self) -> None:
+        low, high = self.delay_s
+        if not (0 <= low <= high and math.isfinite(high)):
+            raise ValueError(f"link delay must satisfy 0 <= min <= max, got {self.delay_s}")
+        if not 0.0 <= self.loss < 1.0:
+            raise ValueError(f"link loss must be in [0, 1), got {self.loss}")
+
+    @property
+    def active(self) -> bool:
+        return bool(self.delay_s[1] or self.loss)
+
+
+#: What ``--disturbed`` adds between robots: 20-200 ms per peer state, 5 % of them lost.
+REALISTIC_LINK = LinkDisturbances(delay_s=(0.02, 0.2), loss=0.05)
+
+M = TypeVar("M")
+
+
+class DelayedLink(Generic[M]):
+    """Peer messages among ``robots`` robots through :class:`LinkDisturbances` (seeded).
+
+    :meth:`send` gives every other robot its own copy of a message, due ``d ~ U(delay_s)``
+    after ``now`` (or lost); :meth:`deliver` hands out the copies due by ``now``. Delivery
+    happens at the ticks of ``period`` (a copy due between ticks arrives at the next one),
+    so memory is bounded by robots^2 x (max delay / period + 1) copies.
+    """
+
+    def __init__(
+        self, robots: int, period: float, link: LinkDisturbances, rng: np.random.Generator
+    ) -> None:
+        if not period > 0:
+            raise ValueError("period must be positive")
+        self.robots, self.period, self.link, self.rng = robots, float(period), link, rng
+        self._due: dict[int, list[tuple[int, M]]] = {}  # tick -> [(receiver, message)]
+        self._next = 0  # first tick not yet delivered
+        self.sent = 0
+        self.lost = 0
+
+    def _tick(self, t: float) -> int:
+        return math.ceil(t / self.period - 1e-9)
+
+    def send(self, sender: int, message: M, now: float) -> None:
+        """``sender``'s ``message`` at ``now`` [s], one copy for each other robot."""
+        receivers = [r for r in range(self.robots) if r != sender]
+        if not receivers:
+            return
+        low, high = self.link.delay_s
+        delays = (
+            self.rng.uniform(low, high, len(receivers)) if high > low else [low] * len(receivers)
+        )
+        kept = self.rng.random(len(receivers)) >= self.link.loss
+        self.sent += len(receivers)
+        self.lost += int(np.count_nonzero(~kept))
+        for receiver, delay, keep in zip(receivers, delays, kept, strict=True):
+            if keep:
+                due = max(self._tick(now + float(delay)), self._next)
+                self._due.setdefault(due, []).append((receiver, message))
+
+    def deliver(self, now: float) -> list[tuple[int, M]]:
+        """Every (receiver, message) due by ``now`` [s], in due order."""
+        out: list[tuple[int, M]] = []
+        last = self._tick(now)
+        while self._next <= last:
+            out.extend(self._due.pop(self._next, ()))
+            self._next += 1
+        return out
 
 
 class DisturbedDrive:

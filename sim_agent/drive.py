@@ -64,7 +64,9 @@ class SimDrive:
         self._t = now
         if elapsed <= 0.0 or (self.right == 0.0 and self.left == 0.0):
             return now
-        steps = min(math.ceil(elapsed / self.max_step - 1e-9), MAX_SUBSTEPS)
+        # At least one step: a hair of time (a latency's due instant a rounding error past a
+        # tick) is integrated, not divided by zero steps.
+        steps = max(1, min(math.ceil(elapsed / self.max_step - 1e-9), MAX_SUBSTEPS))
         self.x, self.y, self.theta = integrate_wheels(
             self.x, self.y, self.theta, self.right, self.left,
             self.profile.wheel_radius, self.profile.half_axle, elapsed / steps, steps,

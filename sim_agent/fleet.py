@@ -11,7 +11,13 @@ Spawn layouts (:func:`spawn_layout`): ``random`` (uniform in the yard, kept apar
 
 Options for benchmarks: ``disturbances`` wraps every drive in a seeded
 :class:`~sim_agent.disturbances.DisturbedDrive` (pose and actuation noise, command
-latency); ``trace`` (a file path, :mod:`fleet.io.trace` format) receives every robot's true
+latency); ``link`` (:class:`~sim_agent.disturbances.LinkDisturbances`) delays and drops the
+robots' states between them: each agent then has a view of its own, fed only by the copies
+of its peers' states the :class:`~sim_agent.disturbances.DelayedLink` delivers at the start
+of a tick (no more sharing of the poses just sensed); obstacles and states of robots in
+other processes still reach every view at once. Drives and link come from
+:class:`~sim_agent.robots.SimRobots` (the same robots as the bench's navground peers for
+the same seed). ``trace`` (a file path, :mod:`fleet.io.trace` format) receives every robot's true
 pose and mode once per lockstep tick, after all agents ticked at the same simulated time
 (streamed: constant memory; flushed and closed by :meth:`SimFleet.close`).
 """
@@ -28,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from fleet.core.wire import RobotMode, validate_id
+from fleet.core.wire import ObstacleSet, RobotMode, RobotState, validate_id
 from fleet.io.settings import Settings
 from fleet.io.trace import TraceHeader, TraceWriter
 from robot_agent.agent import RobotAgent
@@ -36,8 +42,9 @@ from robot_agent.clock import SteppedClock, run_periodic
 from robot_agent.link import LinkMonitor
 from robot_agent.world import WorldView
 from robot_agent.world_feed import WorldFeed
-from sim_agent.disturbances import Disturbances, DisturbedDrive
+from sim_agent.disturbances import DelayedLink, Disturbances, DisturbedDrive, LinkDisturbances
 from sim_agent.drive import SimDrive
+from sim_agent.robots import SimRobots
 
 _log = logging.getLogger(__name__)
 
@@ -111,6 +118,39 @@ def _spawn_file(path: Path) -> list[Spawn]:
     return spawns
 
 
+class _HubView(WorldView):
+    """The shared feed's view under link disturbances: obstacles and remote robots' states
+    (other processes, over real Zenoh) go on to every agent's own view at once."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.views: list[WorldView] = []
+
+    def update_state(self, state: RobotState) -> None:
+        super().update_state(state)
+        for view in self.views:
+            view.update_state(state)
+
+    def set_obstacles(self, obstacles: ObstacleSet) -> None:
+        super().set_obstacles(obstacles)
+        for view in self.views:
+            view.set_obstacles(obstacles)
+
+
+class _LinkedView(WorldView):
+    """One agent's own view under link disturbances: its own states leave through the link
+    (one copy per peer), its peers' arrive only from it."""
+
+    def __init__(self, owner: str, index: int, link: DelayedLink[RobotState], clock: SteppedClock):
+        super().__init__()
+        self.owner, self.index, self.link, self.clock = owner, index, link, clock
+
+    def update_state(self, state: RobotState) -> None:
+        super().update_state(state)
+        if state.robot_id == self.owner:
+            self.link.send(self.index, state, self.clock.now())
+
+
 class SimFleet:
     """N simulated agents on one session, ticked by one thread.
 
@@ -130,6 +170,7 @@ class SimFleet:
         noise_std: tuple[float, float, float] = (0.0, 0.0, 0.0),
         seed: int | None = None,
         disturbances: Disturbances | None = None,
+        link: LinkDisturbances | None = None,
         trace: str | Path | None = None,
     ) -> None:
         self.session = session
@@ -139,7 +180,14 @@ class SimFleet:
         self.time_scale = float(time_scale)
         self.period = 1.0 / settings.control_rate_hz  # control period = Euler step [sim s]
         self.clock = SteppedClock()
-        self.world = WorldView()
+        robots = SimRobots(
+            disturbances or Disturbances(), link or LinkDisturbances(), noise_std
+        ).build(
+            [(s.x, s.y, s.theta) for s in spawns], settings.profile, seed, self.period, self.clock
+        )
+        self.robot_link = robots.link
+        hub = _HubView() if robots.link is not None else None
+        self.world = hub or WorldView()
         self.feed = feed = WorldFeed(self.world, settings.keys())
         self.link = LinkMonitor(  # one link per session, shared by its agents
             session,
@@ -148,29 +196,19 @@ class SimFleet:
             check_router=(settings.zenoh_mode or "client") == "client",
             heard_elsewhere=lambda: feed.last_heard,
         )
-        rng = np.random.default_rng(seed)
         self.drives: dict[str, SimDrive | DisturbedDrive] = {}
         self.agents: list[RobotAgent] = []
+        self.views: list[WorldView] = []
         self.trace: TraceWriter | None = None
-        for spawn in spawns:
-            drive_rng = np.random.default_rng(rng.integers(2**63))
-            drive: SimDrive | DisturbedDrive
-            if disturbances is not None and disturbances.active:
-                start = (spawn.x, spawn.y, spawn.theta)
-                drive = DisturbedDrive(
-                    start, settings.profile, self.clock, disturbances, drive_rng,
-                    max_step=self.period,
-                )  # fmt: skip
-            else:
-                drive = SimDrive(
-                    (spawn.x, spawn.y, spawn.theta),
-                    settings.profile,
-                    self.clock,
-                    max_step=self.period,
-                    noise_std=noise_std,
-                    rng=drive_rng,
-                )
+        for index, (spawn, drive) in enumerate(zip(spawns, robots.drives, strict=True)):
             self.drives[spawn.robot_id] = drive
+            agent_feed = self.feed
+            if hub is not None and robots.link is not None:
+                view = _LinkedView(spawn.robot_id, index, robots.link, self.clock)
+                hub.views.append(view)
+                self.views.append(view)
+                # never attached: the shared feed subscribes the cells the agent follows
+                agent_feed = WorldFeed(view, settings.keys(), upstream=self.feed)
             self.agents.append(
                 RobotAgent(
                     spawn.robot_id,
@@ -178,7 +216,7 @@ class SimFleet:
                     session,
                     settings,
                     clock=self.clock,
-                    feed=self.feed,
+                    feed=agent_feed,
                     link=self.link,
                 )
             )
@@ -206,10 +244,18 @@ class SimFleet:
                 raise
         return self
 
+    def _deliver(self) -> None:
+        """Hand every agent the copies of its peers' states due by now (disturbed link)."""
+        if self.robot_link is not None:
+            for receiver, state in self.robot_link.deliver(self.clock.now()):
+                self.views[receiver].update_state(state)
+
     def tick(self) -> None:
         """One control period in two phases: every agent senses its pose at sim time t
         (peers see it at once), then every agent acts; then t += period. So each robot
-        decides on all its peers' poses of time t, as in the batch simulator."""
+        decides on all its peers' poses of time t, as in the batch simulator. On a
+        disturbed link, peers see only the states the link has delivered by t."""
+        self._deliver()
         for agent in self.agents:
             agent.sense()
         for agent in self.agents:
@@ -255,6 +301,7 @@ class SimFleet:
         def step() -> None:
             nonlocal position
             if position == 0:
+                self._deliver()
                 for agent in self.agents:
                     agent.sense()
             for agent in slices[position]:

@@ -2,8 +2,8 @@
 
 The fleet service records the task's robot as its states arrive (``FleetService.path``):
 irregular samples on the service's wall clock. They are resampled onto a uniform time grid
-(at most :data:`MAX_STEPS` steps) for :func:`fleet.paper.plotting.plot_trajectory`, which draws
-the path with oriented triangles as in the paper's figures, and u, omega over time.
+(at most :data:`MAX_STEPS` steps) for :func:`fleet.drawing.plot_trajectory`, which draws the
+path with oriented triangles as in the paper's figures, and u, omega over time.
 Images are cached and renders rate-limited (:mod:`api.plot_cache`): 429 when over the rate.
 """
 
@@ -26,8 +26,6 @@ router = APIRouter(prefix="/tasks", tags=["tasks"])
 
 #: Steps of the resampled trajectory (enough for a smooth 700-pixel-wide figure).
 MAX_STEPS = 2000
-
-_EQUATION = {"ccw": "Eq. (17)", "cw": "Eq. (20)"}
 
 PathSamples = list[tuple[float, float, float, float, float, float]]
 
@@ -81,7 +79,7 @@ def task_plot(
     """
     # Plain def: matplotlib rendering is CPU work, kept off the event loop. Only the
     # object-oriented Figure API is used (no pyplot state), so threads do not interfere.
-    from fleet.paper.plotting import plot_trajectory
+    from fleet.drawing import LAW_EQUATION, plot_trajectory
 
     task = service.task(task_id)  # 404 when unknown
     samples = service.path(task_id)
@@ -95,7 +93,7 @@ def task_plot(
         except ValueError:
             raise HTTPException(status.HTTP_409_CONFLICT, no_path_reason(task)) from None
         goal = task.request.goal
-        law = f"law {task.law}, {_EQUATION[task.law]}" if task.law else "law not chosen"
+        law = f"law {task.law}, {LAW_EQUATION[task.law]}" if task.law else "law not chosen"
         title = f"task {task.id[:8]} · {task.robot_id or 'no robot'}\n{law} · {task.status.value}"
 
         def draw() -> bytes:

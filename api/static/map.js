@@ -1,4 +1,4 @@
-// Canvas 2D map of the yard: axes in metres, obstacles with their influence zones, goals,
+// Canvas 2D map of the yard: axes in metres, obstacles with their bodies and influence zones, goals,
 // trails, and robots drawn as oriented triangles as in the paper's figures.
 //
 // World frame: x to the right, y up, theta counter-clockwise from +x [rad]. The canvas is
@@ -344,9 +344,10 @@ export class YardMap {
       ctx.lineWidth = 1.2;
       ctx.stroke();
       ctx.setLineDash([]);
-      // The obstacle itself (a point in the model): a small cross-hatched disc.
+      // The obstacle's body (what robots keep their margin from), at least a visible dot.
+      const body = Math.max(3, (o.body ?? 0) * this.scale);
       ctx.beginPath();
-      ctx.arc(cx, cy, Math.max(3, Math.min(8, 0.12 * r)), 0, 2 * Math.PI);
+      ctx.arc(cx, cy, body, 0, 2 * Math.PI);
       ctx.fillStyle = COLORS.obstacleCore;
       ctx.fill();
       if (r > 18) {
@@ -354,7 +355,7 @@ export class YardMap {
         ctx.fillStyle = COLORS.obstacleEdge;
         ctx.textAlign = "center";
         ctx.textBaseline = "top";
-        ctx.fillText(`obstacle ${i}`, cx, cy + Math.max(6, 0.12 * r) + 3);
+        ctx.fillText(`obstacle ${i}`, cx, cy + body + 3);
       }
     });
   }

@@ -32,12 +32,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from fleet.bench.scenarios import Scenario, random_yard
-from fleet.core.params import Avoidance, RobotProfile, Tolerance
+from fleet.core.params import Avoidance, RobotProfile, SafetyConfig, Tolerance
 from fleet.core.planner import Plan, PlannerConfig, PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.planner.assign import pair_queued
 from fleet.core.planner.corridor import left_corridor
 from fleet.core.planner.rollout import STANDING_DELAY
-from fleet.core.simulate import BatchProblem, simulate
+from fleet.core.simulate import BatchProblem, batch_filter, simulate
 from fleet.core.tasks import DEFAULT_GAINS, Direction, RobotStatus, TaskStatus
 from fleet.core.types import LAWS, Law, Posture
 
@@ -95,10 +95,12 @@ class OfflineFleet:
         avoidance: Avoidance | None = None,
         separation: float = 0.5,
         dt: float = 0.02,
+        safety: SafetyConfig | None = None,
     ) -> None:
         self.scenario = scenario
         self.profile = profile or RobotProfile()
         self.avoidance = avoidance or Avoidance()
+        self.safety = safety or SafetyConfig()
         self.separation = separation
         self.dt = dt
         self.ids = scenario.robot_ids
@@ -183,6 +185,7 @@ class OfflineFleet:
             obstacles=tuple(o.as_obstacle() for o in self.scenario.obstacles),
             profile=self.profile,
             avoidance=self.avoidance,
+            safety=self.safety,
             separation_m=self.separation,
             control_dt=self.dt,
         )
@@ -265,9 +268,11 @@ class OfflineFleet:
             profile=self.profile,
             obstacles=[(o.x, o.y) for o in self.scenario.obstacles],
             obstacle_radius=[o.radius for o in self.scenario.obstacles],
+            obstacle_body=[o.body for o in self.scenario.obstacles],
             k_avoid=self.avoidance.k_avoid,
             peer_radius=self.avoidance.peer_radius,
             min_x_oa=self.avoidance.min_x_oa,
+            safety=batch_filter(self.safety),
             start_delay=delay,
         )
         result = simulate(problem, dt=self.dt, max_time=duration, track_separation=True)

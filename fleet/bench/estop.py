@@ -1,7 +1,9 @@
 """``parkfleet bench estop``: e-stop latency, from the request to zero wheel speed.
 
-A router runs in this process; ``parkfleet sim --robots N`` (real time, 50 Hz agents)
-runs in a child process connected to it; an operator session of this process gives every
+A router runs in this process; ``parkfleet sim --robots N --disturbed`` (real time, 50 Hz
+agents, the fleet bench's disturbed drives: a command reaches the wheels 50-150 ms after it
+is sent; ``--perfect``: at once) runs in a child process connected to it, writing a trace
+of every robot's true pose at every tick; an operator session of this process gives every
 robot a far goal, then, once all are driving, repeats: publish a fleet-wide ``estop``
 (``fleet.io.operator.put_control``: the same call as ``parkfleet estop``), note for each
 robot when its first ``estop`` state arrives (``u = omega = 0``: the agent publishes that
@@ -15,7 +17,16 @@ Reported per N, over N x trials samples, p50 / p99 / max [ms]:
 * ``tick``: from the command's stamp to the stamp of the robot's first e-stop state (both
   wall clocks of this host): request -> the tick that zeroed the wheels;
 * ``received``: from the publish to that state's arrival here (monotonic clock): an upper
-  bound, it adds the state's trip back (encode, router, decode: ~0.3 ms here).
+  bound, it adds the state's trip back (encode, router, decode: ~0.3 ms here);
+* ``wheels``: from the command's stamp to the instant the robot's wheels stop: ``tick``
+  plus the drive's actuation latency, read from the sim's trace of true poses (the first
+  tick after the zeroing tick from which the robot no longer moves, interpolated within
+  the last moving period from the distance covered there: :func:`wheels_stopped`);
+  ``actuation`` is that second part alone. The issue's target: ``wheels`` p99 <= one
+  control period + the latency bound (150 ms disturbed). Each e-stop is held
+  :data:`HOLD_S` before its release (released as soon as the e-stop state arrived, a
+  disturbed robot's wheels would never stop: the release's drive command follows the stop
+  to the wheels 20 ms later).
 
 Then, on the same robots in the same run, ``--cli-trials`` e-stops go through the path an
 operator uses: this process runs the real ``parkfleet estop --issuer bench-cli-<k>`` (a
@@ -39,13 +50,16 @@ import json
 import os
 import random
 import subprocess
+import tempfile
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from fleet.core.params import Gains
+from fleet.core.types import FloatArray
 from fleet.core.wire import (
     ControlAction,
     ControlCommand,
@@ -60,6 +74,7 @@ from fleet.io import operator
 from fleet.io.decoder import Decoder
 from fleet.io.processes import parkfleet_command, sim_command, terminate
 from fleet.io.settings import load_settings
+from fleet.io.trace import read_header, read_trace
 from fleet.io.transport import listening_locators, open_session, tcp_endpoint
 
 DEFAULT_SIZES = (10, 100)
@@ -79,6 +94,7 @@ class _States:
         self.latest: dict[str, RobotState] = {}
         self.stopped_at: dict[str, float] = {}  # monotonic arrival of the first e-stop state
         self.stopped_stamp: dict[str, float] = {}  # its stamp (robot's wall clock)
+        self.stopped_seq: dict[str, int] = {}  # its sequence number (its tick)
         self.armed = False
         self.moving_estop = 0  # e-stop states with nonzero speeds (must stay 0)
 
@@ -95,6 +111,7 @@ class _States:
                 if self.armed and state.robot_id not in self.stopped_at:
                     self.stopped_at[state.robot_id] = received
                     self.stopped_stamp[state.robot_id] = state.stamp
+                    self.stopped_seq[state.robot_id] = state.seq
             self.changed.notify_all()
 
     def wait(self, predicate: Any, timeout: float, what: str) -> None:
@@ -165,11 +182,49 @@ def _percentiles(name: str, seconds: list[float]) -> dict[str, float]:
     }
 
 
-def _measure(endpoint: str, robots: int, trials: int, cli_trials: int = 0) -> dict[str, Any]:
+#: The ``parkfleet sim`` flags of the disturbed robots (the fleet bench's).
+DISTURBED = ("--disturbed",)
+#: Their command latency bound [s] (sim_agent.disturbances.REALISTIC).
+LATENCY_BOUND_S = 0.15
+#: How long each e-stop is held before the release, and the robots drive before the next
+#: e-stop [s]: beyond the latency bound, so the stop (and the drive commands) reach the
+#: wheels; released at once, the robots would never stop moving.
+HOLD_S = 0.4
+
+
+def wheels_stopped(t: FloatArray, poses: FloatArray, after: float) -> float | None:
+    """When a robot's wheels stopped [s], at or after ``after``, from its true poses (T, 3)
+    at times ``t``: the first tick k from which the pose no longer changes bounds it; within
+    the last moving interval (k-1, k] the instant is interpolated from the distance covered
+    there against the interval before (constant speed within two ticks). None if the robot
+    still moves at the end of the trace."""
+    step = np.hypot(*(poses[1:, :2] - poses[:-1, :2]).T)  # distance from tick j to j + 1
+    still = ~np.any(poses[1:] != poses[:-1], axis=1)
+    found = np.nonzero(still & (t[:-1] >= after - 1e-9))[0]
+    if not found.size:
+        return None
+    k = int(found[0])
+    if k < 2 or t[k - 1] < after - 1e-9 or step[k - 2] <= 0.0:
+        return float(t[k])
+    share = min(1.0, float(step[k - 1] / step[k - 2]))
+    return float(t[k - 1] + share * (t[k] - t[k - 1]))
+
+
+def _measure(
+    endpoint: str,
+    robots: int,
+    trials: int,
+    cli_trials: int = 0,
+    disturbed: bool = True,
+) -> dict[str, Any]:
     keys = Keys()
     states = _States(keys)
     settings = load_settings(connect=[endpoint])
-    cmd = sim_command(endpoint, robots, time_scale=1.0, spawn="grid")
+    workdir = tempfile.TemporaryDirectory(prefix="parkfleet-estop-")
+    trace = Path(workdir.name) / "estop.trace"
+    extra = [*(DISTURBED if disturbed else ()), "--trace", str(trace)]
+    cmd = sim_command(endpoint, robots, time_scale=1.0, spawn="grid", extra=extra)
+    zeroing: list[tuple[str, int, float]] = []  # (robot, seq of its e-stop state, tick latency)
     with open_session(settings, "client") as session:
         sub = session.declare_subscriber(keys.all_states, states)
         commands = _Commands()
@@ -190,10 +245,12 @@ def _measure(endpoint: str, robots: int, trials: int, cli_trials: int = 0) -> di
             rng = random.Random(7)
             for trial in range(trials):
                 _all_driving(session, keys, states, robots, trial)
+                time.sleep(HOLD_S)  # until the drive commands reach the wheels (latency)
                 time.sleep(rng.uniform(0.0, 2.0 * period))  # a random phase of the ticks
                 with states.lock:
                     states.stopped_at.clear()
                     states.stopped_stamp.clear()
+                    states.stopped_seq.clear()
                     states.armed = True
                 estop = operator.command(ControlAction.ESTOP, issuer=issuer)
                 t0 = time.monotonic()
@@ -203,6 +260,11 @@ def _measure(endpoint: str, robots: int, trials: int, cli_trials: int = 0) -> di
                     states.armed = False
                     latencies.extend(t - t0 for t in states.stopped_at.values())
                     tick_latencies.extend(s - estop.stamp for s in states.stopped_stamp.values())
+                    zeroing.extend(
+                        (rid, states.stopped_seq[rid], states.stopped_stamp[rid] - estop.stamp)
+                        for rid in states.stopped_stamp
+                    )
+                time.sleep(HOLD_S)  # keep it until the wheels stop (a release would overtake)
                 release = operator.command(ControlAction.RELEASE, issuer=issuer)
                 operator.put_control(session, keys, release)
             for trial in range(cli_trials):
@@ -210,6 +272,7 @@ def _measure(endpoint: str, robots: int, trials: int, cli_trials: int = 0) -> di
                 with states.lock:
                     states.stopped_at.clear()
                     states.stopped_stamp.clear()
+                    states.stopped_seq.clear()
                     states.armed = True
                 cli_issuer = f"bench-cli-{trial}"
                 t0 = time.monotonic()
@@ -235,9 +298,17 @@ def _measure(endpoint: str, robots: int, trials: int, cli_trials: int = 0) -> di
                 release = operator.command(ControlAction.RELEASE, issuer=issuer)
                 operator.put_control(session, keys, release)
         finally:
-            terminate(proc)
+            terminate(proc)  # the sim flushes and closes its trace on SIGTERM
             sub.undeclare()  # type: ignore[no-untyped-call]
             command_sub.undeclare()  # type: ignore[no-untyped-call]
+    with workdir:
+        measured = _actuation(trace, zeroing)
+    actuation = [late for late in measured if late is not None]
+    wheels = [
+        tick + late
+        for (_, _, tick), late in zip(zeroing, measured, strict=True)
+        if late is not None
+    ]
     ms = np.asarray(latencies) * 1e3
     tick_ms = np.asarray(tick_latencies) * 1e3
     period_ms = 1e3 / settings.control_rate_hz
@@ -255,19 +326,53 @@ def _measure(endpoint: str, robots: int, trials: int, cli_trials: int = 0) -> di
         "load_average_1min": os.getloadavg()[0],
         "estop_states_with_speed": states.moving_estop,
         "dropped": states.decoder.dropped_total,
+        "disturbed": disturbed,
+        "latency_bound_ms": LATENCY_BOUND_S * 1e3 if disturbed else 0.0,
+        "wheels_samples": len(wheels),  # robots whose wheels turned when the e-stop came
+        **_percentiles("wheels", wheels),
+        **_percentiles("actuation", actuation),
         "cli_trials": cli_trials,
         **_percentiles("cli_command", cli_command),
         **_percentiles("cli_put", cli_put),
     }
 
 
-def run(sizes: list[int], trials: int, as_json: bool = False, cli_trials: int = 3) -> int:
+def _actuation(trace: Path, zeroing: list[tuple[str, int, float]]) -> list[float | None]:
+    """Per e-stop (robot, seq of its zeroing tick, tick latency): seconds [simulated, = wall
+    at time scale 1] from that tick to the instant its wheels stopped, read from the trace;
+    None for a robot whose wheels were not turning at the zeroing tick."""
+    header = read_header(trace)
+    chunks = list(read_trace(trace))
+    t = np.concatenate([c.t for c in chunks])
+    poses = np.concatenate([c.poses for c in chunks])
+    out: list[float | None] = []
+    for robot, seq, _ in zeroing:
+        zero_t = seq * header.period_s  # the sim's clock: one period per tick from 0
+        track = poses[:, header.robots.index(robot)]
+        k = int(np.searchsorted(t, zero_t - 1e-9))
+        if k < 1 or not np.any(track[k] != track[k - 1]):
+            out.append(None)  # its wheels were not turning when the e-stop came
+            continue
+        stopped = wheels_stopped(t, track, zero_t)
+        if stopped is None:
+            raise RuntimeError(f"bench estop: {robot}'s wheels never stopped after t={zero_t}")
+        out.append(stopped - zero_t)
+    return out
+
+
+def run(
+    sizes: list[int],
+    trials: int,
+    as_json: bool = False,
+    cli_trials: int = 3,
+    disturbed: bool = True,
+) -> int:
     """Measure each robot count in ``sizes`` and print the rows (table or JSON)."""
     rows = []
     with open_session(load_settings(listen=["tcp/127.0.0.1:0"]), "router") as router:
         endpoint = tcp_endpoint(listening_locators(router))
         for n in sizes:
-            row = _measure(endpoint, n, trials, cli_trials)
+            row = _measure(endpoint, n, trials, cli_trials, disturbed)
             rows.append(row)
             if not as_json:
                 print(
@@ -277,6 +382,11 @@ def run(sizes: list[int], trials: int, as_json: bool = False, cli_trials: int = 
                     f"p99 {row['tick_p99_ms']:6.1f} ms  max {row['tick_max_ms']:6.1f} ms\n"
                     f"      request -> state back    p50 {row['received_p50_ms']:6.1f} ms  "
                     f"p99 {row['received_p99_ms']:6.1f} ms  max {row['received_max_ms']:6.1f} ms\n"
+                    f"      request -> wheels stop   p50 {row['wheels_p50_ms']:6.1f} ms  "
+                    f"p99 {row['wheels_p99_ms']:6.1f} ms  max {row['wheels_max_ms']:6.1f} ms "
+                    f"(target p99 <= {row['control_period_ms'] + row['latency_bound_ms']:g} ms; "
+                    f"actuation p50 {row['actuation_p50_ms']:.0f} ms, "
+                    f"max {row['actuation_max_ms']:.0f} ms)\n"
                     f"      e-stop states with nonzero speed: {row['estop_states_with_speed']}",
                     flush=True,
                 )

@@ -1,21 +1,24 @@
 """``parkfleet bench fleet``: scenarios through the real fleet, and navground beside it.
 
 Fleet policies (``auto``, ``cw``, ``ccw``, ``none``): each run starts, in this process, a
-:class:`FleetService` with a fresh SQLite store on a :class:`ZenohFleetBus` (one in-process
-router for the whole bench), and the robots as one ``parkfleet sim`` subprocess: lockstep,
-time-scaled, with a real robot's disturbances on by default (``--disturbed``: pose and
-actuation noise, 50-150 ms command latency) and ``--trace`` streaming every robot's true
-pose and mode at every tick. Tasks are submitted through :meth:`FleetService.submit` as an
-API client would, each at its ``arrival_s`` of simulated time (read from the robots' state
-sequence numbers). The run ends when every task succeeded or at the scenario's
+:class:`FleetService` opened as ``serve`` opens it (:func:`fleet.service.host.open_fleet`: a
+fresh SQLite store, the Zenoh bus; one in-process router for the whole bench), and the
+robots as one ``parkfleet sim`` subprocess: lockstep, time-scaled, with a real robot's
+disturbances on by default (``--disturbed``: pose and actuation noise, 50-150 ms command
+latency, peer states 20-200 ms late and 5 % lost) and ``--trace`` streaming every robot's
+true pose and mode at every tick. Tasks are submitted through :meth:`FleetService.submit`
+as an API client would, each at its ``arrival_s`` of simulated time (read from the robots'
+state sequence numbers). The run ends when every task succeeded or at the scenario's
 :attr:`~fleet.bench.scenarios.Scenario.end_s`; the bench, not the service, is the judge of
 time (the service's own task timeout is pushed out of the way). ``auto`` lets the service
-choose each law; ``cw`` / ``ccw`` fix it; ``none`` is ``ccw`` with K_avoid = 0 and a
-separation of 1 µm to keep -- no repulsion, no contact guard, no start delays or holds:
-the baseline without any avoidance.
+choose each law; ``cw`` / ``ccw`` fix it; ``none`` is ``ccw`` with K_avoid = 0, the safety
+filter off and a separation of 1 µm to keep -- no repulsion, no filter, no start delays or
+holds: the baseline without any avoidance.
 
-Peer policies (``orca``, ``hrvo``, ``hl``, ``socialforce``): navground in this process
-(:mod:`fleet.bench.peers`), same robots, step, tolerances and time limit, no noise.
+Peer policies (``orca``, ``hrvo``, ``hl``, ``socialforce``): navground's behaviours in this
+process (:mod:`fleet.bench.peers`) driving the same simulated robots as the fleet's
+(``BenchOptions.robots``, ``sim_agent.robots.SimRobots`` from the CLI: the same drives,
+disturbances, link and seed), with the same step, tolerances and time limit.
 
 Every run is measured by the same code (:mod:`fleet.bench.metrics`) on time-aligned true
 poses. Planning latency (fleet policies): the wall time of each of the service's plans,
@@ -27,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import multiprocessing
 import os
 import subprocess
@@ -47,14 +51,15 @@ from fleet.bench.metrics import ARRIVAL_RADIUS_M, RunMetrics, RunResult
 from fleet.bench.peers import (
     BEHAVIOURS,
     MODES,
+    PeerRobots,
     PeerRun,
     assign_goals,
     goals_by_robot,
     run_peer,
 )
 from fleet.bench.plots import plot_run
-from fleet.bench.scenarios import Scenario, random_yard
-from fleet.core.params import Avoidance
+from fleet.bench.scenarios import Scenario, random_yard, swap
+from fleet.core.params import Avoidance, SafetyConfig
 from fleet.core.tasks import (
     Direction,
     FleetEvent,
@@ -70,17 +75,22 @@ from fleet.core.wire import Keys, Pose, RobotState
 from fleet.io.decoder import Decoder
 from fleet.io.processes import sim_command, terminate
 from fleet.io.settings import Settings, load_settings
-from fleet.io.trace import read_header, read_trace
+from fleet.io.trace import TraceChunk, read_header, read_trace
 from fleet.io.transport import listening_locators, open_session, tcp_endpoint
 from fleet.service.fleet_service import FleetService
-from fleet.service.store import SqliteTaskStore
-from fleet.service.zenoh_bus import ZenohFleetBus
+from fleet.service.host import open_fleet
 
 FLEET_POLICIES: tuple[str, ...] = ("auto", "cw", "ccw", "none")
 PEER_POLICIES: tuple[str, ...] = tuple(BEHAVIOURS)
 POLICIES: tuple[str, ...] = (*FLEET_POLICIES, *PEER_POLICIES)
 #: ``parkfleet sim`` flags of the disturbed robots (sim_agent.disturbances.REALISTIC).
 DISTURBED_FLAGS: tuple[str, ...] = ("--disturbed",)
+#: The unmeasured fleet run before the first measured one: the planner's compiled code is
+#: built (numba, first use in a fresh checkout: seconds of wall time, which at time scale
+#: 5 were 15-23 s of a robot's wait for its first plan) or loaded from its cache.
+WARM_UP = swap(2, "left").model_copy(update={"name": "warm-up", "time_limit_s": 5.0})
+#: Seeds of a scenario's disturbance sets lie this far apart (any yard seed is smaller).
+DISTURBANCE_SEED_STRIDE = 1_000_003
 #: The service's task timeout in the bench [s, wall]: out of the way, the bench judges time.
 _SERVICE_TIMEOUT_S = 86_400.0
 #: Wall seconds without simulated time moving before a run is declared broken.
@@ -114,6 +124,13 @@ class FleetBenchRow(BaseModel):
     rejected: int
     time_limit_s: float
     wall_s: float
+    stops_per_trip: float | None = None  # standstills inside trips, per task (metrics.py)
+    cusps_per_trip: float | None = None  # reversals of the sign of u, per task
+    plan_wait_s: float | None = None  # the last-arriving task's wait for the service [sim s]
+    plan_wait_max_s: float | None = None  # the longest such wait of any task [sim s]
+    planning_sim_s: float | None = None  # every plan's wall time x the time scale [sim s]
+    time_scale: float | None = None  # simulated s per wall s of the run (fleet policies)
+    disturbance_seed: int = 0  # which of the scenario's disturbance sets (scenario_seed)
 
 
 @dataclass(frozen=True)
@@ -121,8 +138,12 @@ class BenchOptions:
     """How the bench runs: time scale of the sim robots, their disturbances (``parkfleet
     sim`` flags; empty: perfect robots), time-limit override [s, simulated], plot folder,
     folder keeping the sim traces (else deleted), whether navground runs in a worker
-    process beside the fleet runs, the robots' settings (profile, avoidance, control
-    rate)."""
+    process beside the fleet runs,
+    how many disturbance seeds each scenario runs with (every policy on each), whether a
+    short unmeasured fleet run comes first (:data:`WARM_UP`), the
+    robots' settings (profile, avoidance, control
+    rate), and the robots the navground peers drive (the same as ``disturbances`` give
+    the fleet's; built by the CLI, which may import the simulator)."""
 
     time_scale: float = 5.0
     disturbances: tuple[str, ...] = DISTURBED_FLAGS
@@ -130,7 +151,10 @@ class BenchOptions:
     plots: Path | None = None
     traces: Path | None = None
     peer_worker: bool = True
+    disturbance_seeds: int = 1
+    warm_up: bool = True
     settings: Settings = field(default_factory=load_settings)
+    robots: PeerRobots | None = None
 
     def limit(self, scenario: Scenario) -> Scenario:
         """``scenario`` with the overriding time limit, if any."""
@@ -141,13 +165,17 @@ class BenchOptions:
 
 @dataclass
 class Outcome:
-    """A finished run: its metrics, task count, plan latencies [ms], rejections, wall [s]."""
+    """A finished run: its metrics, task count, plan latencies [ms], rejections, wall [s];
+    fleet runs: each task's wait for the service [sim s] (in the order of
+    ``result.task_arrivals``, NaN: never left idle) and the time scale."""
 
     result: RunResult
     tasks: int
     plan_ms: list[float]
     rejected: int = 0
     wall_s: float = 0.0
+    plan_waits: list[float] = field(default_factory=list)
+    time_scale: float | None = None
 
 
 def random_yard_scenario(n: int, seed: int, half: float | None = None) -> Scenario:
@@ -155,9 +183,11 @@ def random_yard_scenario(n: int, seed: int, half: float | None = None) -> Scenar
     return random_yard(n, seed, half=half)
 
 
-def scenario_seed(scenario: Scenario) -> int:
-    """A stable seed for the noise of a scenario's runs (its own seed, else from its name)."""
-    return scenario.seed if scenario.seed is not None else zlib.crc32(scenario.name.encode())
+def scenario_seed(scenario: Scenario, disturbance_seed: int = 0) -> int:
+    """A stable seed for the noise of a scenario's runs (its own seed, else from its name),
+    the same for every policy; ``disturbance_seed`` k > 0 draws the k-th other set."""
+    base = scenario.seed if scenario.seed is not None else zlib.crc32(scenario.name.encode())
+    return base + DISTURBANCE_SEED_STRIDE * disturbance_seed
 
 
 def _percentile(values: Sequence[float], q: float) -> float | None:
@@ -172,6 +202,12 @@ def make_row(scenario: Scenario, policy: str, outcome: Outcome) -> FleetBenchRow
     """The table row of a run (the same arithmetic for every policy)."""
     r = outcome.result
     arrived = r.success_count()
+    stops, cusps = r.smoothness(outcome.tasks)
+    waits = np.asarray(outcome.plan_waits, dtype=np.float64)
+    last_wait = None
+    if waits.size and waits.size == r.task_arrivals.size and arrived == waits.size:
+        last_wait = float(waits[int(np.nanargmax(r.task_arrivals))])
+    scale = outcome.time_scale
     return FleetBenchRow(
         scenario=scenario.name,
         family=scenario.group,
@@ -193,6 +229,14 @@ def make_row(scenario: Scenario, policy: str, outcome: Outcome) -> FleetBenchRow
         rejected=outcome.rejected,
         time_limit_s=scenario.time_limit_s,
         wall_s=round(outcome.wall_s, 1),
+        stops_per_trip=round(stops, 2),
+        cusps_per_trip=round(cusps, 2),
+        plan_wait_s=None if last_wait is None or math.isnan(last_wait) else round(last_wait, 2),
+        plan_wait_max_s=(
+            round(float(np.nanmax(waits)), 2) if waits.size and not np.isnan(waits).all() else None
+        ),
+        planning_sim_s=None if scale is None else round(sum(outcome.plan_ms) / 1e3 * scale, 2),
+        time_scale=scale,
     )
 
 
@@ -226,8 +270,11 @@ def _obstacle_rows(scenario: Scenario) -> list[tuple[float, float, float]]:
 # -- navground peers -----------------------------------------------------------------------
 
 
-def run_peer_policy(scenario: Scenario, policy: str, options: BenchOptions) -> Outcome:
-    """One navground run of ``scenario``, measured on its ticks."""
+def run_peer_policy(
+    scenario: Scenario, policy: str, options: BenchOptions, seed: int | None = None
+) -> Outcome:
+    """One navground run of ``scenario`` (robots seeded by ``seed``, default
+    :func:`scenario_seed`), measured on its ticks."""
     began = time.monotonic()
     s = options.settings
     owner = assign_goals(scenario)
@@ -244,7 +291,8 @@ def run_peer_policy(scenario: Scenario, policy: str, options: BenchOptions) -> O
         profile=s.profile,
         safety_separation_m=s.safety_separation_m,
         dt=1.0 / s.control_rate_hz,
-        seed=scenario_seed(scenario),
+        seed=scenario_seed(scenario) if seed is None else seed,
+        robots=options.robots,
     )
     for chunk in run_peer(scenario, run):
         metrics.add(chunk)
@@ -311,13 +359,22 @@ def run_fleet_policy(
     *,
     fleet_name: str,
     workdir: Path,
+    seed: int | None = None,
 ) -> Outcome:
     """One run of ``scenario`` through a fresh service and fresh ``parkfleet sim`` robots."""
     began = time.monotonic()
     base = options.settings
-    update: dict[str, Any] = {"fleet_name": fleet_name, "task_timeout_s": _SERVICE_TIMEOUT_S}
-    if policy == "none":  # no repulsion, and 1 µm to keep: the planner never holds anyone
-        update |= {"avoidance": Avoidance(k_avoid=0.0), "safety_separation_m": 1e-6}
+    update: dict[str, Any] = {
+        "fleet_name": fleet_name,
+        "task_timeout_s": _SERVICE_TIMEOUT_S,
+        "data_dir": workdir / fleet_name,  # a fresh task store per run
+    }
+    if policy == "none":  # no repulsion, no filter, 1 µm to keep: the planner holds no one
+        update |= {
+            "avoidance": Avoidance(k_avoid=0.0),
+            "safety_separation_m": 1e-6,
+            "safety": SafetyConfig(enabled=False),
+        }
     settings = base.model_copy(update=update)
     ids = scenario.robot_ids
     spawn = workdir / f"{fleet_name}.json"
@@ -329,7 +386,10 @@ def run_fleet_policy(
             ]
         )
     )
-    trace = (options.traces or workdir) / f"{scenario.name}--{policy}.trace"
+    other = seed is not None and seed != scenario_seed(scenario)  # another disturbance set
+    trace = (options.traces or workdir) / (
+        f"{scenario.name}--{policy}{f'--seed{seed}' if other else ''}.trace"
+    )
     keys = Keys(fleet_name)
     clock = _SimClock(1.0 / settings.control_rate_hz)
     latency = _PlanLatency()
@@ -342,29 +402,27 @@ def run_fleet_policy(
     env = dict(os.environ)
     env["PARKFLEET_FLEET_NAME"] = fleet_name
     env["PARKFLEET_AVOIDANCE__K_AVOID"] = str(settings.avoidance.k_avoid)
+    env["PARKFLEET_SAFETY__ENABLED"] = "true" if settings.safety.enabled else "false"
     env["PARKFLEET_CONTROL_RATE_HZ"] = str(settings.control_rate_hz)
     command = sim_command(
         endpoint,
         len(ids),
         time_scale=options.time_scale,
         spawn=str(spawn),
-        seed=scenario_seed(scenario),
+        seed=scenario_seed(scenario) if seed is None else seed,
         extra=[*options.disturbances, "--trace", str(trace)],
     )
     tasks: dict[int, Task] = {}
+    submitted: dict[int, float] = {}  # simulated time [s] of each task's submission
     rejected = 0
-    with contextlib.ExitStack() as stack:  # closed in reverse: sim, subscriber, service, store
-        store = SqliteTaskStore(workdir / f"{fleet_name}.db")
-        stack.callback(store.close)
-        service = FleetService(settings, ZenohFleetBus(session, keys), store)
-        stack.callback(service.close)
+    with contextlib.ExitStack() as stack:  # closed in reverse: sim, subscriber, the fleet
+        service = stack.enter_context(open_fleet(settings, session=session)).service
         service.add_listener(on_event)
         stack.callback(session.declare_subscriber(keys.state(ids[0]), clock.on_sample).undeclare)
         proc = subprocess.Popen(
             command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )
         stack.callback(terminate, proc, 15)
-        service.start()
         service.set_obstacles([o.as_obstacle() for o in scenario.obstacles])
         deadline = time.monotonic() + STARTUP_S
         while len(service.robots()) < len(ids) or clock.now() is None:
@@ -384,6 +442,7 @@ def run_fleet_policy(
                     rejected += 1
                 else:
                     tasks[k] = task
+                    submitted[k] = now
             latency.sample(service.counters)
             if not pending and all(t.id in succeeded for t in tasks.values()):
                 break
@@ -398,15 +457,25 @@ def run_fleet_policy(
         owners = {k: service.task(t.id).robot_id for k, t in tasks.items()}
     goals = np.full((len(ids), 3), np.nan)  # a robot's last task (its path, deadlocks)
     served: list[tuple[int, float, float]] = []  # every task: (robot, goal x, goal y)
+    waits = PlanWait()
     for k, robot in owners.items():
         if robot in ids:
             goal = scenario.robots[k].goal
             goals[ids.index(robot)] = goal
             served.append((ids.index(robot), goal[0], goal[1]))
-    result = _measure_trace(trace, goals, served, scenario, t0)
+            waits.expect(ids.index(robot), submitted[k])
+    result = _measure_trace(trace, goals, served, scenario, t0, waits)
     if options.traces is None:
         trace.unlink(missing_ok=True)
-    return Outcome(result, len(ids), latency.samples, rejected, time.monotonic() - began)
+    return Outcome(
+        result,
+        len(ids),
+        latency.samples,
+        rejected,
+        time.monotonic() - began,
+        plan_waits=waits.waits.tolist(),
+        time_scale=options.time_scale,
+    )
 
 
 def _submit(
@@ -427,12 +496,38 @@ def _submit(
         return None
 
 
+class PlanWait:
+    """Each task's wait for the service [simulated s]: from its submission to the first
+    tick its robot is neither idle nor arrived (assigned: waiting on a planned start delay,
+    driving, ...). At time scale S every wall second the service takes -- planning above
+    all -- is S simulated seconds of this wait."""
+
+    def __init__(self) -> None:
+        self._robot: list[int] = []
+        self._since: list[float] = []
+        self.waits = np.zeros(0)
+
+    def expect(self, robot: int, submitted_s: float) -> None:
+        self._robot.append(robot)
+        self._since.append(submitted_s)
+        self.waits = np.full(len(self._robot), np.nan)
+
+    def add(self, chunk: TraceChunk, modes: Sequence[str]) -> None:
+        passive = [k for k, m in enumerate(modes) if m in ("idle", "arrived")]
+        for task in np.nonzero(np.isnan(self.waits))[0]:
+            robot, since = self._robot[task], self._since[task]
+            going = (chunk.t >= since - 1e-9) & ~np.isin(chunk.modes[:, robot], passive)
+            if going.any():
+                self.waits[task] = float(chunk.t[int(np.argmax(going))]) - since
+
+
 def _measure_trace(
     path: Path,
     goals: FloatArray,
     tasks: Sequence[tuple[int, float, float]],
     scenario: Scenario,
     t0: float,
+    waits: PlanWait | None = None,
 ) -> RunResult:
     header = read_header(path)
     metrics = RunMetrics(
@@ -447,6 +542,8 @@ def _measure_trace(
     )
     for chunk in read_trace(path):
         metrics.add(chunk)
+        if waits is not None:
+            waits.add(chunk, header.modes)
     return metrics.result()
 
 
@@ -471,15 +568,22 @@ def run_fleet_bench(
     unknown = [p for p in policies if p not in POLICIES]
     if unknown:
         raise ValueError(f"unknown policy {unknown}; expected some of {list(POLICIES)}")
-    runs = [(k, options.limit(s), p) for k, s in enumerate(scenarios) for p in policies]
+    cases = [(s, d) for s in scenarios for d in range(options.disturbance_seeds)]
+    runs = [(k, options.limit(s), p) for k, (s, _) in enumerate(cases) for p in policies]
+
+    def seed(k: int) -> int:
+        return scenario_seed(*cases[k])
+
     fleet_runs = [r for r in runs if r[2] in FLEET_POLICIES]
     peer_runs = [r for r in runs if r[2] not in FLEET_POLICIES]
     done: dict[tuple[int, str], FleetBenchRow] = {}
 
     def finish(k: int, scenario: Scenario, policy: str, outcome: Outcome) -> None:
-        row = make_row(scenario, policy, outcome)
+        row = make_row(scenario, policy, outcome).model_copy(
+            update={"disturbance_seed": cases[k][1]}
+        )
         if options.plots is not None:
-            name = f"{scenario.name}--{policy}.png"
+            name = f"{scenario.name}--{policy}{f'--d{cases[k][1]}' if cases[k][1] else ''}.png"
             plot_run(scenario, outcome.result, metrics_title(row), options.plots / name)
         done[k, policy] = row
         if progress is not None:
@@ -494,7 +598,7 @@ def run_fleet_bench(
             stack.callback(pool.join)
             stack.callback(pool.terminate)
             pending = [
-                (k, s, p, pool.apply_async(run_peer_policy, (s, p, options)))
+                (k, s, p, pool.apply_async(run_peer_policy, (s, p, options, seed(k))))
                 for k, s, p in peer_runs
             ]
         else:
@@ -511,16 +615,33 @@ def run_fleet_bench(
         if any(p in FLEET_POLICIES for _, _, p in fleet_runs):
             session = stack.enter_context(open_session(load_settings(listen=[LOOPBACK]), "router"))
             endpoint = tcp_endpoint(listening_locators(session))
+        if options.warm_up and any(p in FLEET_POLICIES for _, _, p in fleet_runs):
+            run_fleet_policy(
+                session,
+                endpoint,
+                WARM_UP,
+                "auto",
+                options,
+                fleet_name=f"bench{os.getpid()}-warm-up",
+                workdir=Path(tmp),
+            )
         for k, scenario, policy in fleet_runs:
             if starting is not None:
                 starting(scenario, policy)
             if policy in FLEET_POLICIES:
                 name = f"bench{os.getpid()}-{k}-{policy}"
                 outcome = run_fleet_policy(
-                    session, endpoint, scenario, policy, options, fleet_name=name, workdir=Path(tmp)
+                    session,
+                    endpoint,
+                    scenario,
+                    policy,
+                    options,
+                    fleet_name=name,
+                    workdir=Path(tmp),
+                    seed=seed(k),
                 )
             else:
-                outcome = run_peer_policy(scenario, policy, options)
+                outcome = run_peer_policy(scenario, policy, options, seed(k))
             finish(k, scenario, policy, outcome)
             collect(wait=False)
         collect(wait=True)
@@ -547,6 +668,10 @@ class SummaryRow(BaseModel):
     deadlocks_worst: int
     obstacle_hits_worst: int = 0  # robots that hit a static obstacle, worst run
     plan_p99_worst_ms: float | None
+    stops_mean: float | None = None  # per trip
+    cusps_mean: float | None = None  # per trip
+    plan_wait_mean_s: float | None = None  # the last-arriving task's wait [sim s]
+    planning_sim_mean_s: float | None = None  # plans' wall time x time scale [sim s]
 
 
 def summarise(rows: Iterable[FleetBenchRow]) -> list[SummaryRow]:
@@ -559,6 +684,11 @@ def summarise(rows: Iterable[FleetBenchRow]) -> list[SummaryRow]:
         seps = [r.min_separation_m for r in group if r.min_separation_m is not None]
         ratios = [r.path_ratio for r in group if r.path_ratio is not None]
         plans = [r.plan_p99_ms for r in group if r.plan_p99_ms is not None]
+
+        def mean(values: list[float | None]) -> float | None:
+            known = [v for v in values if v is not None]
+            return round(float(np.mean(known)), 2) if known else None
+
         out.append(
             SummaryRow(
                 family=family,
@@ -578,6 +708,10 @@ def summarise(rows: Iterable[FleetBenchRow]) -> list[SummaryRow]:
                 deadlocks_worst=max(r.deadlocks for r in group),
                 obstacle_hits_worst=max(r.obstacle_hits for r in group),
                 plan_p99_worst_ms=max(plans) if plans else None,
+                stops_mean=mean([r.stops_per_trip for r in group]),
+                cusps_mean=mean([r.cusps_per_trip for r in group]),
+                plan_wait_mean_s=mean([r.plan_wait_s for r in group]),
+                planning_sim_mean_s=mean([r.planning_sim_s for r in group]),
             )
         )
     return out

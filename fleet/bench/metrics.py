@@ -22,19 +22,31 @@ for plots). Definitions:
   delay or hold, mode ``waiting``), farther than :data:`NEAR_GOAL_M` from its goal, whose
   distance to the goal has not dropped :data:`PROGRESS_M` below its best for
   :data:`DEADLOCK_WINDOW_S` simulated seconds (the clock restarts whenever it waits or
-  enters the parking zone); counted once per robot, where and when it was found.
+  enters the parking zone); counted once per robot, where and when it was found;
+* **stops and cusps** (smoothness) -- on a trip (a robot's ticks between leaving a passive
+  mode -- idle, arrived -- and entering one again; ``waiting``, a planned hold, is part of
+  the trip), ``u`` is the true forward speed, the displacement between consecutive ticks
+  along the heading over the time step [m/s]; the robot moves when ``|u| >=``
+  :data:`MOVING_SPEED_M_S`. A *stop* is a standstill of at least :data:`STOP_MIN_S` between
+  two moving ticks of the same trip (the start and the final standstill are not stops; a
+  turn in place is a standstill); a *cusp* is a reversal of the sign of ``u`` between two
+  moving ticks of the same trip, with or without a standstill between them. Counted per
+  robot; the bench reports them per task (:meth:`RunResult.smoothness`).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from fleet.core.types import BoolArray, FloatArray
 from fleet.io.trace import NO_MODE, ModeArray, TraceChunk
+
+IntArray = npt.NDArray[np.int64]
 
 #: Tolerance [m] of the contact test (float32 rounding of the peers' positions).
 COLLISION_SLACK_M = 1e-4
@@ -51,6 +63,10 @@ MAX_EVENTS = 500
 #: robots stop within their position tolerance (0.1 m by default) of the pose they
 #: measure, the true pose within the measurement noise; goals are 1.5 m apart or more.
 ARRIVAL_RADIUS_M = 0.25
+#: A robot moves when its true forward speed is at least this [m/s] (smoothness).
+MOVING_SPEED_M_S = 0.02
+#: A standstill inside a trip lasting at least this long [s, simulated] is a stop.
+STOP_MIN_S = 0.2
 #: Pair-distance entries computed at once (bounds the scratch memory).
 _BLOCK = 1_000_000
 
@@ -86,6 +102,8 @@ class RunResult:
     paths: FloatArray  # (S, N, 3) subsampled true poses
     final: FloatArray  # (N, 3) last true pose
     task_arrivals: FloatArray  # (T,) time each task arrived [s], NaN if never
+    stops: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # (N,)
+    cusps: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # (N,)
 
     @property
     def tasked(self) -> BoolArray:
@@ -103,6 +121,12 @@ class RunResult:
             return limit
         return float(np.nanmax(self.task_arrivals) - self.t_start)
 
+    def smoothness(self, trips: int) -> tuple[float, float]:
+        """(stops, cusps) per trip: every robot's counts summed over ``trips`` tasks."""
+        if trips <= 0:
+            return (0.0, 0.0)
+        return (float(self.stops.sum()) / trips, float(self.cusps.sum()) / trips)
+
     def path_ratio(self) -> float | None:
         """Mean over tasked robots of distance driven / straight line (None if none)."""
         straight = np.hypot(*(self.goals[:, :2] - self.starts[:, :2]).T)
@@ -110,6 +134,38 @@ class RunResult:
         if not use.any():
             return None
         return float(np.mean(self.driven[use] / straight[use]))
+
+
+class _Smoothness:
+    """Running stop and cusp counts per robot (definitions in the module docstring)."""
+
+    def __init__(self, n: int) -> None:
+        self.stops = np.zeros(n, dtype=np.int64)
+        self.cusps = np.zeros(n, dtype=np.int64)
+        self._sign = np.zeros(n, dtype=np.int8)  # sign of u when last moving (0: not yet)
+        self._still_since = np.full(n, np.nan)  # start of the current standstill [s]
+
+    def add(
+        self, t: float, dt: float, before: FloatArray, now: FloatArray, active: BoolArray
+    ) -> None:
+        """One tick: true poses ``before`` and ``now`` (N, 3) ``dt`` seconds apart; ``active``
+        robots are on a trip at ``now`` (the others end theirs)."""
+        self._sign[~active] = 0
+        self._still_since[~active] = np.nan
+        if dt <= 0.0 or not active.any():
+            return
+        dx, dy = now[:, 0] - before[:, 0], now[:, 1] - before[:, 1]
+        u = (dx * np.cos(before[:, 2]) + dy * np.sin(before[:, 2])) / dt
+        moving = active & (np.abs(u) >= MOVING_SPEED_M_S)
+        sign = np.sign(u).astype(np.int8)
+        started = self._sign != 0
+        self.cusps += moving & started & (sign != self._sign)
+        paused = t - self._still_since >= STOP_MIN_S - 1e-9  # NaN compares False
+        self.stops += moving & started & paused
+        self._still_since[moving] = np.nan
+        self._sign[moving] = sign[moving]
+        still = active & ~moving & started & np.isnan(self._still_since)
+        self._still_since[still] = t - dt  # the standstill began at the previous tick
 
 
 class RunMetrics:
@@ -155,6 +211,7 @@ class RunMetrics:
         self._arrived = codes.get("arrived", -1)
         self._passive = [codes[m] for m in ("idle", "waiting", "arrived") if m in codes]
         self._passive.append(NO_MODE)
+        self._off_trip = [codes[m] for m in ("idle", "arrived") if m in codes] + [NO_MODE]
         self._touching = np.zeros(len(self._contact), dtype=bool)
         self._touched = np.zeros(len(self._contact), dtype=bool)
         self._hit = np.zeros(n, dtype=bool)
@@ -173,6 +230,7 @@ class RunMetrics:
         self._paths: list[FloatArray] = []
         self._ticks = 0
         self._t_last = math.nan
+        self._smooth = _Smoothness(n)
 
     def add(self, chunk: TraceChunk) -> None:
         """Fold in consecutive ticks (times ascending)."""
@@ -226,7 +284,12 @@ class RunMetrics:
         self._driven += np.hypot(*(poses[:, :, :2] - previous[:, :, :2]).transpose(2, 0, 1)).sum(
             axis=0
         )
+        t_before = self._t_last if self._last is not None else float(t[0])
         self._last = poses[-1].copy()
+        on_trip = ~np.isin(modes, self._off_trip)
+        for k in range(len(t)):
+            dt = float(t[k]) - (t_before if k == 0 else float(t[k - 1]))
+            self._smooth.add(float(t[k]), dt, previous[k], poses[k], on_trip[k])
         arrived = modes == self._arrived
         newly = np.isnan(self._arrivals) & arrived.any(axis=0)
         if newly.any():
@@ -281,4 +344,6 @@ class RunMetrics:
             paths=np.asarray(self._paths).reshape(-1, n, 3),
             final=empty if self._last is None else self._last,
             task_arrivals=self._task_arrivals.copy(),
+            stops=self._smooth.stops.copy(),
+            cusps=self._smooth.cusps.copy(),
         )

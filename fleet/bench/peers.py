@@ -1,32 +1,45 @@
 """Independent peers: navground's ORCA, HRVO, HL and social-force behaviours on a scenario.
 
-navground (https://idsia-robotics.github.io/navground, C++ core, on the package index) runs
-in this process, on the same robots as the fleet's: two-wheel differential drive with the
-profile's wheel limit (``max_speed`` = wheel radius x max wheel speed, the rim speed [m/s];
-``wheel_axis`` = 2 x half axle), no reversing (navground's default), the same body radius,
-the agents' control period as time step, the fleet's safety separation (navground's
-``safety_margin`` = separation - 2 x radius, added once to a pair's distance; social force
-ignores it), the scenario's pose targets and tolerances
-(``GoToPoseTask``: these behaviours steer to a *position*; navground then turns the robot
-in place to the goal heading) and its time limit. Tasks arrive at their ``arrival_s``; an
-unnamed scenario's goals go to idle robots by an optimal assignment on straight-line
-distance (scipy's Hungarian method), one arrival group at a time.
+navground (https://idsia-robotics.github.io/navground, C++ core, on the package index)
+computes the commands; the robots are the benchmark's own, the very ones parkfleet's agents
+drive (:class:`PeerRobots`, in practice ``sim_agent.robots.SimRobots`` handed in by the CLI:
+this layer imports no simulator). Each tick, in lockstep like ``parkfleet sim``: the link
+delivers the peer states due (disturbed link: 20-200 ms late, 5 % lost), every robot reads
+its *measured* pose from its drive (pose noise), its behaviour decides on that pose and on
+the peers' states it has received, and the command goes to the drive as wheel speeds
+(command latency, wheel noise and bias, the compiled step's Euler update); then the state
+(measured pose, commanded velocity) is sent to the peers. With perfect robots every peer
+sees every other's pose of the same tick. Robots and link come from one seed, the same as
+the fleet's run of the scenario, so robot k has the same wheel bias under every policy.
 
-Ticks come out as :class:`~fleet.io.trace.TraceChunk` -- the same form as a ``parkfleet
-sim`` trace -- so :class:`~fleet.bench.metrics.RunMetrics` measures both alike. Settings
-found on this machine (DESIGN.md): every agent sees peers and obstacles within
-:data:`VIEW_RANGE_M` (``BoundedStateEstimation``; a range beyond the yard made HRVO and
-social force 2-3x slower on the car park's posts), ``world.ignore_collisions`` so
-overlaps are measured instead of being pushed apart, and a seeded start-pose noise of the
-size of the fleet robots' pose noise (HL freezes in a perfectly symmetric ring). Static
-obstacles are discs of the scenario's body radius. navground's values are float32.
+The behaviours run on navground's core API (``Behavior.compute_cmd``), not navground's
+simulated world: two-wheel differential-drive kinematics with the profile's wheel limit
+(``max_speed`` = wheel radius x max wheel speed, the rim speed [m/s]; ``wheel_axis`` = 2 x
+half axle), no reversing (navground's default), the same body radius, the agents' control
+period as time step, the fleet's safety separation (navground's ``safety_margin`` =
+separation - 2 x radius, added once to a pair's distance; social force ignores it), the
+scenario's pose targets and tolerances (``Target.Pose``: these behaviours steer to a
+*position*, then turn in place to the goal heading; the target is checked on the measured
+pose) and its time limit. A behaviour's own velocity is the one it last commanded (as
+navground's ``actuate`` keeps it: the robots have no velocity sensor). Tasks arrive at their
+``arrival_s``; an unnamed scenario's goals go to idle robots by an optimal assignment on
+straight-line distance (scipy's Hungarian method), one arrival group at a time.
+
+Ticks come out as :class:`~fleet.io.trace.TraceChunk` of *true* poses -- the same form as a
+``parkfleet sim`` trace -- so :class:`~fleet.bench.metrics.RunMetrics` measures both alike.
+Every robot sees peers and static obstacles (discs of the scenario's body radius) within
+:data:`VIEW_RANGE_M` (a range beyond the yard made HRVO and social force 2-3x slower on the
+car park's posts). On perfect robots the start poses get a seeded noise of the size of the
+disturbed robots' pose noise (HL freezes in a perfectly symmetric ring). navground's values
+are float32.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -34,7 +47,7 @@ from scipy.optimize import linear_sum_assignment
 from fleet.bench.scenarios import Scenario
 from fleet.core.params import RobotProfile
 from fleet.core.types import FloatArray
-from fleet.core.wire import RobotMode
+from fleet.core.wire import Pose, RobotMode
 from fleet.io.trace import TraceChunk
 
 #: Policy name -> navground behaviour type.
@@ -65,6 +78,7 @@ class PeerRun:
     dt: float = 0.02
     seed: int = 0
     chunk_ticks: int = 500
+    robots: PeerRobots | None = None
 
 
 def assign_goals(scenario: Scenario) -> list[int]:
@@ -97,16 +111,99 @@ def goals_by_robot(scenario: Scenario, owner: list[int]) -> FloatArray:
     return goals
 
 
+class PeerDrive(Protocol):
+    """What a peer needs of a robot's drive (``sim_agent``'s drives are these)."""
+
+    @property
+    def true_pose(self) -> tuple[float, float, float]: ...
+
+    def read_pose(self) -> tuple[Pose, float]: ...
+
+    def command_wheels(self, right_rad_s: float, left_rad_s: float) -> None: ...
+
+    def stop(self) -> None: ...
+
+
+class PeerLink(Protocol):
+    """Robot-to-robot delivery of peer states (``sim_agent.disturbances.DelayedLink``)."""
+
+    def send(self, sender: int, message: Any, now: float) -> None: ...
+
+    def deliver(self, now: float) -> list[tuple[int, Any]]: ...
+
+
+class PeerClock(Protocol):
+    """Simulated time [s] of the robots."""
+
+    def now(self) -> float: ...
+
+    def advance(self, seconds: float) -> float: ...
+
+
+class PeerRobotSet(Protocol):
+    """Built robots: clock, drives in robot order, link (``None``: every state at once)."""
+
+    @property
+    def clock(self) -> PeerClock: ...
+
+    @property
+    def drives(self) -> Sequence[PeerDrive]: ...
+
+    @property
+    def link(self) -> PeerLink | None: ...
+
+
+class PeerRobots(Protocol):
+    """How the benchmark's robots are built (``sim_agent.robots.SimRobots``)."""
+
+    @property
+    def disturbed(self) -> bool: ...
+
+    def build(
+        self,
+        starts: Sequence[tuple[float, float, float]],
+        profile: RobotProfile,
+        seed: int | None,
+        period: float,
+    ) -> PeerRobotSet: ...
+
+
+@dataclass(frozen=True)
+class _PeerState:
+    """What one robot tells the others: its measured position [m] and commanded velocity
+    [m/s] (world frame), numbered."""
+
+    sender: int
+    seq: int
+    x: float
+    y: float
+    vx: float
+    vy: float
+
+
+def _wheels(u: float, omega: float, profile: RobotProfile) -> tuple[float, float]:
+    """Right and left wheel speeds [rad/s] of (u [m/s], omega [rad/s]) by Eq. (2), both
+    scaled down together to the wheel limit (curvature kept; navground's float32 can
+    exceed it by a hair)."""
+    r, b, limit = profile.wheel_radius, profile.half_axle, profile.max_wheel_speed
+    right, left = (u + b * omega) / r, (u - b * omega) / r
+    scale = max(abs(right), abs(left)) / limit
+    return (right / scale, left / scale) if scale > 1.0 else (right, left)
+
+
 def run_peer(scenario: Scenario, run: PeerRun) -> Iterator[TraceChunk]:
-    """Run ``scenario`` with a navground behaviour; yields its ticks until every task is
-    done or the time limit (:attr:`Scenario.end_s`) passes. Raises ValueError for an
-    unknown behaviour and ImportError (with the fix) without navground."""
+    """Run ``scenario`` with a navground behaviour on ``run.robots``; yields its ticks until
+    every task is done or the time limit (:attr:`Scenario.end_s`) passes. Raises
+    ValueError for an unknown behaviour or without robots, and ImportError (with the fix)
+    without navground."""
     if run.behaviour not in BEHAVIOURS:
         raise ValueError(
             f"unknown navground behaviour {run.behaviour!r}; one of {list(BEHAVIOURS)}"
         )
+    if run.robots is None:
+        raise ValueError("a peer run needs robots (sim_agent.robots.SimRobots, from the CLI)")
     try:
-        from navground import core, sim
+        from navground import core
     except ImportError as exc:  # an optional dependency of the benchmark
         raise ImportError(
             "the navground peers need navground: pip install 'parkfleet[test]' (or navground)"
@@ -114,38 +211,42 @@ def run_peer(scenario: Scenario, run: PeerRun) -> Iterator[TraceChunk]:
 
     profile = run.profile
     rng = np.random.default_rng(run.seed)
-    world = sim.World()
-    world.ignore_collisions = True
-    for o in scenario.obstacles:
-        world.add_obstacle(sim.Obstacle((o.x, o.y), max(o.body, 0.01)))
-    agents = []
-    for spec in scenario.robots:
-        x, y, theta = spec.start
-        dx, dy = rng.normal(0.0, START_NOISE[0], size=2)
+    starts = [(float(x), float(y), float(th)) for x, y, th in (r.start for r in scenario.robots)]
+    if not run.robots.disturbed:  # break HL's symmetric freeze (the noise does it otherwise)
+        starts = [
+            (x + float(dx), y + float(dy), theta + float(dt))
+            for (x, y, theta), (dx, dy, dt) in zip(
+                starts,
+                rng.normal(0.0, [START_NOISE[0], START_NOISE[0], START_NOISE[1]], (len(starts), 3)),
+                strict=True,
+            )
+        ]
+    robots = run.robots.build(starts, profile, run.seed, run.dt)
+    clock, drives, link = robots.clock, robots.drives, robots.link
+    discs = [core.Disc((o.x, o.y), max(o.body, 0.01)) for o in scenario.obstacles]
+    kinematics = core.kinematics.TwoWheelsDifferentialDriveKinematics(
+        max_speed=profile.wheel_radius * profile.max_wheel_speed,
+        wheel_axis=2.0 * profile.half_axle,
+    )
+    behaviours = []
+    for _ in scenario.robots:
         behaviour = core.Behavior.make_type(BEHAVIOURS[run.behaviour])
         if behaviour is None:  # the wheel lacks a behaviour it used to have
             raise ValueError(f"navground has no behaviour {BEHAVIOURS[run.behaviour]!r}")
+        behaviour.kinematics = kinematics
+        behaviour.radius = profile.radius
         behaviour.safety_margin = max(0.0, run.safety_separation_m - 2.0 * profile.radius)
-        agent = sim.Agent(
-            radius=profile.radius,
-            behavior=behaviour,
-            kinematics=core.kinematics.TwoWheelsDifferentialDriveKinematics(
-                max_speed=profile.wheel_radius * profile.max_wheel_speed,
-                wheel_axis=2.0 * profile.half_axle,
-            ),
-            state_estimations=[sim.state_estimations.BoundedStateEstimation(range=VIEW_RANGE_M)],
-            control_period=run.dt,
-        )
-        agent.pose = core.Pose2((x + dx, y + dy), theta + rng.normal(0.0, START_NOISE[1]))
-        world.add_agent(agent)
-        agents.append(agent)
+        behaviours.append(behaviour)
 
+    n = len(behaviours)
     owner = assign_goals(scenario)
     pending = sorted(range(len(owner)), key=lambda k: scenario.robots[k].arrival_s)
-    tasks: list[sim.tasks.GoToPoseTask | None] = [None] * len(agents)
+    tasked = np.zeros(n, dtype=bool)
+    arrived = np.zeros(n, dtype=bool)
+    known: list[dict[int, _PeerState]] = [{} for _ in range(n)]  # receiver -> sender -> state
+    velocity = np.zeros((n, 2))  # commanded, world frame [m/s]
     tolerance = scenario.tolerance
-    n = len(agents)
-    ticks = 0
+    seq = 0
     end = scenario.end_s
     while True:
         t = np.empty(run.chunk_ticks)
@@ -154,30 +255,68 @@ def run_peer(scenario: Scenario, run: PeerRun) -> Iterator[TraceChunk]:
         k = 0
         done = False
         while k < run.chunk_ticks:
-            now = ticks * run.dt
+            now = clock.now()
             while pending and scenario.robots[pending[0]].arrival_s <= now + 1e-9:
                 task = pending.pop(0)
                 gx, gy, gtheta = scenario.robots[task].goal
                 robot = owner[task]
                 if robot < 0:
                     continue  # more tasks than robots: this one is never served
-                tasks[robot] = sim.tasks.GoToPoseTask(
-                    (gx, gy), gtheta, tolerance.position, tolerance.heading
+                behaviours[robot].target = core.Target.Pose(
+                    core.Pose2((gx, gy), gtheta), tolerance.position, tolerance.heading
                 )
-                agents[robot].task = tasks[robot]
-            tasked = np.array([task is not None for task in tasks])
-            arrived = np.array([task is not None and task.done() for task in tasks])
+                tasked[robot], arrived[robot] = True, False
+            if link is not None:
+                for receiver, state in link.deliver(now):
+                    old = known[receiver].get(state.sender)
+                    if old is None or state.seq > old.seq:
+                        known[receiver][state.sender] = state
+            measured = np.array([d.read_pose()[0].as_tuple() for d in drives]).reshape(n, 3)
+            if link is None:  # every robot sees every pose of this tick at once
+                now_states = [_PeerState(j, seq, *measured[j, :2], *velocity[j]) for j in range(n)]
+                known = [{j: s for j, s in enumerate(now_states) if j != r} for r in range(n)]
             t[k] = now
-            for r, agent in enumerate(agents):
-                px, py = agent.position
-                poses[k, r] = (float(px), float(py), float(agent.orientation))
+            for r, drive in enumerate(drives):
+                poses[k, r] = drive.true_pose
+            for r, behaviour in enumerate(behaviours):
+                x, y, theta = measured[r]
+                behaviour.pose = core.Pose2((x, y), theta)
+                if tasked[r] and not arrived[r] and behaviour.check_if_target_satisfied():
+                    arrived[r] = True
+                if not tasked[r] or arrived[r]:
+                    drives[r].stop()
+                    velocity[r] = 0.0
+                    continue
+                env = behaviour.environment_state
+                assert isinstance(env, core.GeometricState)  # every behaviour here is geometric
+                env.neighbors = [
+                    core.Neighbor((p.x, p.y), profile.radius, (p.vx, p.vy), p.sender)
+                    for p in known[r].values()
+                    if math.hypot(p.x - x, p.y - y) <= VIEW_RANGE_M
+                ]
+                env.static_obstacles = [
+                    d for d in discs if math.dist(d.position, (x, y)) <= VIEW_RANGE_M + d.radius
+                ]
+                cmd = behaviour.compute_cmd(run.dt)
+                behaviour.actuate(cmd, run.dt)  # its own velocity: the one commanded
+                vx, vy = (float(v) for v in cmd.velocity)
+                if cmd.frame == core.Frame.relative:
+                    u = vx
+                    vx, vy = u * math.cos(theta), u * math.sin(theta)
+                else:
+                    u = vx * math.cos(theta) + vy * math.sin(theta)
+                velocity[r] = (vx, vy)
+                drives[r].command_wheels(*_wheels(u, float(cmd.angular_speed), profile))
+            if link is not None:
+                for j in range(n):
+                    link.send(j, _PeerState(j, seq, *measured[j, :2], *velocity[j]), now)
+            seq += 1
             modes[k] = np.where(arrived, _ARRIVED, np.where(tasked, _DRIVING, _IDLE))
             k += 1
-            ticks += 1
             if (not pending and arrived[tasked].all()) or now >= end:
                 done = True
                 break
-            world.update(run.dt)
+            clock.advance(run.dt)
         yield TraceChunk(t=t[:k], poses=poses[:k], modes=modes[:k])
         if done:
             return

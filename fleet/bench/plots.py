@@ -19,7 +19,7 @@ from matplotlib.patches import Circle, Polygon
 
 from fleet.bench.metrics import RunResult
 from fleet.bench.scenarios import Scenario
-from fleet.paper.plotting import _triangle, save_figure
+from fleet.drawing import save_figure, triangle
 
 
 def plot_run(scenario: Scenario, result: RunResult, title: str, path: str | Path) -> Path:
@@ -42,12 +42,12 @@ def plot_run(scenario: Scenario, result: RunResult, title: str, path: str | Path
         if result.paths.size:
             ax.plot(result.paths[:, r, 0], result.paths[:, r, 1], color=colour, linewidth=0.9)
         if not np.isnan(result.starts[r, 0]):
-            tri = _triangle(result.starts[r], size)
+            tri = triangle(result.starts[r], size)
             ax.add_patch(Polygon(tri, closed=True, facecolor="none", edgecolor=colour))
         if not np.isnan(result.final[r, 0]):
-            ax.add_patch(Polygon(_triangle(result.final[r], size), closed=True, color=colour))
+            ax.add_patch(Polygon(triangle(result.final[r], size), closed=True, color=colour))
         if not np.isnan(result.goals[r, 0]):
-            goal = _triangle(result.goals[r], 1.3 * size)
+            goal = triangle(result.goals[r], 1.3 * size)
             ax.add_patch(
                 Polygon(goal, closed=True, facecolor="none", edgecolor=colour, linestyle="--")
             )

@@ -11,7 +11,17 @@ Pure formatting of :class:`~fleet.bench.fleet.FleetBenchRow` lists (one run's ro
   success and 0 collisions (with robots or obstacles), success at least every navground
   behaviour's, makespan within 1.25x of the fastest policy that touched nothing (and, for
   reference, its path ratio, deadlocks, worst separation and planning latency). Misses are
-  spelled out.
+  spelled out;
+* :func:`smoothness_table` -- families x policies, ``stops / cusps`` per trip (means over
+  seeds; definitions in :mod:`fleet.bench.metrics`);
+* :func:`planning_wait_table` -- for the fleet policies, how much of a makespan is waiting
+  for the service, which the time scale inflates: the robots run S times faster than the
+  wall clock while the planner takes wall time, so a plan of p wall seconds holds a robot
+  waiting for it S x p simulated seconds. The bench does not remove this distortion (the
+  service plans in real time; pausing the robots' clock for it would hide what a user
+  waits); it measures it: the wait of the task that arrived last, from its submission to
+  its robot leaving idle (the makespan shrinks by at most this at time scale 1 -- minus the
+  wall time the plan still takes), and every plan's wall time x S.
 """
 
 from __future__ import annotations
@@ -131,5 +141,51 @@ def auto_table(rows: Sequence[FleetBenchRow]) -> str:
             f"{auto.collisions_mean:g} ({auto.collisions_worst}) | {sep} | "
             f"{auto.makespan_mean_s:.0f} | {fastest} | {ratio} | {auto.deadlocks_mean:g} | "
             f"{plan} | {'; '.join(misses) or 'none'} |"
+        )
+    return "\n".join(lines)
+
+
+def smoothness_table(rows: Sequence[FleetBenchRow]) -> str:
+    """Markdown: families x policies, ``stops / cusps`` per trip (means over the seeds)."""
+    summary = {(s.family, s.policy): s for s in summarise(rows)}
+    policies = _policies(rows)
+    lines = [
+        "| scenario (stops / cusps per trip) | " + " | ".join(policies) + " |",
+        "|---|" + "---|" * len(policies),
+    ]
+    for family in _families(rows):
+        cells = []
+        for policy in policies:
+            s = summary.get((family, policy))
+            stops = None if s is None else s.stops_mean
+            cusps = None if s is None else s.cusps_mean
+            cells.append("" if stops is None or cusps is None else f"{stops:.1f} / {cusps:.1f}")
+        lines.append(f"| {family} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def planning_wait_table(rows: Sequence[FleetBenchRow]) -> str:
+    """Markdown: per family and fleet policy, the makespan, the last-arriving task's wait
+    for the service and its share of the makespan, and the plans' wall time x time scale."""
+    summary = {(s.family, s.policy): s for s in summarise(rows)}
+    scales = sorted({r.time_scale for r in rows if r.time_scale is not None})
+    scale = "S" if len(scales) != 1 else f"{scales[0]:g}"
+    lines = [
+        f"| scenario | policy | makespan [s] | last task's wait for the service [s] | "
+        f"share of makespan | plans' wall time x {scale} [s] |",
+        "|---|---|---|---|---|---|",
+    ]
+    for (family, policy), s in summary.items():
+        if s.plan_wait_mean_s is None and s.planning_sim_mean_s is None:
+            continue  # navground: no service
+        wait = "-" if s.plan_wait_mean_s is None else f"{s.plan_wait_mean_s:.1f}"
+        share = (
+            "-"
+            if s.plan_wait_mean_s is None or not s.makespan_mean_s
+            else f"{s.plan_wait_mean_s / s.makespan_mean_s:.0%}"
+        )
+        planning = "-" if s.planning_sim_mean_s is None else f"{s.planning_sim_mean_s:.1f}"
+        lines.append(
+            f"| {family} | {policy} | {s.makespan_mean_s:.1f} | {wait} | {share} | {planning} |"
         )
     return "\n".join(lines)

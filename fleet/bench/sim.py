@@ -7,7 +7,9 @@ per robot-step, everything inlined, the ``math`` module, no numpy):
 * ``independent``: N = 1, 100, 10 000, 100 000 robots from random postures to random goals,
   laws (17)/(20) at random, no obstacles, no wheel limit, no interaction;
 * ``peers``: 50 robots that all act on each other at every step (Eq. 27 with an influence
-  radius larger than the yard, and the contact guard), wheel-limited.
+  radius larger than the yard), wheel-limited;
+* ``peers+filter``: the same robots with the safety filter on as the fleet runs it (its
+  ratio is against the same plain loop, which has no filter: the cost of the filter).
 
 Throughput is counted in robot-steps per second: one robot advanced by one Euler step, while
 it is still active (the tolerances are tiny, so no robot finishes during a timed run).
@@ -23,12 +25,13 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fleet.core.params import UNLIMITED, Avoidance, RobotProfile, Tolerance
-from fleet.core.simulate import PAPER_DT, BatchProblem, SimResult, simulate
+from fleet.core.params import UNLIMITED, Avoidance, RobotProfile, SafetyConfig, Tolerance
+from fleet.core.simulate import PAPER_DT, BatchProblem, SimResult, batch_filter, simulate
+from fleet.core.step import SAFETY_OFF, Safety
 from fleet.core.types import LAWS, GainTriple, Law, Posture
 
 #: Robot counts of the independent scene.
@@ -77,6 +80,7 @@ class RandomFleet:
     laws: list[Law]
     profile: RobotProfile = UNLIMITED
     avoidance: Avoidance | None = None
+    safety: Safety = SAFETY_OFF
 
     def problem(self) -> BatchProblem:
         avoid = self.avoidance or Avoidance(k_avoid=0.0)
@@ -90,6 +94,7 @@ class RandomFleet:
             k_avoid=avoid.k_avoid,
             peer_radius=avoid.peer_radius if self.avoidance else 0.0,
             min_x_oa=avoid.min_x_oa,
+            safety=self.safety,
         )
 
 
@@ -127,7 +132,7 @@ def plain_loop(fleet: RandomFleet, steps: int, dt: float = PAPER_DT) -> LoopResu
     """``steps`` closed-loop steps of every robot in plain Python, all robots per step.
 
     The same maths as the compiled step -- error (5) with the wraps (11)/(21), laws (17)/(20),
-    Eq. (27) and the contact guard among peers when ``fleet.avoidance`` is set, saturation
+    Eq. (27) among peers when ``fleet.avoidance`` is set (no safety filter), saturation
     when the profile is limited, Euler (3), effort (25) and distance -- written as one would
     by hand: cos/sin once per robot-step, no function calls in the loop. (The tolerances of
     the benchmark are never reached, so the stop rule is left out.)
@@ -145,7 +150,6 @@ def plain_loop(fleet: RandomFleet, steps: int, dt: float = PAPER_DT) -> LoopResu
     k_avoid = avoid.k_avoid if avoid else 0.0
     guard = avoid.min_x_oa if avoid else 0.0
     influence_sq = avoid.peer_radius**2 if avoid else 0.0
-    contact_sq = (2.0 * profile.radius + guard) ** 2
     effort, distance = [0.0] * n, [0.0] * n
     for _ in range(steps):
         nx, ny, nth = x[:], y[:], th[:]
@@ -164,26 +168,19 @@ def plain_loop(fleet: RandomFleet, steps: int, dt: float = PAPER_DT) -> LoopResu
             if cw[i]:
                 omega = -omega
             repulsion = 0.0
-            ahead = behind = False
             if k_avoid > 0.0:
                 for j in range(n):
                     if j != i:
                         px, py = x[j] - xi, y[j] - yi
-                        d_sq = px * px + py * py
-                        x_oa = c * px + s * py
-                        if d_sq < influence_sq:
+                        if px * px + py * py < influence_sq:
+                            x_oa = c * px + s * py
                             x_oa_guarded = max(x_oa, guard) if x_oa >= 0.0 else min(x_oa, -guard)
                             repulsion -= k_avoid / x_oa_guarded
-                        if d_sq < contact_sq:
-                            ahead = ahead or x_oa > 0.0
-                            behind = behind or x_oa < 0.0
             u = kx * x_e + repulsion
             peak = max(abs((u + b * omega) / r), abs((u - b * omega) / r))
             if peak > limit:
                 scale = limit / peak
                 u, omega = u * scale, omega * scale
-            if (u > 0.0 and ahead) or (u < 0.0 and behind):
-                u = 0.0
             nx[i], ny[i], nth[i] = xi + c * u * dt, yi + s * u * dt, ti + omega * dt
             effort[i] += (abs(omega) + abs(u)) * dt
             distance[i] += abs(u) * dt
@@ -277,6 +274,9 @@ def run_sim_bench(
     peer_loop = loop_rate(peers, peer_loop_steps, repeats)
     batch = batch_rate(peers, peer_steps, repeats)
     rows.append(_row("peers", peer_robots, peer_steps, batch, peer_loop))
+    filtered = replace(peers, safety=batch_filter(SafetyConfig()))
+    batch = batch_rate(filtered, peer_steps, repeats)
+    rows.append(_row("peers+filter", peer_robots, peer_steps, batch, peer_loop))
     return BenchReport(rows, repeats)
 
 

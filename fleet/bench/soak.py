@@ -41,10 +41,10 @@ import numpy as np
 from fleet.bench.procstat import holdings
 from fleet.core.tasks import TaskStatus
 from fleet.io.processes import ServerProcess, running_server, sim_command, terminate
+from fleet.io.settings import DB_FILE
 
 YARD = (-10.0, 10.0, -10.0, 10.0)
 FINAL = tuple(s.value for s in TaskStatus if s.final)
-DB_FILE = "parkfleet.db"
 #: A request unanswered this long [s] is counted as a timeout (``Tally.timeouts``).
 REQUEST_TIMEOUT_S = 30.0
 
@@ -457,7 +457,7 @@ def soak(
         drained = asyncio.run(run.run(minutes, tasks_per_s, event_clients))
         group_robots.stop()
         server.stop()
-        check = check_store(data / "parkfleet.db", run.tally.accepted)
+        check = check_store(data / DB_FILE, run.tally.accepted)
     # The first fifth is warm-up (imports, compiled code, caches filling): not in the slopes.
     steady = [s for s in run.samples if s.minute >= minutes / 5]
     t = [s.minute for s in steady]

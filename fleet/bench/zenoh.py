@@ -53,7 +53,6 @@ from fleet.bench.procstat import cpu_seconds, percentile
 from fleet.core.wire import (
     CancelAssignment,
     ControlCommand,
-    Keys,
     ObstacleSet,
     ParkAssignment,
     RobotDescription,
@@ -61,11 +60,9 @@ from fleet.core.wire import (
 )
 from fleet.io.processes import parkfleet_command, terminate
 from fleet.io.settings import load_settings
-from fleet.io.transport import listening_locators, open_session, tcp_endpoint
-from fleet.service.bus import FleetSink
-from fleet.service.fleet_service import FleetService
-from fleet.service.store import SqliteTaskStore
-from fleet.service.zenoh_bus import ZenohFleetBus
+from fleet.io.transport import tcp_endpoint
+from fleet.service.bus import FleetBus, FleetSink
+from fleet.service.host import open_fleet
 
 Source = Literal["agents", "stream"]
 
@@ -151,7 +148,7 @@ class _TimedSink:
 class _TimedBus:
     """The real Zenoh bus, delivering to a timed sink (``FleetBus``)."""
 
-    def __init__(self, bus: ZenohFleetBus, timing: _Timing) -> None:
+    def __init__(self, bus: FleetBus, timing: _Timing) -> None:
         self._bus = bus
         self._timing = timing
 
@@ -285,23 +282,17 @@ def measure(
     area: float = AREA_PER_ROBOT_M2,
 ) -> dict[str, Any]:
     """One row: ``robots`` robots at ``rate`` Hz into a live fleet service."""
-    keys = Keys(fleet)
-    router_settings = load_settings(listen=["tcp/127.0.0.1:0"], fleet_name=fleet)
-    fleet_rate = min(rate, router_settings.fleet_rate_hz)
-    layout = spread_spawn(robots, area)
-    probe_ids = crowded(layout, router_settings.avoidance.peer_radius, min(PROBES, robots))
     timing = _Timing()
-    with (
-        tempfile.TemporaryDirectory(prefix="parkfleet-bench-") as tmp,
-        open_session(router_settings, "router") as router,
-    ):
-        endpoint = tcp_endpoint(listening_locators(router))
-        store = SqliteTaskStore(Path(tmp) / "parkfleet.db")
-        service = FleetService(
-            router_settings, _TimedBus(ZenohFleetBus(router, keys), timing), store
+    with tempfile.TemporaryDirectory(prefix="parkfleet-bench-") as tmp:
+        router_settings = load_settings(
+            listen=["tcp/127.0.0.1:0"], fleet_name=fleet, data_dir=Path(tmp)
         )
-        try:
-            service.start()
+        fleet_rate = min(rate, router_settings.fleet_rate_hz)
+        layout = spread_spawn(robots, area)
+        probe_ids = crowded(layout, router_settings.avoidance.peer_radius, min(PROBES, robots))
+        with open_fleet(router_settings, wrap_bus=lambda bus: _TimedBus(bus, timing)) as running:
+            service = running.service
+            endpoint = tcp_endpoint(running.locators)
             log = Path(tmp) / "sim.log"
             spawn = Path(tmp) / "spawn.json"
             spawn.write_text(json.dumps(layout))
@@ -328,9 +319,6 @@ def measure(
                 assert probe.stdout is not None
                 probes = json.loads(probe.stdout.readline())["probes"]
             overran = _overruns(log.read_text(errors="replace"))
-        finally:
-            service.close()
-            store.close()
     delivered = len(timing.ages)
     ages_ms = [1e3 * a for a in timing.ages]
     inside_us = [1e6 * d for d in timing.inside]

@@ -13,7 +13,7 @@ def register(commands: Any, bench: Any) -> None:
 
     p = bench.add_parser(
         "estop",
-        help="e-stop latency: request -> zero wheel speed, N simulated robots over Zenoh",
+        help="e-stop latency: request -> the wheels stop, N simulated robots over Zenoh",
         description=estop.__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -28,6 +28,11 @@ def register(commands: Any, bench: Any) -> None:
         default=3,
         help="then this many e-stops through the real `parkfleet estop` command (default 3)",
     )
+    p.add_argument(
+        "--perfect",
+        action="store_true",
+        help="robots without disturbances (default: the fleet bench's, 50-150 ms to the wheels)",
+    )
     p.set_defaults(func=run)
 
 
@@ -39,4 +44,5 @@ def run(args: argparse.Namespace) -> int:
         args.trials,
         as_json=args.json,
         cli_trials=max(args.cli_trials, 0),
+        disturbed=not args.perfect,
     )

@@ -19,10 +19,11 @@ from fleet.bench.fleet import (
     run_fleet_bench,
     summarise,
 )
-from fleet.bench.report import auto_table, policy_table
+from fleet.bench.report import auto_table, planning_wait_table, policy_table, smoothness_table
 from fleet.bench.scenarios import Scenario, full_suite, load_scenarios, quick_suite
-from fleet.cli.options import add_json, add_time_scale, positive_float
+from fleet.cli.options import add_json, add_time_scale, positive_float, positive_int
 from fleet.io.settings import load_settings
+from sim_agent.robots import SimRobots
 
 
 def register(commands: Any, bench: Any) -> None:
@@ -32,7 +33,8 @@ def register(commands: Any, bench: Any) -> None:
         description="Runs each scenario through a real FleetService (SQLite store, Zenoh) and "
         "time-scaled `parkfleet sim` robots with a real robot's disturbances, under the "
         "policies auto, cw, ccw and none (no avoidance), and through navground's ORCA, HRVO, "
-        "HL and social force on the same robots; measures success, collisions and minimum "
+        "HL and social force on the same simulated robots (same disturbances, link and seed); "
+        "measures success, collisions and minimum "
         "separation on time-aligned true poses, makespan (simulated s), path ratio, "
         "deadlocks and planning latency. Progress goes to stderr with --json.",
     )
@@ -63,7 +65,19 @@ def register(commands: Any, bench: Any) -> None:
         help="simulated seconds after the last task's arrival before a run stops "
         "(default: each scenario's, 120 s or more)",
     )
-    p.add_argument("--perfect", action="store_true", help="no disturbances on the fleet's robots")
+    p.add_argument(
+        "--perfect",
+        action="store_true",
+        help="no disturbances on anybody's robots (fleet and navground alike)",
+    )
+    p.add_argument(
+        "--disturbance-seeds",
+        type=positive_int,
+        default=1,
+        metavar="N",
+        help="run every scenario with N sets of disturbances (seeds), every policy on each "
+        "(default 1; the issue's targets use 3)",
+    )
     p.add_argument("--plots", type=Path, metavar="DIR", help="one PNG per (scenario, policy)")
     p.add_argument(
         "--markdown",
@@ -103,7 +117,7 @@ def select(args: argparse.Namespace) -> list[Scenario]:
 HEADER = (
     f"{'run':>9} {'scenario':<22} {'N':>3} {'policy':<11} {'success':>7} {'coll':>4} "
     f"{'min sep':>7} {'makespan':>8} {'path':>5} {'dead':>4} {'obst':>4} "
-    f"{'plan p50/p99 ms':>15} {'wall s':>6}"
+    f"{'plan p50/p99 ms':>15} {'stop/cusp':>9} {'wait s':>6} {'wall s':>6}"
 )
 
 
@@ -115,11 +129,17 @@ def format_row(done: int, total: int, row: FleetBenchRow) -> str:
     plan = (
         "-" if row.plan_p50_ms is None else f"{row.plan_p50_ms:.0f}/{_fmt(row.plan_p99_ms, '.0f')}"
     )
+    smooth = (
+        "-"
+        if row.stops_per_trip is None or row.cusps_per_trip is None
+        else f"{row.stops_per_trip:.1f}/{row.cusps_per_trip:.1f}"
+    )
     return (
         f"{f'{done}/{total}':>9} {row.scenario:<22} {row.robots:>3} {row.policy:<11} "
         f"{row.success_rate:>7.0%} {row.collisions:>4} {_fmt(row.min_separation_m, '.3f'):>7} "
         f"{row.makespan_s:>8.1f} {_fmt(row.path_ratio, '.2f'):>5} {row.deadlocks:>4} "
-        f"{row.obstacle_hits:>4} {plan:>15} {row.wall_s:>6.0f}"
+        f"{row.obstacle_hits:>4} {plan:>15} {smooth:>9} {_fmt(row.plan_wait_s, '.1f'):>6} "
+        f"{row.wall_s:>6.0f}"
     )
 
 
@@ -148,7 +168,13 @@ def print_summary(summary: list[SummaryRow], out: TextIO) -> None:
 
 
 def print_markdown(rows: list[FleetBenchRow], out: TextIO) -> None:
-    print("\n" + policy_table(rows) + "\n\n" + auto_table(rows), file=out)
+    tables = (
+        policy_table(rows),
+        auto_table(rows),
+        smoothness_table(rows),
+        planning_wait_table(rows),
+    )
+    print("\n" + "\n\n".join(tables), file=out)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -169,6 +195,8 @@ def run(args: argparse.Namespace) -> int:
         plots=args.plots,
         traces=args.traces,
         settings=load_settings(),
+        robots=SimRobots() if args.perfect else SimRobots.realistic(),
+        disturbance_seeds=args.disturbance_seeds,
     )
     progress_out = sys.stderr if args.json else sys.stdout
     print(

@@ -122,7 +122,7 @@ async def serve_demo(settings: Settings, options: DemoOptions) -> int:
             "",
             f"parkfleet demo: API on {running.url}  (docs: {running.url}/docs)",
             f"                Zenoh router on {', '.join(running.zenoh)}",
-            f"                data in {Path(settings.data_dir) / 'parkfleet.db'}",
+            f"                data in {settings.db_path}",
             "Submit a parking task and watch it:",
             *(
                 f"  {line}"

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from fleet.io.settings import DB_FILE
+
 
 def add_config(p: argparse.ArgumentParser) -> None:
     """``--config FILE``: the TOML settings file (also ``PARKFLEET_CONFIG``)."""
@@ -43,6 +45,17 @@ def positive_float(text: str) -> float:
     return value
 
 
+def positive_int(text: str) -> int:
+    """argparse type: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {text}")
+    return value
+
+
 def add_time_scale(p: argparse.ArgumentParser, default: float = 1.0) -> None:
     """``--time-scale S``: simulated seconds per wall-clock second (lockstep simulation)."""
     p.add_argument(
@@ -73,9 +86,7 @@ def add_server(
         metavar="ENDPOINT",
         help="Zenoh router endpoint, repeatable (default tcp/127.0.0.1:7447)",
     )
-    p.add_argument(
-        "--data-dir", type=Path, help=f"where parkfleet.db lives (default {default_data})"
-    )
+    p.add_argument("--data-dir", type=Path, help=f"where {DB_FILE} lives (default {default_data})")
     add_site(p, default_site)
     add_config(p)
 

@@ -11,7 +11,7 @@ from fleet.cli.options import add_config, add_connect, add_rate, add_spawn, add_
 from fleet.cli.signals import stop_on_signals
 from fleet.io.settings import load_settings
 from fleet.io.transport import open_session
-from sim_agent.disturbances import REALISTIC, Disturbances
+from sim_agent.disturbances import REALISTIC, REALISTIC_LINK, Disturbances, LinkDisturbances
 from sim_agent.fleet import SimFleet, spawn_layout
 
 
@@ -37,7 +37,8 @@ def register(commands: Any, bench: Any) -> None:
         "--disturbed",
         action="store_true",
         help="the fleet benchmark's set: --pose-noise 0.01 --heading-noise 0.5 "
-        "--actuation-noise 0.05 --wheel-bias 0.02 --latency 50,150 (flags given win)",
+        "--actuation-noise 0.05 --wheel-bias 0.02 --latency 50,150 --link-delay 20,200 "
+        "--link-loss 0.05 (flags given win)",
     )
     d.add_argument("--pose-noise", type=float, metavar="M", help="std of reported x, y [m]")
     d.add_argument("--heading-noise", type=float, metavar="DEG", help="std of reported theta [deg]")
@@ -55,6 +56,18 @@ def register(commands: Any, bench: Any) -> None:
         type=_latency_ms,
         metavar="MIN[,MAX]",
         help="command latency [ms], uniform in [MIN, MAX]",
+    )
+    d.add_argument(
+        "--link-delay",
+        type=_latency_ms,
+        metavar="MIN[,MAX]",
+        help="delay of each peer state between robots [ms], uniform in [MIN, MAX]",
+    )
+    d.add_argument(
+        "--link-loss",
+        type=_fraction,
+        metavar="FRAC",
+        help="share of peer states lost between robots",
     )
     p.add_argument(
         "--trace",
@@ -77,6 +90,24 @@ def _latency_ms(text: str) -> tuple[float, float]:
     if high < low:
         raise argparse.ArgumentTypeError(f"MAX must be >= MIN, got {text!r}")
     return (low / 1e3, high / 1e3)
+
+
+def _fraction(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 1), got {text!r}")
+    return value
+
+
+def link_from(args: argparse.Namespace) -> LinkDisturbances:
+    """The :class:`LinkDisturbances` the flags ask for (``--disturbed`` as the base)."""
+    base = REALISTIC_LINK if args.disturbed else LinkDisturbances()
+    return LinkDisturbances(
+        delay_s=_given(args.link_delay, base.delay_s), loss=_given(args.link_loss, base.loss)
+    )
 
 
 def disturbances_from(args: argparse.Namespace) -> Disturbances:
@@ -119,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
             time_scale=args.time_scale,
             seed=args.seed,
             disturbances=disturbances,
+            link=link_from(args),
             trace=args.trace,
         )
         try:

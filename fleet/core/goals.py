@@ -5,7 +5,9 @@ it conflicts with, when it lies
 
 * outside the yard rectangle ``(xmin, xmax, ymin, ymax)`` [m];
 * inside (or on the edge of) a static obstacle's influence zone -- there the repulsion of
-  Eq. (27) would fight the posture law for ever;
+  Eq. (27) would fight the posture law for ever -- or so near its body that the parked
+  robot's body (``margin``, its radius [m]) would come within ``contact_margin`` [m] of it
+  (the safety filter would never let it arrive);
 * inside a keep-out zone of the site map (:mod:`fleet.core.site`), or so near one that the
   parked robot's body (``margin``, its radius [m]) would reach into it;
 * within the peer influence radius [m] of another active task's goal or of a parked robot
@@ -46,6 +48,7 @@ def validate_goal(
     peer_radius: float,
     keep_out: Iterable[KeepOutZone] = (),
     margin: float = 0.0,
+    contact_margin: float = 0.0,
 ) -> None:
     """Raise :class:`GoalRejected` if ``goal`` is not a valid parking posture."""
     xmin, xmax, ymin, ymax = yard
@@ -62,6 +65,13 @@ def validate_goal(
             raise GoalRejected(
                 f"goal ({goal.x:.2f}, {goal.y:.2f}) lies inside the influence zone of obstacle "
                 f"{i} at ({obs.x:.2f}, {obs.y:.2f}) (radius {obs.radius:g} m, distance {d:.2f} m)"
+            )
+        reach = obs.body_radius + margin + contact_margin
+        if d <= reach:
+            raise GoalRejected(
+                f"goal ({goal.x:.2f}, {goal.y:.2f}) is {d:.2f} m from obstacle {i} at "
+                f"({obs.x:.2f}, {obs.y:.2f}): a parked robot (radius {margin:g} m) would come "
+                f"within {contact_margin:g} m of its body (radius {obs.body_radius:g} m)"
             )
     for zone in keep_out:
         d = zone.distance(goal.x, goal.y)

@@ -61,6 +61,66 @@ class Avoidance(BaseModel):
     min_x_oa: PositiveFloat = 0.05
 
 
+class SafetyConfig(BaseModel):
+    """The safety filter every robot runs each tick (README "Safety"; ``fleet.core.step``).
+
+    ``contact_margin_m`` [m]: no body is to come closer than this to another robot's or an
+    obstacle's body. The robot sees itself and each peer with an uncertainty (spread) that
+    assumes: command-to-wheel latency at most ``max_latency_s`` [s]; a peer's state
+    reaching the robot within ``link_delay_s`` [s] of its measurement; pose errors at most
+    ``pose_error_m`` [m]; speeds changing by at most ``max_accel_m_s2`` [m/s^2] (the
+    drive's acceleration limit); every robot running the filter. A peer silent for more
+    than ``peer_stale_s`` [s] is a standing obstacle whose spread grows with the silence.
+    ``projection_m`` [m]: the point ahead of the axle (at most the half axle);
+    ``barrier_rate`` [1/s]: how fast a clearance may be used up.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    enabled: bool = True
+    contact_margin_m: Annotated[float, Field(ge=0.0, le=2.0, allow_inf_nan=False)] = 0.05
+    projection_m: Annotated[float, Field(gt=0.0, le=0.5, allow_inf_nan=False)] = 0.03
+    barrier_rate: Annotated[float, Field(gt=0.0, le=100.0, allow_inf_nan=False)] = 5.0
+    max_latency_s: Annotated[float, Field(ge=0.0, le=2.0, allow_inf_nan=False)] = 0.15
+    link_delay_s: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] = 0.2
+    pose_error_m: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.02
+    max_accel_m_s2: Annotated[float, Field(gt=0.0, le=100.0, allow_inf_nan=False)] = 1.0
+    peer_stale_s: Annotated[float, Field(gt=0.0, le=60.0, allow_inf_nan=False)] = 1.0
+
+    def filter_terms(self, spread: float) -> tuple[float, float, float, float]:
+        """The compiled step's filter parameters (``fleet.core.step.Safety``: margin,
+        projection, rate, spread [m]); margin -1 (off) when disabled."""
+        if not self.enabled:
+            return (-1.0, 0.0, 0.0, 0.0)
+        return (self.contact_margin_m, self.projection_m, self.barrier_rate, spread)
+
+    def reach(self, speed: float, seconds: float) -> float:
+        """How far [m] a body moving at ``speed`` [m/s] may get in ``seconds`` [s] with
+        speeds changing by at most ``max_accel_m_s2``."""
+        return abs(speed) * seconds + 0.5 * self.max_accel_m_s2 * seconds * seconds
+
+    def own_spread(self, speed: float) -> float:
+        """This robot's uncertainty [m] at the instant its command acts: pose error plus
+        the motion of up to ``max_latency_s`` of its commands in flight."""
+        return self.pose_error_m + self.reach(speed, self.max_latency_s)
+
+    def batch_spread(self) -> float:
+        """The spread [m] the batch simulator (the planner's rollouts) gives every robot: a
+        standing robot's pose error and what it may start to do within latency and link
+        delay (the batch has no command latency of its own)."""
+        return self.pose_error_m + self.reach(0.0, self.link_delay_s + self.max_latency_s)
+
+    def peer_spread(self, speed: float, silent_s: float) -> float:
+        """A peer's uncertainty [m] (reported ``speed`` [m/s]): its pose error and the
+        motion it may make from its measurement until this robot's command acts; beyond
+        ``peer_stale_s`` of silence [s] the peer is taken as standing still, its spread
+        growing with the silence."""
+        if silent_s > self.peer_stale_s:
+            speed = 0.0
+        seconds = self.link_delay_s + self.max_latency_s + max(silent_s, 0.0)
+        return self.pose_error_m + self.reach(speed, seconds)
+
+
 DEFAULT_TOLERANCE = Tolerance()
 """The paper's tight tolerance (comparative cases I and II): 0.05 m, 0.02 rad."""
 

@@ -4,8 +4,12 @@ The maths of the one compiled step (:mod:`fleet.core.step`) written again with t
 module only, in the same order of operations: the posture error of Eq. (5) with the heading
 wraps (11.a), (11.b) and (21), the stop rule, law (17) (``ccw``) or (20) (``cw``), the
 Eq. (27) repulsion from peers and static obstacles with the x_OA guard, the wheel-speed
-saturation of Eq. (2), the contact guard, and a forward-Euler step of the kinematics,
-Eq. (3). Property tests hold the compiled step, the batch simulator, the agent and the
+saturation of Eq. (2), the safety filter (the closest command to the nominal that keeps
+every body clear), and a forward-Euler step of the kinematics, Eq. (3). With
+``latency_steps`` the loop also models command latency: a robot decides on its own pose
+predicted through its commands in flight, sees its peers as they are now with a spread
+that covers the motion they may make meanwhile, and its command acts that many steps
+later. Property tests hold the compiled step, the batch simulator, the agent and the
 simulated drive to it. Keep it straightforward, not clever (and out of production code).
 """
 
@@ -32,13 +36,160 @@ class WheelLimit:
 
 @dataclass(frozen=True)
 class Avoidance:
-    """Eq. (27) and the contact guard: K_avoid [m^2/s], peer influence radius [m], x_OA
-    guard [m] and the robot's body radius [m] (contact at 2 radius + min_x_oa)."""
+    """Eq. (27): K_avoid [m^2/s], peer influence radius [m], x_OA guard [m]; and the robot's
+    body radius [m] (the safety filter's)."""
 
     k_avoid: float
     peer_radius: float
     min_x_oa: float
     radius: float
+
+
+@dataclass(frozen=True)
+class Safety:
+    """The safety filter (``fleet.core.step.Safety``): margin [m] between bodies, projection
+    l [m], barrier rate [1/s], own spread [m]."""
+
+    margin: float
+    projection: float
+    rate: float
+    spread: float = 0.0
+
+
+@dataclass(frozen=True)
+class Body:
+    """Another robot as the filter sees it: pose (x, y, theta), body radius and spread [m]."""
+
+    x: float
+    y: float
+    theta: float
+    radius: float
+    spread: float = 0.0
+
+
+SIDE_STEP = 0.5
+_SQRT_HALF = math.sqrt(0.5)
+_TOL = 1e-12
+
+
+def _body_half_planes(
+    dx: float, dy: float, c: float, s: float, gap: float, spread: float, share_rate: float,
+    reach: float,
+) -> list[tuple[float, float, float]] | None:  # fmt: skip
+    """The half-planes (a1, a2, bound) in (u, l omega) that keep one body clear, [] when
+    they cannot bind, None when only a standstill is safe."""
+    bound = share_rate * (gap - spread)
+    if bound >= reach:
+        return []
+    distance = math.sqrt(dx * dx + dy * dy)
+    if distance <= 0.0 or spread >= _SQRT_HALF * distance:
+        if bound <= 0.0:
+            return None
+        inner = bound * _SQRT_HALF
+        return [(1.0, 0.0, inner), (-1.0, 0.0, inner), (0.0, 1.0, inner), (0.0, -1.0, inner)]
+    mx, my = dx / distance, dy / distance
+    a1, a2 = c * mx + s * my, c * my - s * mx
+    if spread <= 0.0:
+        return [(a1, a2, bound)]
+    sin_phi = spread / distance
+    cos_phi = math.sqrt(1.0 - sin_phi * sin_phi)
+    planes = [
+        (a1 * cos_phi - a2 * sin_phi, a2 * cos_phi + a1 * sin_phi, bound),
+        (a1 * cos_phi + a2 * sin_phi, a2 * cos_phi - a1 * sin_phi, bound),
+    ]
+    if bound > 0.0:
+        planes.append((a1, a2, bound * cos_phi))
+    return planes
+
+
+def _satisfies(planes: Sequence[tuple[float, float, float]], u: float, w: float) -> bool:
+    return all(a1 * u + a2 * w <= bound + _TOL for a1, a2, bound in planes)
+
+
+def closest_feasible(
+    planes: Sequence[tuple[float, float, float]], u0: float, w0: float
+) -> tuple[float, float]:
+    """The point of the half-planes' intersection closest to (u0, w0), else (0, 0)."""
+    if _satisfies(planes, u0, w0):
+        return u0, w0
+    best, best_u, best_w = math.inf, 0.0, 0.0
+    for a1, a2, bound in planes:
+        excess = a1 * u0 + a2 * w0 - bound
+        if excess > 0.0:
+            cu, cw = u0 - excess * a1, w0 - excess * a2
+            d = (cu - u0) * (cu - u0) + (cw - w0) * (cw - w0)
+            if d < best and _satisfies(planes, cu, cw):
+                best, best_u, best_w = d, cu, cw
+    for k, (a1, a2, c1) in enumerate(planes):
+        for b1, b2, c2 in planes[k + 1 :]:
+            det = a1 * b2 - a2 * b1
+            if abs(det) < 1e-12:
+                continue
+            cu, cw = (c1 * b2 - a2 * c2) / det, (a1 * c2 - c1 * b1) / det
+            d = (cu - u0) * (cu - u0) + (cw - w0) * (cw - w0)
+            if d < best and _satisfies(planes, cu, cw):
+                best, best_u, best_w = d, cu, cw
+    return best_u, best_w
+
+
+def safety_filter(
+    pose: Posture,
+    u0: float,
+    omega0: float,
+    *,
+    cw: bool,
+    radius: float,
+    limit: WheelLimit | None,
+    peers: Sequence[Body],
+    obstacles: Sequence[tuple[float, float, float]],
+    safety: Safety,
+    dt: float,
+) -> tuple[float, float, bool]:
+    """(u, omega) closest to the nominal that keeps every body clear, and whether it acted
+    (the maths of ``fleet.core.step.safety_filter``; obstacles are (x, y, body radius))."""
+    x, y, theta = pose
+    c, s = math.cos(theta), math.sin(theta)
+    ahead, rate = safety.projection, safety.rate
+    if dt > 0.0:
+        rate = min(rate, 1.0 / dt)
+    w0 = ahead * omega0
+    # The result is never longer than the aim (the nominal plus the sideways aim below):
+    # a body whose bound is beyond that cannot bind.
+    reach = (1.0 + SIDE_STEP) * math.sqrt(u0 * u0 + w0 * w0)
+    if reach <= 0.0:
+        return u0, omega0, False
+    turn = reach / ahead if ahead > 0.0 else abs(omega0)
+    if limit is not None and limit.max_wheel_speed < math.inf:
+        turn = min(turn, limit.wheel_radius * limit.max_wheel_speed / limit.half_axle)
+    eps = (ahead * turn * turn + reach * turn) * dt / rate if rate > 0.0 else 0.0
+    px, py = x + ahead * c, y + ahead * s
+    own = radius + ahead + safety.margin + eps
+    planes: list[tuple[float, float, float]] = []
+    stop = False
+    for peer in peers:
+        dx = peer.x + ahead * math.cos(peer.theta) - px
+        dy = peer.y + ahead * math.sin(peer.theta) - py
+        gap = math.sqrt(dx * dx + dy * dy) - own - peer.radius - ahead
+        more = _body_half_planes(dx, dy, c, s, gap, safety.spread + peer.spread, 0.5 * rate, reach)
+        stop = stop or more is None
+        planes += more or []
+    for ox, oy, body in obstacles:
+        dx, dy = ox - px, oy - py
+        gap = math.sqrt(dx * dx + dy * dy) - own - body
+        more = _body_half_planes(dx, dy, c, s, gap, safety.spread, rate, reach)
+        stop = stop or more is None
+        planes += more or []
+    if stop:
+        return 0.0, 0.0, True
+    if not planes or _satisfies(planes, u0, w0):
+        return u0, omega0, False
+    side = SIDE_STEP / (1.0 + SIDE_STEP) * reach
+    if cw:
+        side = -side
+    u, w = closest_feasible(planes, u0, w0 + side)
+    if u * u + w * w > reach * reach:  # only rounding gets here: stand still instead
+        return 0.0, 0.0, True
+    return u, w / ahead if ahead > 0.0 else omega0, True
 
 
 class Step(NamedTuple):
@@ -139,35 +290,31 @@ def step(
     limit: WheelLimit | None = None,
     *,
     avoidance: Avoidance | None = None,
-    peers: Sequence[tuple[float, float]] = (),
-    obstacles: Sequence[tuple[float, float, float]] = (),
+    peers: Sequence[Body] = (),
+    obstacles: Sequence[tuple[float, float, float, float]] = (),
     hold: bool = False,
+    safety: Safety | None = None,
 ) -> Step:
     """One closed-loop step of ``dt`` [s]: error (5), law (17)/(20), repulsion (27) from
-    ``peers`` (x, y) within the peer radius and ``obstacles`` (x, y, radius) within their
-    own radius, saturation, contact guard, Euler on (3). ``hold``: stand still."""
+    ``peers`` within the peer radius and ``obstacles`` (x, y, influence radius, body
+    radius) within their influence radius, saturation, the safety filter (``safety``),
+    saturation again, Euler on (3). ``hold``: stand still."""
     x, y, theta = pose
     error = pose_error(pose, goal, cw)
     if hold:
         return Step(error=error, u=0.0, omega=0.0, pose=pose)
     u, omega = posture_law(error, gains, cw)
     repulsion = 0.0
-    avoiding = close_ahead = close_behind = False
+    avoiding = False
+    c, s = math.cos(theta), math.sin(theta)
     if avoidance is not None and avoidance.k_avoid > 0.0:
-        c, s = math.cos(theta), math.sin(theta)
         k, guard = avoidance.k_avoid, avoidance.min_x_oa
-        contact = 2.0 * avoidance.radius + guard
-        for px, py in peers:
-            dx, dy = px - x, py - y
-            d_sq = dx * dx + dy * dy
-            x_oa = c * dx + s * dy  # Eq. (26)
-            if d_sq < avoidance.peer_radius * avoidance.peer_radius:
-                repulsion += repulsion_term(x_oa, k, guard)
+        for peer in peers:
+            dx, dy = peer.x - x, peer.y - y
+            if dx * dx + dy * dy < avoidance.peer_radius * avoidance.peer_radius:
+                repulsion += repulsion_term(c * dx + s * dy, k, guard)  # Eq. (26)
                 avoiding = True
-            if d_sq < contact * contact:
-                close_ahead = close_ahead or x_oa > 0.0
-                close_behind = close_behind or x_oa < 0.0
-        for ox, oy, radius in obstacles:
+        for ox, oy, radius, _body in obstacles:
             dx, dy = ox - x, oy - y
             if dx * dx + dy * dy < radius * radius:
                 repulsion += repulsion_term(c * dx + s * dy, k, guard)
@@ -175,11 +322,26 @@ def step(
     u += repulsion
     if limit is not None:
         u, omega = saturate(u, omega, limit)
-    if (u > 0.0 and close_ahead) or (u < 0.0 and close_behind):
-        u = 0.0  # contact guard
-        avoiding = True
-    new_pose = (x + math.cos(theta) * u * dt, y + math.sin(theta) * u * dt, theta + omega * dt)
+    if safety is not None and safety.margin >= 0.0:
+        u, omega, acted = safety_filter(
+            pose, u, omega, cw=cw, radius=avoidance.radius if avoidance else 0.0, limit=limit,
+            peers=peers, obstacles=[(o[0], o[1], o[3]) for o in obstacles], safety=safety,
+            dt=dt,
+        )  # fmt: skip
+        if acted:
+            if limit is not None:
+                u, omega = saturate(u, omega, limit)
+            avoiding = True
+    new_pose = (x + c * u * dt, y + s * u * dt, theta + omega * dt)
     return Step(error, u, omega, new_pose, repulsion, avoiding)
+
+
+def predict(pose: Posture, commands: Sequence[tuple[float, float]], dt: float) -> Posture:
+    """``pose`` after the Euler steps of ``commands`` (u, omega) in flight, in order."""
+    x, y, theta = pose
+    for u, omega in commands:
+        x, y, theta = x + math.cos(theta) * u * dt, y + math.sin(theta) * u * dt, theta + omega * dt
+    return x, y, theta
 
 
 def simulate_loop(
@@ -189,50 +351,88 @@ def simulate_loop(
     laws: Sequence[Law],
     *,
     avoidance: Avoidance | None = None,
-    obstacles: Sequence[tuple[float, float, float]] = (),
+    obstacles: Sequence[tuple[float, float, float, float]] = (),
     start_delay: Sequence[float] | None = None,
     tol_position: float = 0.05,
     tol_heading: float = 0.02,
     dt: float = 0.01,
     max_time: float = 60.0,
     limit: WheelLimit | None = None,
+    safety: Safety | None = None,
+    latency_steps: int = 0,
+    clearances: list[float] | None = None,
 ) -> list[RobotRun]:
     """Simulate N robots step by step until each is done or ``max_time`` [s] has passed.
 
-    With ``avoidance`` every robot is a peer of every other (Eq. 27 and the contact guard)
-    and static ``obstacles`` (x, y, radius) repel; without it the robots are independent.
-    Each step reads the others' pre-step positions. A robot is done at the first step k
-    whose pre-step error satisfies x_e^2 + y_e^2 < ``tol_position``^2 [m] and
-    |theta_e| < ``tol_heading`` [rad]; that step is still applied (time (k + 1) dt), then
-    it stands still. It also stands still while t < its start delay [s] (minus 1e-6 s, as
-    the batch simulator). Tolerances, ``dt`` and the wheel limit are shared.
+    With ``avoidance`` every robot is a peer of every other (Eq. 27 and, with ``safety``,
+    the filter) and static ``obstacles`` (x, y, influence radius, body radius) act;
+    without it the robots are independent. A robot is done at the first step k whose
+    pre-step error satisfies x_e^2 + y_e^2 < ``tol_position``^2 [m] and |theta_e| <
+    ``tol_heading`` [rad]; that step is still applied (time (k + 1) dt), then it stands
+    still. It also stands still while t < its start delay [s] (minus 1e-6 s, as the batch
+    simulator). Tolerances, ``dt`` and the wheel limit are shared.
+
+    ``latency_steps`` L: a command acts L steps after it was decided. Each robot decides on
+    its own pose predicted through its L commands in flight, and sees every peer where it
+    is now with a spread of the filter's own spread plus L dt times the peer's top speed
+    (``limit``: the wheel speed times the wheel radius, which bounds the projected point's
+    speed when the projection is at most the half axle); a done robot's commands in flight
+    still act. ``clearances`` (if given) receives, after every step, the smallest body
+    clearance [m] of any pair (centre distance - both radii) and of any robot to an
+    obstacle's body.
     """
     if not len(starts) == len(goals) == len(gains) == len(laws):
         raise ValueError("starts, goals, gains and laws must have the same length")
+    if latency_steps < 0:
+        raise ValueError("latency_steps must be >= 0")
     n = len(starts)
     delays = [-math.inf] * n if start_delay is None else [d - 1e-6 for d in start_delay]
+    radius = avoidance.radius if avoidance else 0.0
+    top_speed = math.inf if limit is None else limit.wheel_radius * limit.max_wheel_speed
+    spread = top_speed * latency_steps * dt if latency_steps else 0.0
+    if safety is not None:
+        spread += safety.spread  # as the batch: every robot's own spread is its peers' too
     poses = list(starts)
+    in_flight: list[list[tuple[float, float]]] = [[(0.0, 0.0)] * latency_steps for _ in range(n)]
     done_at: list[int | None] = [None] * n
     effort, distance = [0.0] * n, [0.0] * n
     steps = round(max_time / dt)
     for k in range(steps):
-        if all(d is not None for d in done_at):
+        if all(d is not None for d in done_at) and all(
+            all(c == (0.0, 0.0) for c in queue) for queue in in_flight
+        ):
             break
         following = list(poses)
         for i in range(n):
-            if done_at[i] is not None:
-                continue
-            peers = [(p[0], p[1]) for j, p in enumerate(poses) if j != i] if avoidance else []
-            result = step(
-                poses[i], goals[i], gains[i], laws[i] == "cw", dt, limit,
-                avoidance=avoidance, peers=peers, obstacles=obstacles, hold=k * dt < delays[i],
-            )  # fmt: skip
-            distance[i] += abs(result.u) * dt
-            effort[i] += (abs(result.omega) + abs(result.u)) * dt  # Eq. (25)
-            following[i] = result.pose
-            if within_tolerance(result.error, tol_position, tol_heading):
-                done_at[i] = k
+            decided = (0.0, 0.0)
+            if done_at[i] is None:
+                peers = (
+                    [Body(*p, radius, spread) for j, p in enumerate(poses) if j != i]
+                    if avoidance
+                    else []
+                )
+                result = step(
+                    predict(poses[i], in_flight[i], dt), goals[i], gains[i], laws[i] == "cw",
+                    dt, limit, avoidance=avoidance, peers=peers, obstacles=obstacles,
+                    hold=k * dt < delays[i], safety=safety,
+                )  # fmt: skip
+                decided = (result.u, result.omega)
+                if within_tolerance(result.error, tol_position, tol_heading):
+                    done_at[i] = k
+            queue = in_flight[i]
+            queue.append(decided)
+            u, omega = queue.pop(0)
+            distance[i] += abs(u) * dt
+            effort[i] += (abs(omega) + abs(u)) * dt  # Eq. (25)
+            x, y, theta = poses[i]
+            following[i] = (
+                x + math.cos(theta) * u * dt,
+                y + math.sin(theta) * u * dt,
+                theta + omega * dt,
+            )
         poses = following
+        if clearances is not None:
+            clearances.append(_smallest_clearance(poses, radius, obstacles))
     return [
         RobotRun(
             d is not None,
@@ -244,3 +444,16 @@ def simulate_loop(
         )
         for i, d in enumerate(done_at)
     ]
+
+
+def _smallest_clearance(
+    poses: Sequence[Posture], radius: float, obstacles: Sequence[tuple[float, float, float, float]]
+) -> float:
+    """Smallest body clearance [m] between two robots or a robot and an obstacle's body."""
+    smallest = math.inf
+    for i, a in enumerate(poses):
+        for b in poses[i + 1 :]:
+            smallest = min(smallest, math.hypot(a[0] - b[0], a[1] - b[1]) - 2.0 * radius)
+        for ox, oy, _influence, body in obstacles:
+            smallest = min(smallest, math.hypot(a[0] - ox, a[1] - oy) - radius - body)
+    return smallest

@@ -4,7 +4,7 @@ Every step of every robot is the one compiled control step (:mod:`fleet.core.ste
 code the robot agents run): forward Euler on the kinematics of Eq. (3) at ``dt`` (0.01 s in
 the paper). Each robot has its own goal, gains, law, tolerance, wheel limits and body
 radius; static obstacles and, optionally, the other robots act through the repulsion of
-Eq. (27), and the other robots through the contact guard.
+Eq. (27), and through the safety filter (``safety``; off by default, the paper's model).
 
 Stop rule (DESIGN.md): a robot is done at the first step k whose *pre-step* error is within
 tolerance (x_e^2 + y_e^2 < tol_position^2 and |theta_e| < tol_heading). That step is still
@@ -24,12 +24,21 @@ import numpy as np
 import numpy.typing as npt
 
 from fleet.core.control import DEFAULT_MIN_X_OA, is_cw
-from fleet.core.params import DEFAULT_TOLERANCE, UNLIMITED, Gains, RobotProfile, Tolerance
+from fleet.core.params import (
+    DEFAULT_TOLERANCE,
+    UNLIMITED,
+    Gains,
+    RobotProfile,
+    SafetyConfig,
+    Tolerance,
+)
 from fleet.core.step import (
     DISTANCE,
     EFFORT,
     RECORD_COLUMNS,
+    SAFETY_OFF,
     Interaction,
+    Safety,
     Schedule,
     advance_batch,
     lower_min_separation,
@@ -42,6 +51,12 @@ PAPER_DT = 0.01
 DELAY_EPS = 1e-6
 #: Recorded rows per compiled call when recording (bounds the buffers to rows x N x 8 floats).
 RECORD_CHUNK_ROWS = 256
+
+
+def batch_filter(config: SafetyConfig) -> Safety:
+    """The safety filter the batch runs for robots configured with ``config``: every robot
+    with :meth:`SafetyConfig.batch_spread` (the batch has no command latency or link)."""
+    return Safety(*config.filter_terms(config.batch_spread()))
 
 
 def _column(values: npt.ArrayLike, n: int, name: str) -> FloatArray:
@@ -69,14 +84,18 @@ class BatchProblem:
     max_wheel_speed: FloatArray  # (N,) [rad/s], inf = unlimited
     obstacles: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))  # (M, 2) [m]
     obstacle_radius: FloatArray = field(default_factory=lambda: np.zeros(0))  # (M,) [m]
+    #: (M,) body radius [m] of each obstacle (the safety filter's); None: 0 m (a point).
+    obstacle_body: FloatArray | None = None
     k_avoid: float = 0.0  # K_avoid of Eq. (27) [m^2/s]
     peer_radius: float = 0.0  # influence radius of each robot on its peers [m]; 0 = off
     min_x_oa: float = DEFAULT_MIN_X_OA
     #: (N,) [s] each robot stands still (u = omega = 0) while t < start_delay - DELAY_EPS,
     #: like an agent in its start delay; arrival is checked throughout. None: no delays.
     start_delay: FloatArray | None = None
-    #: (N,) body radius [m] of the contact guard (2 radius + min_x_oa); None: 0 m.
+    #: (N,) body radius [m] of each robot (the safety filter's); None: 0 m.
     body_radius: FloatArray | None = None
+    #: The safety filter (:class:`fleet.core.step.Safety`); off: the paper's model.
+    safety: Safety = SAFETY_OFF
 
     @property
     def size(self) -> int:
@@ -113,6 +132,8 @@ class BatchProblem:
         peer_radius: float = 0.0,
         min_x_oa: float = DEFAULT_MIN_X_OA,
         start_delay: npt.ArrayLike | None = None,
+        obstacle_body: npt.ArrayLike = 0.0,
+        safety: Safety = SAFETY_OFF,
     ) -> BatchProblem:
         """Broadcast per-robot inputs (scalars, models or arrays) to an N-robot problem."""
         start_arr = np.atleast_2d(np.asarray(start, dtype=np.float64))
@@ -148,11 +169,13 @@ class BatchProblem:
             max_wheel_speed=_column([p.max_wheel_speed for p in profs], n, "max_wheel_speed"),
             obstacles=obs,
             obstacle_radius=_column(obstacle_radius, obs.shape[0], "obstacle_radius"),
+            obstacle_body=_column(obstacle_body, obs.shape[0], "obstacle_body"),
             k_avoid=float(k_avoid),
             peer_radius=float(peer_radius),
             min_x_oa=float(min_x_oa),
             start_delay=None if start_delay is None else _column(start_delay, n, "start_delay"),
             body_radius=_column([p.radius for p in profs], n, "body_radius"),
+            safety=safety,
         )
 
 
@@ -232,12 +255,18 @@ def simulate(
     params = problem.params()
     done_step = np.full(n, -1, dtype=np.int64)
     metrics = np.zeros((2, n))
-    obstacles = np.zeros((3, 0))
-    if problem.k_avoid > 0 and problem.obstacles.shape[0] > 0:
+    obstacles = np.zeros((4, 0))
+    filtered = problem.safety.margin >= 0.0
+    if (problem.k_avoid > 0 or filtered) and problem.obstacles.shape[0] > 0:
+        m = problem.obstacles.shape[0]
+        body = np.zeros(m) if problem.obstacle_body is None else problem.obstacle_body
+        influence = problem.obstacle_radius if problem.k_avoid > 0 else np.zeros(m)
         obstacles = np.ascontiguousarray(
-            np.vstack([problem.obstacles.T, problem.obstacle_radius[None, :]])
+            np.vstack([problem.obstacles.T, influence[None, :], body[None, :]])
         )
-    interaction = Interaction(g, problem.k_avoid, problem.peer_radius, problem.min_x_oa)
+    interaction = Interaction(
+        g, problem.k_avoid, problem.peer_radius, problem.min_x_oa, problem.safety
+    )
     min_pair_sq = np.full((blocks, g, g), np.inf) if track_separation else None
     recorded: list[FloatArray] = []
 

@@ -21,12 +21,37 @@ One step of one robot (:func:`robot_step`), in this order:
    along the heading) is floored at ``min_x_oa`` keeping its sign (0 counts as ahead);
 6. saturation: u and omega divided by the same factor so that neither wheel of Eq. (2)
    exceeds ``max_wheel_speed`` (the curvature omega/u is kept);
-7. contact guard: u = 0 when it would move the robot towards a peer closer than
-   2 body radius + min_x_oa (forwards to one ahead, backwards to one behind); turning on
-   the spot stays allowed (Eq. 27 alone can let a robot settle in contact with a peer);
+7. safety filter (:func:`safety_filter`, when ``safety.margin`` >= 0): the command changed as
+   little as possible so that no body comes within ``margin`` of another's (see below);
+   then saturated again;
 8. forward Euler on Eq. (3) with the pre-step heading: x += cos(theta) u dt, ...
 
-Steps 5 and 7 are on only when K_avoid > 0.
+Step 5 is on only when K_avoid > 0; step 7 whenever the filter is on (the paper's model
+runs without it).
+
+**The safety filter** (a discrete-time control barrier function on the unicycle, the
+Robotarium's barrier certificates with the projected point). The point p = c + l e(theta)
+ahead of the axle centre c moves, in one Euler step, by dt (u e + l omega e_perp) plus a
+second-order term, so in v = (u, l omega) the motion is linear. A robot's *disc* (radius
+R + l around p) holds its body. For a peer j (its disc predicted at the instant the
+command acts, with an uncertainty ``spread`` E [m]: pose error and the motion it may have
+made since it was seen) and a static obstacle (centre, body radius), with clearance
+C = |p_i - p_j| - (R_i + l) - (R_j + l) - margin, the robot keeps its *closing speed*
+along every direction within E of the estimated one to at most share * rate * (C_lo - eps):
+share 1/2 for a peer (the peer takes the other half: every robot runs this filter), 1 for
+a static body; C_lo = C - E (a lower bound of the true clearance); eps [m] the allowance
+for the second-order terms (the projected point's rotation within a step and the drive's
+arc), eps = (l W^2 + V W) dt / rate with V = (1 + ``SIDE_STEP``) |v0| the longest the
+result can be and W the turn-rate bound (wheel limit, or V / l). With rate * dt <= 1 the
+clearance of every pair then never falls below 0 from one step to the next:
+C' >= (1 - rate dt) C (derivation in the README, "Safety").
+The constraints are half-planes a . v <= c with unit a; the command is the point of
+their intersection closest to the nominal v0 (two variables: the nominal, each edge's
+projection or each vertex, the closest feasible one wins -- exact, no solver), or a
+standstill when none is feasible (standing still never closes a gap). Bodies whose
+constraint cannot bind (c >= V) are skipped. When it binds, the aim is shifted sideways by
+``SIDE_STEP`` |v0| in the law's rotation sense (robots meeting head-on pass each other).
+
 
 **Numerics.** IEEE double arithmetic in a fixed order with libm's ``sin``, ``cos`` and ``exp``
 (the functions Python's :mod:`math` calls), no fastmath and no fused multiply-add, so a step
@@ -36,7 +61,8 @@ equals the plain-Python reference bit for bit when both sum in the same order. T
 **Data.** A robot is a row of ``params`` (columns ``GOAL_X`` ... ``DELAY_END``, built by
 :func:`robot_params`); positions are rows: ``positions[0]`` = x, ``positions[1]`` = y [m];
 static obstacles are ``obstacles[0]`` = x, ``obstacles[1]`` = y, ``obstacles[2]`` = influence
-radius [m].
+radius, ``obstacles[3]`` = body radius [m]; peers are columns of ``positions`` (rows x, y,
+theta) with ``shapes[0]`` = body radius and ``shapes[1]`` = spread E [m].
 
 **Compilation.** Every function is compiled with ``cache=True`` (machine code kept in this
 package's ``__pycache__``, or numba's per-user cache directory when that is read-only).
@@ -75,7 +101,7 @@ TOL_HEADING = 8  # heading tolerance [rad]
 WHEEL_RADIUS = 9  # r of Eq. (2) [m]
 HALF_AXLE = 10  # b of Eq. (2) [m]
 MAX_WHEEL_SPEED = 11  # [rad/s], inf = unlimited
-BODY_RADIUS = 12  # [m], for the contact guard
+BODY_RADIUS = 12  # [m], the body, for the safety filter
 DELAY_END = 13  # [s] the robot is held while t < DELAY_END (batch only; -inf = never)
 ROBOT_COLUMNS = 14
 
@@ -274,6 +300,170 @@ def _euler(
     return x + c * u * dt, y + s * u * dt, theta + omega * dt
 
 
+# -- the safety filter (scalar, compiled) ----------------------------------------------------
+class Safety(NamedTuple):
+    """Safety filter parameters (module docstring): ``margin`` [m] between bodies (< 0: the
+    filter is off, the paper's model), ``projection`` l [m] of the point ahead of the axle,
+    ``rate`` [1/s] of the barrier (clearance may shrink by at most rate dt per step; capped
+    at 1 / dt) and ``spread`` [m], this robot's own pose uncertainty at the instant its
+    command acts (pose error, latency prediction)."""
+
+    margin: float
+    projection: float
+    rate: float
+    spread: float
+
+
+#: The paper's model: no filter.
+SAFETY_OFF = Safety(-1.0, 0.0, 0.0, 0.0)
+#: Half-planes one filter call may hold (3 per body; beyond: standstill, which is safe).
+MAX_CONSTRAINTS = 48
+_SQRT_HALF = math.sqrt(0.5)
+_FEASIBLE_TOL = 1e-12  # [m/s] slack of a constraint check
+#: Sideways aim of a bound command, a fraction of |v0| in l omega (law's rotation sense).
+SIDE_STEP = 0.5
+
+
+@njit(inline="always", error_model="numpy")
+def _add_half_plane(cons: FloatArray, n: int, a1: float, a2: float, bound: float) -> int:
+    """Append a1 u + a2 w <= bound to ``cons``; returns the new count (-1 when full)."""
+    if n < 0 or n >= cons.shape[0]:
+        return -1
+    cons[n, 0], cons[n, 1], cons[n, 2] = a1, a2, bound
+    return n + 1
+
+
+@njit(inline="always", error_model="numpy")
+def _add_body(
+    cons: FloatArray, n: int, dx: float, dy: float, c: float, s: float, gap: float,
+    spread: float, share_rate: float, reach: float,
+) -> tuple[int, bool]:  # fmt: skip
+    """The half-planes of one body at (dx, dy) [m] from the own projected point (heading
+    cos c, sin s): closing speed <= share_rate (gap - spread) in every direction within
+    ``spread`` of the estimated one. ``gap`` = |(dx, dy)| - radii - margin - eps [m].
+    Returns the new count and whether only a standstill is safe. Skipped when it cannot
+    bind (its bound >= ``reach`` = |v0|)."""
+    bound = share_rate * (gap - spread)
+    if bound >= reach:
+        return n, False
+    distance = math.sqrt(dx * dx + dy * dy)
+    if distance <= 0.0 or spread >= _SQRT_HALF * distance:
+        # Any direction (or too uncertain a one for the cone): |v| <= bound.
+        if bound <= 0.0:
+            return n, True
+        inner = bound * _SQRT_HALF  # the square inside the disc |v| <= bound
+        n = _add_half_plane(cons, n, 1.0, 0.0, inner)
+        n = _add_half_plane(cons, n, -1.0, 0.0, inner)
+        n = _add_half_plane(cons, n, 0.0, 1.0, inner)
+        n = _add_half_plane(cons, n, 0.0, -1.0, inner)
+        return n, n < 0
+    mx, my = dx / distance, dy / distance
+    a1, a2 = c * mx + s * my, c * my - s * mx  # towards the body, in (u, l omega)
+    if spread <= 0.0:
+        n = _add_half_plane(cons, n, a1, a2, bound)
+        return n, n < 0
+    sin_phi = spread / distance
+    cos_phi = math.sqrt(1.0 - sin_phi * sin_phi)
+    n = _add_half_plane(cons, n, a1 * cos_phi - a2 * sin_phi, a2 * cos_phi + a1 * sin_phi, bound)
+    n = _add_half_plane(cons, n, a1 * cos_phi + a2 * sin_phi, a2 * cos_phi - a1 * sin_phi, bound)
+    if bound > 0.0:
+        n = _add_half_plane(cons, n, a1, a2, bound * cos_phi)
+    return n, n < 0
+
+
+@njit(inline="always", error_model="numpy")
+def _satisfies(cons: FloatArray, n: int, u: float, w: float) -> bool:
+    for k in range(n):  # noqa: SIM110 (a loop numba compiles)
+        if cons[k, 0] * u + cons[k, 1] * w > cons[k, 2] + _FEASIBLE_TOL:
+            return False
+    return True
+
+
+@njit(inline="always", error_model="numpy")
+def closest_feasible(cons: FloatArray, n: int, u0: float, w0: float) -> tuple[float, float]:
+    """The point of {a . v <= c} (rows of ``cons``) closest to (u0, w0): the nominal if
+    feasible, else the closest feasible edge projection or vertex; (0, 0) if none is."""
+    if _satisfies(cons, n, u0, w0):
+        return u0, w0
+    best_u = best_w = 0.0
+    best = math.inf
+    for k in range(n):
+        excess = cons[k, 0] * u0 + cons[k, 1] * w0 - cons[k, 2]
+        if excess > 0.0:
+            cu, cw = u0 - excess * cons[k, 0], w0 - excess * cons[k, 1]
+            d = (cu - u0) * (cu - u0) + (cw - w0) * (cw - w0)
+            if d < best and _satisfies(cons, n, cu, cw):
+                best, best_u, best_w = d, cu, cw
+    for k in range(n):
+        for m in range(k + 1, n):
+            det = cons[k, 0] * cons[m, 1] - cons[k, 1] * cons[m, 0]
+            if abs(det) < 1e-12:
+                continue
+            cu = (cons[k, 2] * cons[m, 1] - cons[k, 1] * cons[m, 2]) / det
+            cw = (cons[k, 0] * cons[m, 2] - cons[k, 2] * cons[m, 0]) / det
+            d = (cu - u0) * (cu - u0) + (cw - w0) * (cw - w0)
+            if d < best and _satisfies(cons, n, cu, cw):
+                best, best_u, best_w = d, cu, cw
+    return best_u, best_w
+
+
+@njit(inline="always", error_model="numpy")
+def safety_filter(
+    x: float, y: float, c: float, s: float, u0: float, omega0: float, params: FloatArray,
+    i: int, positions: FloatArray, shapes: FloatArray, peer_lo: int, peer_hi: int, skip: int,
+    obstacles: FloatArray, safety: tuple[float, float, float, float], dt: float,
+) -> tuple[float, float, bool]:  # fmt: skip
+    """(u, omega) closest to the nominal (u0, omega0) that keeps every body clear (module
+    docstring), and whether it differs from the nominal. Heading cos c, sin s."""
+    margin, ahead, rate, own_spread = safety
+    if dt > 0.0:
+        rate = min(rate, 1.0 / dt)
+    w0 = ahead * omega0
+    # The result is never longer than the aim (the nominal plus the sideways aim below):
+    # a body whose bound is beyond that cannot bind.
+    reach = (1.0 + SIDE_STEP) * math.sqrt(u0 * u0 + w0 * w0)
+    if reach <= 0.0:
+        return u0, omega0, False
+    r, b = params[i, WHEEL_RADIUS], params[i, HALF_AXLE]
+    turn = reach / ahead if ahead > 0.0 else abs(omega0)
+    if params[i, MAX_WHEEL_SPEED] < math.inf:
+        turn = min(turn, r * params[i, MAX_WHEEL_SPEED] / b)
+    eps = (ahead * turn * turn + reach * turn) * dt / rate if rate > 0.0 else 0.0
+    px, py = x + ahead * c, y + ahead * s
+    own = params[i, BODY_RADIUS] + ahead + margin + eps
+    cons = np.empty((MAX_CONSTRAINTS, 3))
+    n = 0
+    stop = False
+    half = 0.5 * rate
+    for j in range(peer_lo, peer_hi):
+        if j == skip:
+            continue
+        th = positions[2, j]
+        dx = positions[0, j] + ahead * math.cos(th) - px
+        dy = positions[1, j] + ahead * math.sin(th) - py
+        gap = math.sqrt(dx * dx + dy * dy) - own - shapes[0, j] - ahead
+        n, hold = _add_body(cons, n, dx, dy, c, s, gap, own_spread + shapes[1, j], half, reach)
+        stop |= hold
+    for j in range(obstacles.shape[1]):
+        dx, dy = obstacles[0, j] - px, obstacles[1, j] - py
+        gap = math.sqrt(dx * dx + dy * dy) - own - obstacles[3, j]
+        n, hold = _add_body(cons, n, dx, dy, c, s, gap, own_spread, rate, reach)
+        stop |= hold
+    if stop or n < 0:
+        return 0.0, 0.0, True
+    if n == 0 or _satisfies(cons, n, u0, w0):
+        return u0, omega0, False
+    # Bound: aim to the side of the law's rotation sense (left for (17), right for (20)),
+    # so that robots meeting head-on pass each other instead of stopping nose to nose.
+    side = SIDE_STEP / (1.0 + SIDE_STEP) * reach
+    if params[i, CW] != 0.0:
+        side = -side
+    u, w = closest_feasible(cons, n, u0, w0 + side)
+    if u * u + w * w > reach * reach:  # only rounding gets here: stand still instead
+        return 0.0, 0.0, True
+    return u, w / ahead if ahead > 0.0 else omega0, True
+
+
 # -- THE step ---------------------------------------------------------------------------------
 class StepResult(NamedTuple):
     """One step of one robot: pre-step error, stop rule, applied control, next posture."""
@@ -282,12 +472,12 @@ class StepResult(NamedTuple):
     y_e: float  # [m]
     theta_e: float  # [rad], law's wrap
     done: bool  # pre-step error within tolerance (the step is still applied)
-    u: float  # [m/s] applied (after repulsion, saturation and contact guard)
+    u: float  # [m/s] applied (after repulsion, saturation and the safety filter)
     omega: float  # [rad/s]
     right: float  # [rad/s] wheel speeds of (u, omega), Eq. (2)
     left: float
     repulsion: float  # [m/s] Eq. (27) sum added to u before saturation
-    avoiding: bool  # a peer or obstacle is within its influence radius, or the guard acted
+    avoiding: bool  # a peer or obstacle is within its influence radius, or the filter acted
     x: float  # posture after the Euler step [m, m, rad]
     y: float
     theta: float
@@ -302,6 +492,7 @@ def robot_step(
     i: int,
     hold: bool,
     positions: FloatArray,
+    shapes: FloatArray,
     peer_lo: int,
     peer_hi: int,
     skip: int,
@@ -309,12 +500,14 @@ def robot_step(
     k_avoid: float,
     peer_radius: float,
     min_x_oa: float,
+    safety: tuple[float, float, float, float],
     dt: float,
 ) -> tuple[float, float, float, bool, float, float, float, float, float, bool, float, float, float]:
     """One closed-loop step of robot ``params[i]`` at (x, y, theta) (see the module docstring).
 
-    Peers are columns ``peer_lo .. peer_hi - 1`` of ``positions`` except ``skip`` (the robot
-    itself in a batch, -1 otherwise). Returns the fields of :class:`StepResult`.
+    Peers are columns ``peer_lo .. peer_hi - 1`` of ``positions`` (x, y, theta) and
+    ``shapes`` (body radius, spread) except ``skip`` (the robot itself in a batch, -1
+    otherwise). Returns the fields of :class:`StepResult`.
     """
     c, s = math.cos(theta), math.sin(theta)
     cw = params[i, CW] != 0.0
@@ -329,33 +522,30 @@ def robot_step(
     u, omega = posture_law(x_e, y_e, theta_e, params[i, KX], params[i, KY], params[i, KTHETA], cw)
     repulsion = 0.0
     avoiding = False
-    close_ahead = close_behind = False  # a peer within contact range ahead / behind
     if k_avoid > 0.0:
         influence_sq = peer_radius * peer_radius
-        contact = 2.0 * params[i, BODY_RADIUS] + min_x_oa
-        contact_sq = contact * contact
         for j in range(peer_lo, peer_hi):
             if j == skip:
                 continue
             dx, dy = positions[0, j] - x, positions[1, j] - y
-            d_sq = dx * dx + dy * dy
-            if d_sq < influence_sq or d_sq < contact_sq:
-                x_oa = c * dx + s * dy  # Eq. (26), first row
-                if d_sq < influence_sq:
-                    repulsion += repulsion_term(x_oa, k_avoid, min_x_oa)
-                    avoiding = True
-                if d_sq < contact_sq:
-                    close_ahead |= x_oa > 0.0
-                    close_behind |= x_oa < 0.0
+            if dx * dx + dy * dy < influence_sq:
+                repulsion += repulsion_term(c * dx + s * dy, k_avoid, min_x_oa)  # Eq. (26)
+                avoiding = True
         for j in range(obstacles.shape[1]):
             dx, dy = obstacles[0, j] - x, obstacles[1, j] - y
             if dx * dx + dy * dy < obstacles[2, j] * obstacles[2, j]:
                 repulsion += repulsion_term(c * dx + s * dy, k_avoid, min_x_oa)
                 avoiding = True
-    u, omega = saturate(u + repulsion, omega, r, b, params[i, MAX_WHEEL_SPEED])
-    if (u > 0.0 and close_ahead) or (u < 0.0 and close_behind):
-        u = 0.0  # contact guard: turn on the spot, never drive into a peer
-        avoiding = True
+    max_wheel = params[i, MAX_WHEEL_SPEED]
+    u, omega = saturate(u + repulsion, omega, r, b, max_wheel)
+    if safety[0] >= 0.0:
+        u, omega, filtered = safety_filter(
+            x, y, c, s, u, omega, params, i, positions, shapes, peer_lo, peer_hi, skip,
+            obstacles, safety, dt,
+        )  # fmt: skip
+        if filtered:
+            u, omega = saturate(u, omega, r, b, max_wheel)
+            avoiding = True
     right, left = wheel_speeds(u, omega, r, b)
     nx, ny, ntheta = _euler(x, y, theta, c, s, u, omega, dt)
     return x_e, y_e, theta_e, done, u, omega, right, left, repulsion, avoiding, nx, ny, ntheta
@@ -366,7 +556,8 @@ _STEP_RESULT = "Tuple((float64, float64, float64, boolean, float64, float64, flo
 
 @njit(
     _STEP_RESULT + "(float64, float64, float64, float64[:, ::1], boolean, float64[:, ::1], "
-    "float64[:, ::1], float64, float64, float64, float64)",
+    "float64[:, ::1], float64[:, ::1], float64, float64, float64, "
+    "UniTuple(float64, 4), float64)",
     cache=True,
     error_model="numpy",
 )
@@ -377,15 +568,17 @@ def _step_robot(
     params: FloatArray,
     hold: bool,
     peers: FloatArray,
+    shapes: FloatArray,
     obstacles: FloatArray,
     k_avoid: float,
     peer_radius: float,
     min_x_oa: float,
+    safety: tuple[float, float, float, float],
     dt: float,
 ) -> tuple[float, float, float, bool, float, float, float, float, float, bool, float, float, float]:
     return robot_step(
-        x, y, theta, params, 0, hold, peers, 0, peers.shape[1], -1, obstacles,
-        k_avoid, peer_radius, min_x_oa, dt,
+        x, y, theta, params, 0, hold, peers, shapes, 0, peers.shape[1], -1, obstacles,
+        k_avoid, peer_radius, min_x_oa, safety, dt,
     )  # fmt: skip
 
 
@@ -395,21 +588,25 @@ def step_robot(
     *,
     hold: bool = False,
     peers: FloatArray,
+    shapes: FloatArray,
     obstacles: FloatArray,
     k_avoid: float,
     peer_radius: float,
     min_x_oa: float,
+    safety: Safety = SAFETY_OFF,
     dt: float = 0.0,
 ) -> StepResult:
     """One step of one robot (the agent's tick): :func:`robot_step` on ``params`` (1, 14).
 
-    ``peers`` (2, M) and ``obstacles`` (3, K) are C-contiguous float64 rows (see the module
-    docstring). ``dt`` [s] only moves the returned posture (0: it stays).
+    ``peers`` (3, M) = x, y, theta, ``shapes`` (2, M) = body radius, spread and
+    ``obstacles`` (4, K) are C-contiguous float64 rows (see the module docstring). ``dt``
+    [s] is the control period: the safety filter's step, and it moves the returned posture.
     """
     return StepResult(
         *_step_robot(
-            float(pose[0]), float(pose[1]), float(pose[2]), params, hold, peers, obstacles,
-            k_avoid, peer_radius, min_x_oa, dt,
+            float(pose[0]), float(pose[1]), float(pose[2]), params, hold, peers, shapes,
+            obstacles, k_avoid, peer_radius, min_x_oa,
+            (float(safety[0]), float(safety[1]), float(safety[2]), float(safety[3])), dt,
         )
     )  # fmt: skip
 
@@ -476,19 +673,23 @@ def robot_params(
 class Interaction(NamedTuple):
     """How the robots of a batch act on each other: within blocks of ``group`` consecutive
     robots, through Eq. (27) with K_avoid [m^2/s] inside ``peer_radius`` [m] (x_OA guard
-    ``min_x_oa`` [m]) and the contact guard; not at all unless K_avoid > 0 and
-    ``peer_radius`` > 0. K_avoid and ``min_x_oa`` act on static obstacles too."""
+    ``min_x_oa`` [m]) and the safety filter; Eq. (27) not at all unless K_avoid > 0 and
+    ``peer_radius`` > 0. K_avoid and ``min_x_oa`` act on static obstacles too. ``safety``:
+    the filter (:class:`Safety`; its ``spread`` is every peer's too), which acts on static
+    bodies whenever it is on, and among the robots of a group when ``peer_radius`` > 0
+    (0: independent robots)."""
 
     group: int
     k_avoid: float
     peer_radius: float
     min_x_oa: float
+    safety: tuple[float, float, float, float] = SAFETY_OFF
 
 
-@njit("boolean(int64, float64, float64)", cache=True, error_model="numpy")
-def interacting(group: int, k_avoid: float, peer_radius: float) -> bool:
+@njit("boolean(int64, float64, float64, float64)", cache=True, error_model="numpy")
+def interacting(group: int, k_avoid: float, peer_radius: float, margin: float) -> bool:
     """Whether the robots of a batch act on each other at all (see :class:`Interaction`)."""
-    return k_avoid > 0.0 and peer_radius > 0.0 and group > 1
+    return group > 1 and peer_radius > 0.0 and (k_avoid > 0.0 or margin >= 0.0)
 
 
 class Schedule(NamedTuple):
@@ -521,11 +722,13 @@ def _advance_robot(
     done_step: np.ndarray,
     metrics: FloatArray,
     obstacles: FloatArray,
+    shapes: FloatArray,
     peer_lo: int,
     peer_hi: int,
     k_avoid: float,
     peer_radius: float,
     min_x_oa: float,
+    safety: tuple[float, float, float, float],
     dt: float,
     record: FloatArray,
     row: int,
@@ -540,8 +743,8 @@ def _advance_robot(
         return 0
     hold = t < params[i, DELAY_END]
     r = robot_step(
-        x, y, theta, params, i, hold, current, peer_lo, peer_hi, i, obstacles,
-        k_avoid, peer_radius, min_x_oa, dt,
+        x, y, theta, params, i, hold, current, shapes, peer_lo, peer_hi, i, obstacles,
+        k_avoid, peer_radius, min_x_oa, safety, dt,
     )  # fmt: skip
     finished = 0
     u = omega = 0.0
@@ -601,10 +804,13 @@ def advance_chunk(
 
     Once every robot of the chunk is done nothing in it changes any more, so it stops
     there -- unless recording, which goes on to the end of the call (standing rows)."""
-    group, k_avoid, peer_radius, min_x_oa = interaction
+    group, k_avoid, peer_radius, min_x_oa, safety = interaction
     dt, first_step, max_steps, record_every = schedule
-    peers = interacting(group, k_avoid, peer_radius)
+    peers = interacting(group, k_avoid, peer_radius, safety[0])
     span = group if peers else max(hi - lo, 1)
+    shapes = np.empty((2, pose.shape[1]))  # every peer's body radius and the spread
+    for i in range(lo, hi):
+        shapes[0, i], shapes[1, i] = params[i, BODY_RADIUS], safety[3]
     remaining = 0
     for i in range(lo, hi):
         remaining += 1 if done_step[i] < 0 else 0
@@ -630,7 +836,8 @@ def advance_chunk(
             for i in range(base, end):
                 remaining -= _advance_robot(
                     i, step, t, current, following, params, done_step, metrics, obstacles,
-                    base, peer_hi, k_avoid, peer_radius, min_x_oa, dt, record, row,
+                    shapes, base, peer_hi, k_avoid, peer_radius, min_x_oa, safety, dt,
+                    record, row,
                 )  # fmt: skip
         current, following = following, current
         ran += 1
@@ -647,14 +854,16 @@ def _advance_chunks_in_parallel(chunk: int, n: int, *args: Any) -> int:
     chunk took."""
     pose, spare, params, done_step, metrics, obstacles, interaction, schedule, record, pairs = args
     # The threads get scalars and arrays only (parfors take no named tuples).
-    group, k_avoid, peer_radius, min_x_oa = interaction
+    group, k_avoid, peer_radius, min_x_oa, safety = interaction
+    margin, ahead, rate, spread = safety  # scalars: parfors take no tuples
     dt, first_step, max_steps, record_every = schedule
     chunks = (n + chunk - 1) // chunk
     taken = np.zeros(chunks, dtype=np.int64)
     for c in prange(chunks):
         taken[c] = advance_chunk(
             c * chunk, min(n, (c + 1) * chunk), pose, spare, params, done_step, metrics,
-            obstacles, Interaction(group, k_avoid, peer_radius, min_x_oa),
+            obstacles,
+            Interaction(group, k_avoid, peer_radius, min_x_oa, (margin, ahead, rate, spread)),
             Schedule(dt, first_step, max_steps, record_every), record, pairs,
         )  # fmt: skip
     most = 0
@@ -678,7 +887,7 @@ def advance_batch(
     steps taken (until the last one was done).
 
     ``pose`` (3, N) is updated in place; robots read their peers' pre-step positions and
-    interact (Eq. 27 and the contact guard) as ``interaction`` says. Per robot:
+    interact (Eq. 27 and the safety filter) as ``interaction`` says. Per robot:
     ``done_step`` (-1 while moving, then the step the stop rule fired; a done robot stands
     still) and ``metrics`` (``EFFORT``, ``DISTANCE``) accumulate. ``record`` (rows, N,
     ``RECORD_COLUMNS``) takes every step k with k % record_every == 0 of this call, in
@@ -692,7 +901,7 @@ def advance_batch(
     record = np.zeros((0, n, RECORD_COLUMNS)) if record is None else record
     min_pair_sq = np.zeros((0, 0, 0)) if min_pair_sq is None else min_pair_sq
     group = interaction.group
-    peers = interacting(group, interaction.k_avoid, interaction.peer_radius)
+    peers = interacting(group, interaction.k_avoid, interaction.peer_radius, interaction.safety[0])
     unit = group if peers or min_pair_sq.shape[0] > 0 else 1
     chunk = unit * max(1, CHUNK_ROBOTS // unit)
     spare = np.empty_like(pose)

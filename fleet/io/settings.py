@@ -27,12 +27,14 @@ from pydantic_settings import (
     TomlConfigSettingsSource,
 )
 
-from fleet.core.params import Avoidance, RobotProfile
+from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
 from fleet.core.site import Site
 from fleet.core.wire import Keys, validate_id
 from fleet.io.site_file import load_site
 
 DEFAULT_ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"
+#: The SQLite task database's file name inside ``data_dir`` (spelled here only).
+DB_FILE = "parkfleet.db"
 
 _ROS_TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"
 #: A ROS 2 topic name, relative (``cmd_vel``) or absolute (``/tb4_1/cmd_vel``); no ``~``/``{}``.
@@ -146,6 +148,7 @@ class Settings(BaseSettings):
     may_reverse: bool = True
     robot_model: Annotated[str, Field(max_length=64)] | None = None
     avoidance: Avoidance = Avoidance()
+    safety: SafetyConfig = SafetyConfig()  # README "Safety": the filter and its assumptions
     pose_stale_s: Annotated[float, Field(gt=0)] = 0.5  # own pose older than this -> stop
     # Router link silent this long (no peer, service or echo reply) -> hold; a silent peer
     # is never forgotten: it stays an obstacle at its last pose.
@@ -262,6 +265,11 @@ class Settings(BaseSettings):
     def keys(self) -> Keys:
         """The key expressions of this fleet (its name and cell size)."""
         return Keys(self.fleet_name, self.cell_m)
+
+    @property
+    def db_path(self) -> Path:
+        """The fleet's SQLite task database: ``<data_dir>/parkfleet.db``."""
+        return self.data_dir / DB_FILE
 
     @property
     def site(self) -> Site | None:

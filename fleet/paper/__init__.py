@@ -9,8 +9,8 @@
 - :mod:`~fleet.paper.tune`: gains by differential evolution (``parkfleet tune``).
 - :mod:`~fleet.paper.switching_study`: the switching rule of :mod:`fleet.core.switching`
   against the fixed laws (``parkfleet reproduce --switching``).
-- :mod:`~fleet.paper.plotting`: paths and signals as in the paper's figures, every
-  controller on one map, Pareto fronts (``parkfleet plot``, ``parkfleet tune``).
+- :mod:`~fleet.paper.plotting`: the paper's scenarios drawn (with :mod:`fleet.drawing`),
+  every controller on one map, Pareto fronts (``parkfleet plot``, ``parkfleet tune``).
 """
 
 __all__: list[str] = []

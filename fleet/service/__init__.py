@@ -1,6 +1,9 @@
 """The fleet service: roster, task ledger, planning and dispatch around a bus and a store.
 
-- :mod:`~fleet.service.fleet_service`: :class:`FleetService`, the thin shell (one lock, threads).
+- :mod:`~fleet.service.fleet_service`: :class:`FleetService`, the thin shell (one lock, threads,
+  bus callbacks, tick), with its roles :mod:`~fleet.service.submission` (tasks, bays),
+  :mod:`~fleet.service.operators` (operator controls) and :mod:`~fleet.service.planning`
+  (planner glue) on the state declared in :mod:`~fleet.service.service_state`.
 - :mod:`~fleet.service.ledger`: the task ledger (pure): indexes, transitions returning effects.
 - :mod:`~fleet.service.effects`: effects as data; :mod:`~fleet.service.outbox` applies them
   outside the lock, stored before announced.

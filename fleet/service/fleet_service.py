@@ -1,5 +1,12 @@
 """The fleet service shell: API calls and bus callbacks around the ledger, roster and planner.
 
+One class, :class:`FleetService`, in roles of one module each (its public interface is the
+union): :mod:`~fleet.service.submission` (submit, bays, cancel),
+:mod:`~fleet.service.operators` (pause/resume/e-stop, commission),
+:mod:`~fleet.service.planning` (snapshot, apply, proximity trigger), on the shared state
+declared in :mod:`~fleet.service.service_state`. This module keeps its life (threads), the
+bus callbacks, the tick and sweeps, and the queries.
+
 :class:`FleetService` owns one lock (``_lock``) around the in-memory state only -- the
 roster (:mod:`~fleet.service.roster`), the task ledger (:mod:`~fleet.service.ledger`), the
 obstacles -- and never writes the store or publishes while holding it: transitions return
@@ -55,54 +62,42 @@ from __future__ import annotations
 
 import logging
 import threading
-import uuid
-from collections import Counter
 from collections.abc import Callable
 from types import TracebackType
 
-from fleet.core.goals import Occupied, validate_goal
-from fleet.core.params import RobotProfile
-from fleet.core.planner import Plan, plan
+from fleet.core.planner import plan
 from fleet.core.tasks import (
-    BayTaken,
-    GoalRejected,
     RobotConflict,
     RobotEvent,
     RobotNotFound,
     RobotView,
     Task,
-    TaskConflict,
     TaskNotFound,
-    TaskRequest,
     TaskStatus,
 )
 from fleet.core.wire import (
     CancelAssignment,
-    ControlAction,
-    ControlCommand,
     Obstacle,
     ObstacleSet,
-    Pose,
     RobotDescription,
-    RobotMode,
     RobotState,
 )
 from fleet.io.settings import Settings
-from fleet.service.bays import BayState
 from fleet.service.bus import FleetBus
 from fleet.service.clock import Clock, SystemClock
-from fleet.service.control_desk import ControlDesk, ControlState, OperatorRecord
-from fleet.service.effects import Effects, Publish, PurgeFinished, SaveState
-from fleet.service.horizon import close_pairs
-from fleet.service.ledger import LedgerConfig, Outcome, TaskLedger
+from fleet.service.control_desk import ControlDesk
+from fleet.service.effects import Publish, PurgeFinished
+from fleet.service.ledger import LedgerConfig, TaskLedger
+from fleet.service.operators import OperatorControls
 from fleet.service.outbox import Batch, Listener, Outbox
 from fleet.service.paths import PathSample
 from fleet.service.planner_worker import PlanFunction, PlannerWorker
-from fleet.service.roster import OPERATOR_HELD, RobotRecord, Roster
-from fleet.service.snapshot import PlanInput, RobotFacts, planning_input, worth_planning
-from fleet.service.stats import Counters, PlannerStats
+from fleet.service.planning import PlannerGlue
+from fleet.service.roster import RobotRecord, Roster
+from fleet.service.stats import Counters
 from fleet.service.store import TaskStore
 from fleet.service.stuck import stuck_cause
+from fleet.service.submission import Submission
 
 _log = logging.getLogger(__name__)
 
@@ -122,10 +117,8 @@ TASK_SWEEP_INTERVAL_S = 60.0
 #: Finished tasks deleted per purge (one bounded transaction each).
 TASK_PURGE_BATCH = 1000
 
-_MOVING = frozenset({RobotMode.DRIVING, RobotMode.AVOIDING})
 
-
-class FleetService:
+class FleetService(Submission, OperatorControls, PlannerGlue):
     """Assigns parking tasks to robots and chooses cw/ccw; see the module docstring."""
 
     def __init__(
@@ -170,7 +163,7 @@ class FleetService:
         self._obstacles: list[Obstacle] = [] if site is None else list(site.obstacles)
         self._desk = ControlDesk()  # what the operator asked (pause, e-stop), held to
         self._keys_in_flight: dict[str, threading.Event] = {}  # idempotency keys being stored
-        self._version = 0  # bumped by every change a plan depends on (not by poses)
+        self._obstacles_version = 0  # rises with every set_obstacles
         self._time_scale: float | None = None  # robot seconds per service second
         self._close_pairs: set[tuple[str, str]] = set()
         self._next_robot_sweep = -float("inf")  # [s, monotonic]
@@ -181,10 +174,6 @@ class FleetService:
         self._thread: threading.Thread | None = None
         self._started = False
         self._closed = False
-
-    def _holds_lock(self) -> bool:
-        """Whether the calling thread holds the service lock (the outbox asserts it does not)."""
-        return bool(self._lock._is_owned())  # type: ignore[attr-defined]
 
     # -- life --------------------------------------------------------------------------
 
@@ -207,7 +196,6 @@ class FleetService:
             if operator is not None:
                 self._desk.restore(operator.control_state())
                 self._roster.restore_out_of_service(operator.out_of_service)
-            self._version += 1
         self._counters.add("tasks_recovered", n)
         self._bus.start(self)
         if background:
@@ -217,24 +205,6 @@ class FleetService:
             self._thread.start()
         if n:
             self._planner.request("recovered")
-
-    def _stored_operator_record(self) -> OperatorRecord | None:
-        """What operators asked before a restart (holds, robots out of service), if stored
-        and readable (an unreadable one is logged and counted, and ignored)."""
-        raw = self._store.load_state(OperatorRecord.KEY)
-        if raw is None:
-            return None
-        try:
-            return OperatorRecord.model_validate_json(raw)
-        except ValueError:
-            self._counters.add("operator_state_unreadable")
-            _log.exception("stored operator state unreadable: starting without it")
-            return None
-
-    def _operator_saved(self) -> SaveState:
-        """The operator record as it is now, to store (call with the lock held)."""
-        record = OperatorRecord.of(self._desk.state(), self._roster.out_of_service())
-        return SaveState(OperatorRecord.KEY, record.model_dump_json())
 
     def close(self) -> None:
         """Stop the threads and the bus, after applying the effects already queued;
@@ -270,28 +240,6 @@ class FleetService:
                 self._counters.add("tick_errors")
                 _log.exception("fleet service tick failed")
 
-    # -- effects -----------------------------------------------------------------------
-
-    def _queue(self, effects: Effects, now: float) -> Batch | None:
-        """Queue a transition's effects (call with the lock held: keeps their order)."""
-        if not effects:
-            return None
-        self._version += 1
-        for e in effects:  # remember cancels, so a robot driving on is told again later
-            if isinstance(e, Publish) and isinstance(e.message, CancelAssignment):
-                rec = self._roster.record(e.message.robot_id)
-                if rec is not None:
-                    rec.cancel_at = now
-        return self._outbox.enqueue(effects)
-
-    def _settle(self, batch: Batch | None = None, wait: bool = False) -> None:
-        """After releasing the lock: apply queued effects here (no threads), or wait until
-        ``batch`` is applied (``wait``: the caller answers only once it is stored)."""
-        if self._inline:
-            self._outbox.run_pending()
-        elif wait:
-            self._outbox.wait(batch)
-
     def add_listener(self, listener: Listener) -> Callable[[], None]:
         """Call ``listener`` on every event (from service threads, without the lock held).
 
@@ -324,8 +272,6 @@ class FleetService:
             seen = self._ledger.observe(state, now, wall)
             if seen.effects:
                 batch = self._queue(seen.effects, now)
-            elif changed:
-                self._version += 1
             if changed:  # its mode changed: maybe paused or e-stopped, or no more
                 hold_effects, released = self._sync_hold(rec, now, wall)
                 batch = self._queue(hold_effects, now) or batch
@@ -392,7 +338,6 @@ class FleetService:
             if self._closed:
                 return
             rec = self._roster.alive(robot_id, self._clock.wall())
-            self._version += 1
             view = Roster.view_of(rec)
         if view is not None:
             self._outbox.emit([RobotEvent(robot=view)])
@@ -406,18 +351,11 @@ class FleetService:
             rec, changed = self._roster.describe(description)
             if not changed:
                 return
-            self._version += 1
             view = Roster.view_of(rec)
         self._counters.add("robots_described")
         if view is not None:
             self._outbox.emit([RobotEvent(robot=view)])
         self._planner.request("robot_described")
-
-    def _profile_of(self, robot_id: str | None) -> RobotProfile:
-        """The robot's own profile (its description), else the host's ``[profile]``."""
-        if robot_id is None:
-            return self.settings.profile
-        return self._roster.profile_of(robot_id, self.settings.profile)
 
     def on_robot_gone(self, robot_id: str) -> None:
         """A robot's token disappeared: it is lost; its task fails or is requeued."""
@@ -427,7 +365,6 @@ class FleetService:
             if self._closed:
                 return
             rec = self._roster.gone(robot_id, now)
-            self._version += 1
             view = Roster.view_of(rec)
             batch = self._queue(self._ledger.robot_lost(robot_id, now, wall), now)
         self._counters.add("robots_lost")
@@ -435,125 +372,6 @@ class FleetService:
             self._outbox.emit([RobotEvent(robot=view)])
         self._settle(batch)
         self._planner.request("robot_lost")
-
-    # -- operators -----------------------------------------------------------------------
-
-    def _hold_reason(self, rec: RobotRecord) -> str | None:
-        """Why an operator holds the robot still (as it reports, or as asked), or None."""
-        state = rec.state
-        if rec.status in OPERATOR_HELD and state is not None:
-            return state.detail or state.mode.value
-        hold = self._desk.hold(rec.robot_id)
-        if hold.restrictive is None:
-            return None
-        why = "emergency stop" if hold.estop else "paused"
-        given = self._desk.reason(rec.robot_id)
-        return f"{why} by the operator" + (f": {given}" if given else "")
-
-    def _sync_hold(self, rec: RobotRecord, now: float, wall: float) -> tuple[Effects, bool]:
-        """Make the ledger's operator hold of the robot match what is asked and what it
-        reports (call with the lock held); returns the effects and whether it was released."""
-        why = self._hold_reason(rec)
-        held = rec.robot_id in self._ledger.held
-        if why is not None and not held:
-            self._version += 1
-            return self._ledger.hold_robot(rec.robot_id, why, now, wall), False
-        if why is None and held:
-            self._version += 1
-            return self._ledger.release_robot(rec.robot_id, now, wall), True
-        return [], False
-
-    def _sync_holds(self, robot_id: str | None, now: float, wall: float) -> tuple[Effects, bool]:
-        """:meth:`_sync_hold` for one robot (if known) or (``None``) every robot."""
-        if robot_id is None:
-            records = list(self._roster.records())
-        else:
-            rec = self._roster.record(robot_id)
-            records = [] if rec is None else [rec]
-        effects: Effects = []
-        released = False
-        for rec in records:
-            more, freed = self._sync_hold(rec, now, wall)
-            effects += more
-            released |= freed
-        return effects, released
-
-    def control(
-        self, action: ControlAction, robot_id: str | None = None, reason: str | None = None
-    ) -> ControlCommand:
-        """Pause, resume, e-stop or release one robot or (``None``) the whole fleet.
-
-        The command is published first, in a batch of its own (answered once it is sent);
-        paused and e-stopped robots keep their tasks (no timeout, not stuck) and take no new
-        ones; on resume the planner plans them again. Raises :class:`RobotNotFound`.
-        """
-        clock = self._clock
-        now, wall = clock.monotonic(), clock.wall()
-        with self._lock:
-            if robot_id is not None and not self._roster.known(robot_id):
-                raise RobotNotFound(f"robot {robot_id} not found")
-            message = self._desk.command(action, robot_id, reason, wall)
-            sent = self._outbox.enqueue([Publish(message)])
-            effects, released = self._sync_holds(robot_id, now, wall)
-            self._queue([*effects, self._operator_saved()], now)
-        self._counters.add("control_requests")
-        if action is ControlAction.ESTOP:
-            self._counters.add("estops_requested")
-        self._settle(sent, wait=True)
-        if released:
-            self._planner.request("resumed")
-        return message
-
-    def on_control(self, command: ControlCommand) -> None:
-        """An operator command seen on the control keys: one another tool issued (e.g.
-        ``parkfleet estop`` from another process) is taken up as if asked here -- robots
-        held or released, the record stored -- so the service re-sends a latched e-stop to
-        robots that join later, and never re-asserts one that was released elsewhere."""
-        clock = self._clock
-        now, wall = clock.monotonic(), clock.wall()
-        with self._lock:
-            if self._closed or not self._desk.adopt(command):
-                return
-            effects, released = self._sync_holds(command.robot_id, now, wall)
-            batch = self._queue([*effects, self._operator_saved()], now)
-        self._counters.add("control_adopted")
-        self._settle(batch)
-        if released:
-            self._planner.request("resumed")
-
-    def control_state(self) -> ControlState:
-        """What the operator asked: the fleet-wide hold, robots with a command of their own."""
-        with self._lock:
-            return self._desk.state()
-
-    def _set_in_service(self, robot_id: str, in_service: bool) -> RobotView:
-        clock = self._clock
-        now, wall = clock.monotonic(), clock.wall()
-        with self._lock:
-            rec = self._roster.record(robot_id)
-            view = None if rec is None else Roster.view_of(rec)
-            if rec is None or view is None:  # no pose yet: nothing to show or plan
-                raise RobotNotFound(f"robot {robot_id} not found")
-            self._roster.set_in_service(robot_id, in_service)
-            effects = [] if in_service else self._ledger.robot_decommissioned(robot_id, wall)
-            batch = self._queue([*effects, self._operator_saved()], now)
-            self._version += 1
-            view = Roster.view_of(rec)
-        assert view is not None
-        self._outbox.emit([RobotEvent(robot=view)])
-        self._settle(batch, wait=True)
-        self._planner.request("commissioned" if in_service else "decommissioned")
-        return view
-
-    def decommission(self, robot_id: str) -> RobotView:
-        """Take a robot out of service: it gets no task, its task under way is requeued (and
-        the robot told to stop it), and once lost it no longer counts as an obstacle for
-        planning and goal validation. Raises :class:`RobotNotFound`."""
-        return self._set_in_service(robot_id, False)
-
-    def commission(self, robot_id: str) -> RobotView:
-        """Put a decommissioned robot back in service. Raises :class:`RobotNotFound`."""
-        return self._set_in_service(robot_id, True)
 
     # -- background work -----------------------------------------------------------------
 
@@ -638,29 +456,6 @@ class FleetService:
             self.settings.stuck_after_s,
         )
 
-    def _positions(self) -> list[tuple[str, float, float, bool]]:
-        """(id, x, y, moving) of every robot with a pose when some robot is moving (else
-        none: the proximity trigger only watches robots under way)."""
-        if not self._ledger.under_way:
-            return []
-        out = []
-        for rec in self._roster.records():
-            s = rec.state
-            if s is not None:
-                out.append((rec.robot_id, s.pose.x, s.pose.y, s.mode in _MOVING))
-        return out
-
-    def _check_separation(self, points: list[tuple[str, float, float, bool]]) -> None:
-        """Re-plan when a pair of robots (one moving) comes closer than the separation plus
-        the margin; once per pair while it stays that close."""
-        near = self.settings.safety_separation_m + self.settings.replan_separation_margin_m
-        pairs = close_pairs(points, near) if points else set()
-        new = pairs - self._close_pairs
-        self._close_pairs = pairs
-        if new:
-            self._counters.add("close_pairs_seen", len(new))
-            self._planner.request("separation")
-
     def _sweep_robots(self, now: float, wall: float) -> list[str]:
         """Remove robots lost for ``lost_robot_retention_s`` (call with the lock held)."""
         self._next_robot_sweep = now + ROBOT_SWEEP_INTERVAL_S
@@ -681,275 +476,9 @@ class FleetService:
         self._desk.forget(robot_id)
         if named:
             effects.append(self._operator_saved())
-        self._version += 1
         return self._queue(effects, now)
 
-    # -- planning ----------------------------------------------------------------------
-
-    def _available(self, rec: RobotRecord | None) -> bool:
-        """Whether the robot may take a new task: known pose, not lost, in service, not held
-        still by an operator, no task under way, and not described as unable to reverse
-        (laws (17)/(20) reverse near the goal: the fleet never assigns such a robot)."""
-        return (
-            rec is not None
-            and rec.state is not None
-            and (rec.description is None or rec.description.may_reverse)
-            and rec.token is not False
-            and rec.in_service
-            and rec.robot_id not in self._ledger.robot_task
-            and rec.robot_id not in self._ledger.held
-        )
-
-    def _lead_time(self) -> float:
-        """Expected delay [s, robot time] until a plan reaches the robots: the smoothed
-        planning time, converted to robot time by the robots' observed control rate."""
-        took = self._planner.plan_seconds
-        if took is None:
-            return 0.0
-        scale = self._time_scale if self._time_scale is not None else 1.0
-        return min(self.lead_time_max, took * scale)
-
-    def _take_snapshot(self) -> PlanInput | None:
-        """What a plan depends on, copied under the lock (references and small tuples);
-        the snapshot objects are built after the lock is released."""
-        now = self._clock.monotonic()
-        with self._lock:
-            if self._closed:
-                return None
-            robots = [
-                RobotFacts(
-                    rec.state,
-                    rec.status,
-                    now - rec.seen,
-                    self._available(rec),
-                    None if rec.description is None else rec.description.profile,
-                )
-                for rec in self._roster.records()
-                if rec.state is not None and rec.status is not None and not rec.gone_for_good
-            ]
-            tasks = list(self._ledger.active.values())
-            held = set(self._ledger.held)
-            avoided = self._ledger.avoided()
-            acknowledged = {t: now - at for t, at in self._ledger.acknowledged_at().items()}
-            obstacles = list(self._obstacles)
-            version = self._version
-            lead_time = self._lead_time()
-            scale = self._time_scale if self._time_scale is not None else 1.0
-        if not worth_planning(robots, tasks):
-            return None
-        return planning_input(
-            version,
-            robots,
-            tasks,
-            obstacles,
-            self.settings,
-            lead_time,
-            scale,
-            held,
-            avoided,
-            acknowledged,
-        )
-
-    def _apply_plan(self, plan: Plan, work: PlanInput) -> None:
-        """Apply a plan's decisions through the ledger; those on tasks that changed since
-        the snapshot are dropped (a stale plan is rebased, or dropped whole)."""
-        clock = self._clock
-        now, wall = clock.monotonic(), clock.wall()
-        outcomes: Counter[Outcome] = Counter()
-        held = revised = 0
-        with self._lock:
-            if self._closed:
-                return
-            stale = plan.snapshot_version != self._version
-            for d in plan.decisions:
-                outcome, effects = self._ledger.apply(
-                    d,
-                    robot_available=self._available(self._roster.record(d.robot_id)),
-                    plan_safe=plan.safe,
-                    origin_seq=work.origin_seqs.get(d.robot_id),
-                    now=now,
-                    wall=wall,
-                )
-                outcomes[outcome] += 1
-                if outcome is Outcome.APPLIED:
-                    self._queue(effects, now)
-                    held += d.hold
-                    revised += d.action == "revise"
-        applied = outcomes[Outcome.APPLIED] + outcomes[Outcome.UNCHANGED]
-        if stale and plan.decisions:
-            self._counters.add("plans_rebased" if applied else "plans_stale_dropped")
-        self._counters.add("decisions_stale_dropped", outcomes[Outcome.STALE])
-        self._counters.add("plan_fallbacks", held)
-        self._counters.add("replans", revised)
-        if outcomes[Outcome.UNSAFE]:
-            # The planner holds robots it cannot move safely; this is a planner bug.
-            self._counters.add("plans_unsafe_dropped", outcomes[Outcome.UNSAFE])
-            _log.error(
-                "dropped %d decision(s) that would start a robot in a plan predicted unsafe "
-                "(min separation %.2f m)",
-                outcomes[Outcome.UNSAFE],
-                plan.min_separation_m,
-            )
-        self._settle()
-
-    def planner_stats(self) -> PlannerStats:
-        """Planning latency p50/p99 [ms] over the last plans, fallbacks and drops."""
-        window, count = self._planner.latency, self._counters.snapshot()
-        p50, p99 = window.percentile(50), window.percentile(99)
-        return PlannerStats(
-            plans=count.get("plans", 0),
-            window=len(window),
-            p50_ms=None if p50 is None else 1e3 * p50,
-            p99_ms=None if p99 is None else 1e3 * p99,
-            fallbacks=count.get("plan_fallbacks", 0),
-            rebased=count.get("plans_rebased", 0),
-            stale_dropped=count.get("plans_stale_dropped", 0),
-            decisions_stale_dropped=count.get("decisions_stale_dropped", 0),
-            unsafe_dropped=count.get("plans_unsafe_dropped", 0),
-        )
-
-    # -- API -----------------------------------------------------------------------------
-
-    def _occupied(self, goal: Pose, exclude_robot: str | None) -> list[Occupied]:
-        """Active (and pending) goals within the peer radius of ``goal``, and parked robots
-        (arrived, holding or lost) near it that no active task names or holds."""
-        radius = self.settings.avoidance.peer_radius
-        out = list(self._ledger.goals.near(goal.x, goal.y, radius))
-        claims = self._ledger.claims
-        for parked in self._roster.parked_near(goal.x, goal.y, radius):
-            if parked.robot_id != exclude_robot and parked.robot_id not in claims:
-                out.append(parked)
-        return out
-
-    def submit(self, request: TaskRequest, idempotency_key: str | None = None) -> Task:
-        """Validate, store (``queued``) and schedule a parking task; returns the stored task.
-
-        Raises :class:`GoalRejected` (with the reason) or :class:`RobotNotFound`. A repeated
-        ``idempotency_key`` returns the task first created with it, whatever the body.
-        """
-        while True:
-            if idempotency_key is not None:
-                existing = self._store.find_by_idempotency_key(idempotency_key)
-                if existing is not None:
-                    return existing
-            with self._lock:
-                # A request with the same key is being stored: wait for it (its task is
-                # the answer), instead of rejecting this one as too near its goal.
-                writing = self._keys_in_flight.get(idempotency_key or "")
-            if writing is None:
-                break
-            writing.wait(10.0)
-        wall = self._clock.wall()
-        task = Task(id=uuid.uuid4().hex, request=request, created_at=wall, updated_at=wall)
-        if not self._reserve(task, idempotency_key):
-            return self.submit(request, idempotency_key)  # lost a race: wait as above
-        try:
-            stored = self._store.save_new(task, idempotency_key)
-        except BaseException:
-            with self._lock:
-                self._ledger.release(task.id)
-            raise
-        finally:
-            if idempotency_key is not None:
-                with self._lock:
-                    self._keys_in_flight.pop(idempotency_key).set()
-        with self._lock:
-            if stored.id != task.id:  # a concurrent request with the same key won
-                self._ledger.release(task.id)
-                return stored
-            # stored: now the planner may see it
-            self._queue(self._ledger.add(stored), self._clock.monotonic())
-        self._settle()
-        self._planner.request("task_submitted", burst=True)
-        return stored
-
-    def _reserve(self, task: Task, idempotency_key: str | None) -> bool:
-        """Validate ``task``'s goal and reserve it (and its key) for the write; False if a
-        request with the same key is being written meanwhile."""
-        request, goal = task.request, task.request.goal
-        with self._lock:
-            if idempotency_key is not None and idempotency_key in self._keys_in_flight:
-                return False
-            rid = request.robot_id
-            named = None if rid is None else self._roster.record(rid)
-            if rid is not None and named is None:
-                raise RobotNotFound(f"robot {rid} not found")
-            if named is not None and not named.in_service:
-                raise TaskConflict(f"robot {rid} is decommissioned: commission it first")
-            if (
-                named is not None
-                and named.description is not None
-                and not named.description.may_reverse
-            ):
-                raise TaskConflict(
-                    f"robot {rid} says it may not reverse (may_reverse false), and laws "
-                    "(17)/(20) reverse near the goal: the fleet does not park it"
-                )
-            self._ledger.bays.check(task)
-            site = self.settings.site
-            validate_goal(
-                goal,
-                self.settings.yard,
-                self._obstacles,
-                self._occupied(goal, rid),
-                self.settings.avoidance.peer_radius,
-                () if site is None else site.keep_out,
-                margin=self._profile_of(rid).radius,
-            )
-            # Reserve the goal and bay while the task is written (outside the lock, so
-            # concurrent submits share one commit): a concurrent submit near it (or for the
-            # same bay) is rejected meanwhile.
-            self._ledger.reserve(task)
-            if idempotency_key is not None:
-                self._keys_in_flight[idempotency_key] = threading.Event()
-        return True
-
-    def submit_to_bay(
-        self,
-        bay: str | None,
-        group: str | None,
-        make: Callable[[Pose, str], TaskRequest],
-        idempotency_key: str | None = None,
-    ) -> Task:
-        """Submit a task whose goal is a named bay, or any free bay of ``group``
-        (``make(pose, bay)`` builds the request). The bay is reserved by the task while it
-        is active. Raises :class:`BayNotFound` (404) or :class:`BayTaken` / GoalRejected
-        (409, e.g. a robot parked there)."""
-        with self._lock:
-            candidates = self._ledger.bays.candidates(bay, group)
-        refused: list[str] = []
-        for choice in candidates:
-            try:
-                return self.submit(make(choice.pose, choice.name), idempotency_key)
-            except (BayTaken, GoalRejected) as exc:
-                if bay is not None:
-                    raise
-                refused.append(f"{choice.name}: {exc}")
-        raise BayTaken(f"no free bay in group {group}: " + "; ".join(refused))
-
-    def bays(self) -> list[BayState]:
-        """Every bay of the site map with its state (free, reserved, occupied)."""
-        with self._lock:
-            return self._ledger.bays.states(self._ledger.active, self._roster.views())
-
-    def cancel(self, task_id: str) -> Task:
-        """Cancel a task (answered once the cancel is stored); :class:`TaskNotFound`, or
-        :class:`TaskConflict` if already final."""
-        clock = self._clock
-        now, wall = clock.monotonic(), clock.wall()
-        with self._lock:
-            done = None
-            if task_id in self._ledger.active:
-                done, effects = self._ledger.cancel(task_id, wall)
-                batch = self._queue(effects, now)
-        if done is None:
-            stored = self._store.get(task_id)
-            if stored is None:
-                raise TaskNotFound(f"task {task_id} not found")
-            raise TaskConflict(f"task {task_id} is already {stored.status.value}")
-        self._settle(batch, wait=True)
-        self._planner.request("task_finished")
-        return done
+    # -- queries and yard ---------------------------------------------------------------
 
     def task(self, task_id: str) -> Task:
         with self._lock:
@@ -1019,6 +548,7 @@ class FleetService:
         msg = ObstacleSet(obstacles=list(obstacles))
         with self._lock:
             self._obstacles = list(msg.obstacles)
+            self._obstacles_version += 1
             batch = self._queue([Publish(msg)], self._clock.monotonic())
         self._settle(batch, wait=True)
         self._planner.request("obstacles")

@@ -46,6 +46,10 @@ robot), the goal grid (active and reserved goals), per task under way its deadli
 send, the revision its robot last reported and its predicted corridor; recorded paths
 (:class:`~fleet.service.paths.PathRecorder`); and a bounded memory of recently finished
 task ids (a robot still driving one is told to stop without a store read).
+
+:attr:`TaskLedger.version` rises with every change a plan depends on: a task put in or
+dropped from the active set (every transition, a new or recovered task), a robot held or
+released by an operator. The service compares it (with the roster's) to tell a stale plan.
 """
 
 from __future__ import annotations
@@ -165,6 +169,12 @@ class TaskLedger:
         self._goals = GoalIndex(max(config.goal_cell, 0.1))  # active + reserved goals
         self._tracking: dict[str, _Tracking] = {}  # task under way -> bookkeeping
         self._finished: OrderedDict[str, TaskStatus] = OrderedDict()
+        self._version = 0  # see the module docstring
+
+    @property
+    def version(self) -> int:
+        """Rises with every change a plan depends on (tasks, operator holds)."""
+        return self._version
 
     # -- reading -----------------------------------------------------------------------
 
@@ -247,6 +257,7 @@ class TaskLedger:
 
     def _put(self, task: Task) -> None:
         """Insert or replace a non-final task in the active set and its indexes."""
+        self._version += 1
         old = self._active.get(task.id)
         if old is not None:
             self._unindex(old)
@@ -276,6 +287,7 @@ class TaskLedger:
 
     def _drop(self, task: Task) -> None:
         """Remove a task that became final from the active set and its indexes."""
+        self._version += 1
         old = self._active.pop(task.id, None)
         if old is not None:
             self._unindex(old)
@@ -571,6 +583,7 @@ class TaskLedger:
         if robot_id in self._held:
             return []
         self._held[robot_id] = why
+        self._version += 1
         task = self.task_of_robot(robot_id)
         if task is None:
             return []
@@ -585,6 +598,7 @@ class TaskLedger:
         held, its progress window restarts; stored (``operator_release``)."""
         if self._held.pop(robot_id, None) is None:
             return []
+        self._version += 1
         task = self.task_of_robot(robot_id)
         if task is None:
             return []
@@ -655,7 +669,7 @@ class TaskLedger:
         """The robot was removed from the fleet: queued tasks naming it fail (it will not
         come back to take them). Call only when it has no task under way."""
         assert robot_id not in self._robot_task
-        self._held.pop(robot_id, None)
+        self._version += self._held.pop(robot_id, None) is not None
         effects: Effects = []
         for task in [t for t in self._queued.values() if t.request.robot_id == robot_id]:
             reason = f"robot {robot_id} was removed from the fleet"

@@ -26,6 +26,10 @@ arguments: ``now`` [s, monotonic] for every interval, ``wall`` [s since epoch] f
 :meth:`Roster.update` is the hot path (every state of every robot, 50 Hz each): it stores
 the state, keeps the cached status and reports whether status or task changed, building no
 model; :meth:`Roster.view` builds the ``RobotView`` only when an event or a reader needs it.
+
+:attr:`Roster.version` rises with every change a plan depends on -- a robot joining, lost,
+removed, described, (de)commissioned, or changing status, task or detail -- and not with
+poses: the service compares it (with the ledger's) to tell a stale plan.
 """
 
 from __future__ import annotations
@@ -102,6 +106,12 @@ class Roster:
         self._parked = GoalIndex(parked_cell)
         self._unlinked: dict[str, None] = {}  # robots lost or without a token (retention)
         self._out_of_service_unseen: set[str] = set()  # decommissioned, not seen since start
+        self._version = 0  # see the module docstring
+
+    @property
+    def version(self) -> int:
+        """Rises with every change a plan depends on (not with poses)."""
+        return self._version
 
     def __len__(self) -> int:
         return len(self._robots)
@@ -150,6 +160,7 @@ class Roster:
             px, py = rec.parked_at
             if abs(state.pose.x - px) + abs(state.pose.y - py) > _PARKED_MOVE_M:
                 self._place(rec)
+        self._version += changed
         return rec, changed
 
     def alive(self, robot_id: str, wall: float) -> RobotRecord:
@@ -157,6 +168,7 @@ class Roster:
         rec = self._entry(robot_id)
         rec.token = True
         rec.lost_since = None
+        self._version += 1
         rec.seen_wall = wall
         self._unlinked.pop(robot_id, None)
         self._restatus(rec)
@@ -167,6 +179,7 @@ class Roster:
         rec = self._entry(robot_id)
         rec.token = False
         rec.lost_since = now
+        self._version += 1
         self._unlinked[robot_id] = None
         self._restatus(rec)
         return rec
@@ -185,6 +198,7 @@ class Roster:
         rec = self._entry(description.robot_id)
         changed = rec.description != description
         rec.description = description
+        self._version += changed
         return rec, changed
 
     def profile_of(self, robot_id: str, default: RobotProfile) -> RobotProfile:
@@ -201,6 +215,7 @@ class Roster:
         if rec is not None and rec.in_service is not in_service:
             rec.in_service = in_service
             self._place(rec)
+            self._version += 1
         return rec
 
     def restore_out_of_service(self, robot_ids: list[str]) -> None:
@@ -255,6 +270,7 @@ class Roster:
         """Forget a robot and everything kept about it."""
         rec = self._robots.pop(robot_id, None)
         self._unlinked.pop(robot_id, None)
+        self._version += rec is not None
         if rec is not None and rec.parked_at is not None:
             self._parked.remove(robot_id)
         return rec

@@ -130,6 +130,7 @@ def planning_input(
         obstacles=tuple(obstacles),
         profile=settings.profile,
         avoidance=settings.avoidance,
+        safety=settings.safety,
         separation_m=settings.safety_separation_m,
         lead_time_s=lead_time_s,
         control_dt=1.0 / hz,

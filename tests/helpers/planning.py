@@ -17,7 +17,7 @@ import numpy as np
 from fleet.core.params import Tolerance
 from fleet.core.planner import Plan, PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.planner.rollout import STANDING_DELAY
-from fleet.core.simulate import BatchProblem, SimResult, simulate
+from fleet.core.simulate import BatchProblem, SimResult, batch_filter, simulate
 from fleet.core.tasks import DEFAULT_GAINS, Direction, RobotStatus, TaskStatus
 from fleet.core.types import Law, Posture
 
@@ -121,10 +121,12 @@ def replay(snapshot: PlanningSnapshot, result: Plan, max_time: float = 300.0) ->
         profile=snapshot.profile,
         obstacles=[(o.x, o.y) for o in obstacles],
         obstacle_radius=[o.radius for o in obstacles],
+        obstacle_body=[o.body_radius for o in obstacles],
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius,
         min_x_oa=avoid.min_x_oa,
         start_delay=delays,
+        safety=batch_filter(snapshot.safety),
     )
     xy = np.array([s[:2] for s in starts])
     d0 = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])

@@ -21,8 +21,8 @@ from fleet.io.decoder import Decoder
 from fleet.io.settings import Settings
 from fleet.io.transport import open_session
 from fleet.service.fleet_service import FleetService
+from fleet.service.host import open_fleet
 from fleet.service.store import SqliteTaskStore
-from fleet.service.zenoh_bus import ZenohFleetBus
 
 #: Gains and tolerance of the hand-made assignments in the tests.
 TEST_GAINS = Gains(kx=1.0, ky=2.0, ktheta=1.0)
@@ -97,19 +97,11 @@ def park(
 def zenoh_fleet_service(settings: Settings, db: Path) -> Iterator[FleetService]:
     """The fleet service in this process: client session, Zenoh bus, SQLite store at ``db``;
     closed (service, session, store) on exit."""
-    store = SqliteTaskStore(db)
-    try:
-        with open_session(settings, "client") as session:
-            service = FleetService(
-                settings, ZenohFleetBus(session, Keys(settings.fleet_name)), store
-            )
-            try:
-                service.start()
-                yield service
-            finally:
-                service.close()
-    finally:
-        store.close()
+    with (
+        open_session(settings, "client") as session,
+        open_fleet(settings, session=session, store=lambda _: SqliteTaskStore(db)) as fleet,
+    ):
+        yield fleet.service
 
 
 class StateWatcher:

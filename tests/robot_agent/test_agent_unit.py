@@ -156,7 +156,7 @@ def test_world_feed_decodes_samples_and_rejects_ids_not_matching_the_key() -> No
     obstacles = ObstacleSet.model_validate({"obstacles": [{"x": 1, "y": 2, "radius": 0.5}]})
     feed._on_obstacles(FakeSample(keys.obstacles, Payload(encode(obstacles))))
     centres, radii = world.obstacles()
-    assert np.array_equal(centres, [[1.0, 2.0]]) and np.array_equal(radii, [0.5])
+    assert np.array_equal(centres, [[1.0, 2.0]]) and np.array_equal(radii, [[0.5, 0.1]])
 
 
 def test_callback_guard_counts_exceptions() -> None:

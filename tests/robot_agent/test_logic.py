@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from support import TEST_GAINS
 
 from fleet.core import reference
-from fleet.core.params import Avoidance, RobotProfile
+from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
 from fleet.core.types import FloatArray, Posture
 from fleet.core.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
 from robot_agent.link import link_is_up
@@ -31,6 +31,14 @@ from robot_agent.logic import (
 PROFILE = RobotProfile()  # r = 0.05 m, b = 0.135 m, 20 rad/s
 NO_PEERS = np.zeros((0, 2))
 NO_OBSTACLES = obstacle_arrays([])
+SAFETY = SafetyConfig()
+
+
+def bodies(centres: FloatArray, spread: float = 0.0) -> tuple[FloatArray, FloatArray]:
+    """Peers at ``centres`` (M, 2) [m], heading 0, radius 0.2 m, with ``spread`` [m]."""
+    m = centres.shape[0]
+    postures = np.vstack([centres.T, np.zeros((1, m))]) if m else np.zeros((3, 0))
+    return postures, np.vstack([np.full(m, 0.2), np.full(m, spread)])
 
 
 def park(task_id: str = "t1", goal: Posture = (3.0, 0.0, 0.0), **fields: Any) -> ParkAssignment:
@@ -48,8 +56,13 @@ def tick(
     age: float = 0.0,
     avoidance: Avoidance = DEFAULT_AVOIDANCE,
     now: float = 0.0,
+    safety: SafetyConfig | None = None,
 ) -> TickResult:
-    return decide(pose, age, task, peers, obstacles, PROFILE, avoidance, 0.5, now=now)
+    """One tick with peers at ``peers`` (M, 2); the safety filter only with ``safety``."""
+    return decide(
+        pose, age, task, bodies(peers), obstacles, PROFILE, avoidance, 0.5, now=now,
+        safety=safety, period=0.02,
+    )  # fmt: skip
 
 
 # -- task protocol -----------------------------------------------------------------------
@@ -225,7 +238,7 @@ def test_lost_link_holds_the_task_and_resumes_when_it_returns() -> None:
         (0.0, 0.0, 0.0),
         0.0,
         task,
-        NO_PEERS,
+        bodies(NO_PEERS),
         NO_OBSTACLES,
         PROFILE,
         DEFAULT_AVOIDANCE,
@@ -237,7 +250,7 @@ def test_lost_link_holds_the_task_and_resumes_when_it_returns() -> None:
         (0.0, 0.0, 0.0),
         0.0,
         task,
-        NO_PEERS,
+        bodies(NO_PEERS),
         NO_OBSTACLES,
         PROFILE,
         DEFAULT_AVOIDANCE,
@@ -261,31 +274,60 @@ def test_link_rule_needs_a_router_and_recent_traffic(
 @given(
     st.floats(-math.pi, math.pi),
     st.floats(0.0, 2 * math.pi),
-    st.floats(0.05, 0.44),
+    st.floats(0.05, 0.6),
     st.tuples(st.floats(-4, 4), st.floats(-4, 4), st.floats(-math.pi, math.pi)),
 )
-def test_contact_guard_never_drives_towards_a_peer_within_contact_range(
+def test_the_filter_never_drives_a_robot_into_a_peer_at_the_margin(
     heading: float, bearing: float, distance: float, goal: tuple[float, float, float]
 ) -> None:
-    """Within 2 radii + x_OA guard (0.45 m) of a peer the robot may turn or back off only.
+    """Within the margin (2 radii + 5 cm plus the projection and spreads) of a peer, the
+    robot's projected point never gets closer to the peer's, whatever the law pulls to.
 
     A weak repulsion (a small configured K_avoid) lets the law's pull win at short range:
-    that is when only the guard keeps the bodies apart.
+    that is when only the filter keeps the bodies apart.
     """
     peer = np.array([[distance * math.cos(bearing), distance * math.sin(bearing)]])
     weak = Avoidance(k_avoid=0.05)
-    decision = tick((0.0, 0.0, heading), AgentTask(park(goal=goal)), peers=peer, avoidance=weak)
-    towards = math.cos(heading) * peer[0, 0] + math.sin(heading) * peer[0, 1]  # x_OA
-    assert decision.u * towards <= 1e-12  # never closing the distance along the heading
+    decision = tick(
+        (0.0, 0.0, heading), AgentTask(park(goal=goal)), peers=peer, avoidance=weak, safety=SAFETY
+    )
+    ahead = SAFETY.projection_m
+    point = (ahead * math.cos(heading), ahead * math.sin(heading))
+    target = (peer[0, 0] + ahead, peer[0, 1])  # the peer's projected point (heading 0)
+    moved = (
+        point[0]
+        + 0.02 * (decision.u * math.cos(heading) - ahead * decision.omega * math.sin(heading)),
+        point[1]
+        + 0.02 * (decision.u * math.sin(heading) + ahead * decision.omega * math.cos(heading)),
+    )
+    gap = math.dist(point, target) - 2 * (0.2 + ahead) - SAFETY.contact_margin_m
+    if gap <= SAFETY.own_spread(0.0) + SAFETY.pose_error_m:  # the bound is <= 0 here
+        assert math.dist(moved, target) >= math.dist(point, target) - 1e-12
 
 
-def test_contact_guard_leaves_a_robot_free_beyond_contact_range() -> None:
-    peer = np.array([[0.6, 0.0]])  # ahead, inside the 1 m influence zone, beyond 0.45 m
-    decision = tick((0.0, 0.0, 0.0), AgentTask(park(goal=(9.0, 0.0, 0.0))), peers=peer)
+def test_the_filter_leaves_a_robot_free_far_from_every_body() -> None:
+    peer = np.array([[0.5, 0.8]])  # ahead to the left, inside the 1 m influence zone
+    decision = tick(
+        (0.0, 0.0, 0.0), AgentTask(park(goal=(9.0, 0.0, 0.0))), peers=peer, safety=SAFETY
+    )
     assert decision.mode is RobotMode.AVOIDING
-    # Eq. (17) u = 9 m/s plus Eq. (27) -4/0.6 m/s is still forward: the guard lets it be,
-    # and the wheel limit caps it at r * max_wheel_speed.
-    assert decision.u == pytest.approx(PROFILE.max_speed)
+    # Eq. (17) u = 9 m/s plus Eq. (27) -4/0.5 m/s is still forward, and the wheel limit
+    # caps it at r * max_wheel_speed; the filter lets it be (it closes on the peer at
+    # 0.53 m/s, well within what the clearance allows).
+    far = tick((0.0, 0.0, 0.0), AgentTask(park(goal=(9.0, 0.0, 0.0))), peers=peer)
+    assert decision.u == far.u == pytest.approx(PROFILE.max_speed)
+
+
+def test_an_obstacle_body_stops_a_robot_the_influence_radius_would_not() -> None:
+    """A post with a body on the straight line to the goal and no repulsion: the filter
+    turns or stops the robot before its body reaches the post's; without it, it drives on."""
+    post = obstacle_arrays([Obstacle(x=0.6, y=0.0, radius=0.3, body=0.3)])
+    off = Avoidance(k_avoid=0.0)
+    task = AgentTask(park(goal=(3.0, 0.0, 0.0)))
+    free = tick((0.0, 0.0, 0.0), task, obstacles=post, avoidance=off)
+    held = tick((0.0, 0.0, 0.0), task, obstacles=post, avoidance=off, safety=SAFETY)
+    assert free.u == pytest.approx(PROFILE.max_speed)
+    assert held.u < 0.25 * free.u and held.mode is RobotMode.AVOIDING
 
 
 def test_start_delay_waits_then_drives_and_a_revision_restarts_it() -> None:

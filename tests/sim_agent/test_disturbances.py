@@ -9,12 +9,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fleet.cli.sim import disturbances_from, register
+from fleet.cli.sim import disturbances_from, link_from, register
 from fleet.core.params import RobotProfile
 from fleet.io.settings import load_settings
 from fleet.io.trace import read_header, read_trace
 from robot_agent.clock import SteppedClock
-from sim_agent.disturbances import REALISTIC, Disturbances, DisturbedDrive
+from sim_agent.disturbances import (
+    REALISTIC,
+    REALISTIC_LINK,
+    DelayedLink,
+    Disturbances,
+    DisturbedDrive,
+    LinkDisturbances,
+)
 from sim_agent.drive import SimDrive
 from sim_agent.fleet import SimFleet, Spawn
 
@@ -132,6 +139,59 @@ def test_sim_flags_build_the_disturbances() -> None:
     assert disturbances_from(_sim_args("--noise", "0.05")).heading_noise_rad == pytest.approx(0.01)
     with pytest.raises(SystemExit):
         _sim_args("--latency", "150,50")
+
+
+def test_sim_flags_build_the_link() -> None:
+    assert not link_from(_sim_args()).active
+    assert link_from(_sim_args("--disturbed")) == REALISTIC_LINK
+    link = link_from(_sim_args("--disturbed", "--link-loss", "0.2", "--link-delay", "40"))
+    assert link == LinkDisturbances(delay_s=(0.04, 0.04), loss=0.2)
+    with pytest.raises(SystemExit):
+        _sim_args("--link-loss", "1.5")
+    with pytest.raises(ValueError, match="loss"):
+        LinkDisturbances(loss=1.0)
+
+
+def test_the_link_delays_each_copy_within_its_bounds_and_loses_its_share() -> None:
+    link: DelayedLink[int] = DelayedLink(4, DT, REALISTIC_LINK, np.random.default_rng(3))
+    delays: list[float] = []
+    receivers: set[tuple[int, int]] = set()
+    sends = 500
+    for k in range(sends + 20):
+        now = k * DT
+        for receiver, (sender, sent) in link.deliver(now):
+            assert receiver != sender
+            receivers.add((sender, receiver))
+            delays.append(now - sent)
+        if k < sends:
+            link.send(k % 4, (k % 4, now), now)
+    assert len(receivers) == 12  # every ordered pair, never to itself
+    assert min(delays) >= 0.02 - 1e-9 and max(delays) <= 0.2 + DT + 1e-9
+    assert len(delays) == link.sent - link.lost and link.sent == 3 * sends
+    assert 0.03 < link.lost / link.sent < 0.07
+    again: DelayedLink[int] = DelayedLink(4, DT, REALISTIC_LINK, np.random.default_rng(3))
+    for k in range(sends):
+        again.send(k % 4, 0, k * DT)
+    assert again.lost == link.lost  # seeded
+
+
+def test_on_a_disturbed_link_a_robot_sees_its_peer_only_once_the_state_arrives() -> None:
+    spawns = [Spawn("a", 0.0, 0.0, 0.0), Spawn("b", 3.0, 0.0, math.pi)]
+    link = LinkDisturbances(delay_s=(0.1, 0.1))
+    fleet = SimFleet(None, load_settings(), spawns, link=link, seed=2)
+    try:
+        seen = []
+        for _ in range(8):
+            fleet.tick()
+            b_knows = fleet.views[1].states().get("a")
+            seen.append(None if b_knows is None else b_knows.seq)
+            assert "b" not in fleet.views[0].states() or fleet.views[0].states()["b"].seq <= max(
+                0, len(seen) - 6
+            )
+    finally:
+        fleet.close()
+    # a's state of tick k (t = k dt) reaches b at t + 0.1 s, five ticks later, before b senses
+    assert seen == [None, None, None, None, None, 0, 1, 2]
 
 
 def test_a_disturbed_fleet_traces_every_robot_at_every_tick(tmp_path: Path) -> None:

@@ -11,7 +11,7 @@ from fleet.core.params import Avoidance, Gains, RobotProfile, Tolerance
 from fleet.core.simulate import BatchProblem, simulate
 from fleet.core.wire import ParkAssignment, Pose, RobotMode
 from robot_agent.clock import SteppedClock
-from robot_agent.logic import AgentTask, decide, obstacle_arrays
+from robot_agent.logic import NO_PEERS, AgentTask, decide, obstacle_arrays
 from sim_agent.drive import SimDrive
 
 DT = 0.02
@@ -43,7 +43,7 @@ def test_agent_ticks_on_sim_drive_reproduce_the_batch_simulator(
     for step in range(5000):  # noqa: B007
         pose, stamp = drive.read_pose()
         poses.append(pose.as_tuple())
-        d = decide(pose.as_tuple(), clock.now() - stamp, task, np.zeros((0, 2)),
+        d = decide(pose.as_tuple(), clock.now() - stamp, task, NO_PEERS,
                    obstacle_arrays([]), profile, Avoidance(), 0.5)  # fmt: skip
         task = d.task
         if d.mode is RobotMode.ARRIVED:
@@ -89,3 +89,12 @@ def test_commands_above_the_wheel_limit_are_refused() -> None:
     with pytest.raises(ValueError, match="exceeds"):
         drive.command_wheels(5.1, 0.0)
     drive.command_wheels(5.0, -5.0)
+
+
+def test_a_hair_of_time_is_integrated_not_divided_by_zero_steps() -> None:
+    clock = SteppedClock()
+    drive = SimDrive((0.0, 0.0, 0.0), RobotProfile(), clock, max_step=0.02)
+    drive.command_wheels(10.0, 10.0)
+    clock.advance(1e-12)
+    pose, _ = drive.read_pose()
+    assert 0.0 < pose.x < 1e-9

@@ -40,7 +40,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
-from fleet.core.params import Avoidance, Gains, RobotProfile, Tolerance
+from fleet.core.params import Avoidance, Gains, RobotProfile, SafetyConfig, Tolerance
 from fleet.core.tasks import Direction, RobotStatus, TaskStatus
 from fleet.core.types import Law, Posture
 from fleet.core.wire import Obstacle
@@ -114,6 +114,8 @@ class PlanningSnapshot:
     obstacles: tuple[Obstacle, ...] = ()
     profile: RobotProfile = field(default_factory=RobotProfile)  # robots without their own
     avoidance: Avoidance = field(default_factory=Avoidance)
+    #: The safety filter the robots run (the rollouts run it too).
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
     separation_m: float = 0.5  # minimum centre distance a plan must keep [m]
     lead_time_s: float = 0.0  # until the plan reaches the robots [s, robot time]
     control_dt: float = 0.02  # the agents' control period = Euler step [s]

@@ -28,12 +28,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from fleet.core.params import Avoidance, RobotProfile
-from fleet.core.simulate import BatchProblem, SimResult, simulate
+from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
+from fleet.core.simulate import BatchProblem, SimResult, batch_filter, simulate
 from fleet.core.types import BoolArray, FloatArray
 from fleet.core.wire import Obstacle
 
@@ -139,6 +139,7 @@ class World:
     profile: RobotProfile
     avoidance: Avoidance
     obstacles: tuple[Obstacle, ...] = ()
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
 
 
 def _bucket(n: int) -> int:
@@ -166,10 +167,12 @@ def problem_of(rows: Rows, world: World, peers: bool = True) -> BatchProblem:
         profile=world.profile,
         obstacles=[(o.x, o.y) for o in obstacles],
         obstacle_radius=[o.radius for o in obstacles],
+        obstacle_body=[o.body_radius for o in obstacles],
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius if peers else 0.0,
         min_x_oa=avoid.min_x_oa,
         start_delay=rows.delay,
+        safety=batch_filter(world.safety),
     )
     problem = replace(
         problem,

@@ -216,7 +216,7 @@ def build_fleet(
     allowed = np.array([_allowed(t) for t in tasks], dtype=bool).reshape(k, 2)
     limits = limits_of([r.profile for r in owners])
     standing_xy = np.array([r.pose[:2] for r in standing], dtype=np.float64).reshape(-1, 2)
-    world = World(snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles))
+    world = World(snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles), snapshot.safety)
 
     # Lead-in: robots under way go on as they are; new and held robots stand.
     driving = kind == UNDER_WAY

@@ -182,3 +182,46 @@ def test_arrived_far_from_the_goal_is_no_arrival() -> None:
     poses = _line((0.0, 0.0), (1.0, 0.0), 50)[:, None]
     modes = np.full((50, 1), ARRIVED, dtype=np.uint8)
     assert _run(poses, modes, goals=[(3.0, 0.0, 0.0)]).success_count() == 0
+
+
+def _trace_of_speeds(segments: list[tuple[float, float, float]]) -> np.ndarray:
+    """(ticks, 1, 3) poses of one robot from (duration [s], u [m/s], omega [rad/s]) segments."""
+    x = y = theta = 0.0
+    poses = [(x, y, theta)]
+    for duration, u, omega in segments:
+        for _ in range(round(duration / DT)):
+            x, y = x + u * math.cos(theta) * DT, y + u * math.sin(theta) * DT
+            theta += omega * DT
+            poses.append((x, y, theta))
+    return np.array(poses)[:, None, :]
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 1000])
+def test_stops_and_cusps_of_a_hand_made_trip(chunk: int) -> None:
+    poses = _trace_of_speeds(
+        [
+            (0.4, 0.0, 0.0),  # standing at the start: not a stop
+            (1.0, 0.5, 0.0),
+            (0.5, 0.0, 1.0),  # a turn in place for 0.5 s: a stop
+            (1.0, 0.5, 0.0),
+            (0.5, -0.3, 0.0),  # reversing at once: a cusp, no stop
+            (0.1, 0.0, 0.0),  # 0.1 s still, shorter than a stop
+            (0.5, 0.4, 0.0),  # forward again: a second cusp
+            (0.6, 0.0, 0.0),  # the final standstill: not a stop
+        ]
+    )
+    result = _run(poses, chunk=chunk)
+    assert (int(result.stops[0]), int(result.cusps[0])) == (1, 2)
+    assert result.smoothness(trips=2) == (0.5, 1.0)
+
+
+def test_a_hold_inside_a_trip_is_a_stop_but_a_new_trip_starts_afresh() -> None:
+    poses = _trace_of_speeds([(1.0, 0.5, 0.0), (1.0, 0.0, 0.0), (1.0, -0.5, 0.0)])
+    ticks = poses.shape[0]
+    held = np.full((ticks, 1), DRIVING, dtype=np.uint8)
+    held[50:101] = WAITING  # a planned hold: still the same trip
+    assert (int(_run(poses, held).stops[0]), int(_run(poses, held).cusps[0])) == (1, 1)
+    parked = held.copy()
+    parked[50:101] = ARRIVED  # parked, then a new task: two trips, neither stops nor reverses
+    result = _run(poses, parked)
+    assert (int(result.stops[0]), int(result.cusps[0])) == (0, 0)

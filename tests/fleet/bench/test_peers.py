@@ -15,12 +15,15 @@ from fleet.bench.peers import MODES, PeerRun, assign_goals, goals_by_robot, run_
 from fleet.bench.scenarios import RobotSpec, Scenario, swap
 from fleet.core.params import RobotProfile
 from fleet.io.trace import TraceChunk
+from sim_agent.disturbances import Disturbances, LinkDisturbances
+from sim_agent.robots import SimRobots
 
 pytest.importorskip("navground")
 
 
-def _ticks(scenario: Scenario, behaviour: str) -> TraceChunk:
-    chunks = list(run_peer(scenario, PeerRun(behaviour, RobotProfile())))
+def _ticks(scenario: Scenario, behaviour: str, robots: SimRobots | None = None) -> TraceChunk:
+    run = PeerRun(behaviour, RobotProfile(), robots=robots or SimRobots())
+    chunks = list(run_peer(scenario, run))
     return TraceChunk(
         np.concatenate([c.t for c in chunks]),
         np.concatenate([c.poses for c in chunks]),
@@ -64,7 +67,38 @@ def test_a_late_task_leaves_its_robot_idle_until_it_arrives() -> None:
     np.testing.assert_allclose(ticks.poses[before, 1, 1], ticks.poses[0, 1, 1])
     assert ticks.modes[-1, 1] == MODES.index("arrived")
     with pytest.raises(ValueError, match="unknown navground behaviour"):
-        next(run_peer(scenario, PeerRun("astar", RobotProfile())))
+        next(run_peer(scenario, PeerRun("astar", RobotProfile(), robots=SimRobots())))
+    with pytest.raises(ValueError, match="needs robots"):
+        next(run_peer(scenario, PeerRun("orca", RobotProfile())))
+
+
+def _first_motion(ticks: TraceChunk, robot: int = 0) -> float:
+    moved = np.hypot(*(ticks.poses[:, robot, :2] - ticks.poses[0, robot, :2]).T) > 1e-9
+    return float(ticks.t[int(np.argmax(moved))])
+
+
+def test_the_peers_drive_the_benchmark_robots_with_their_latency_and_seeded_noise() -> None:
+    scenario = swap(2, "left")
+    perfect = _ticks(scenario, "orca")
+    late = SimRobots(Disturbances(latency_s=(0.1, 0.1)))
+    delayed = _ticks(scenario, "orca", late)
+    # the first command reaches the wheels 0.1 s after it is sent (plus the tick it was sent)
+    assert _first_motion(delayed) == pytest.approx(_first_motion(perfect) + 0.1, abs=0.021)
+    noisy = SimRobots.realistic()
+    a, b = _ticks(scenario, "orca", noisy), _ticks(scenario, "orca", noisy)
+    np.testing.assert_array_equal(a.poses, b.poses)  # seeded: the same robots every run
+    assert (a.modes[-1] == MODES.index("arrived")).all()
+    assert not np.array_equal(a.poses[: len(perfect.t)], perfect.poses[: len(a.t)])
+
+
+def test_on_a_dead_link_the_peers_never_see_each_other() -> None:
+    scenario = swap(2, "left")
+    blind = _ticks(scenario, "orca", SimRobots(link=LinkDisturbances(loss=0.999999)))
+    seeing = _ticks(scenario, "orca", SimRobots(link=LinkDisturbances(delay_s=(0.02, 0.02))))
+    closest = [
+        float(np.min(np.hypot(*(t.poses[:, 0, :2] - t.poses[:, 1, :2]).T))) for t in (blind, seeing)
+    ]
+    assert closest[0] < 0.4 < closest[1]  # blind robots drive into each other; seeing ones pass
 
 
 @given(st.integers(2, 5), st.integers(0, 2**31), st.booleans())

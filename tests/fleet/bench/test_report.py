@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from fleet.bench.fleet import FleetBenchRow
-from fleet.bench.report import auto_table, policy_table
+from fleet.bench.report import auto_table, planning_wait_table, policy_table, smoothness_table
 
 
 def _row(family: str, policy: str, seed: int | None = None, **figures: float) -> FleetBenchRow:
@@ -30,6 +30,11 @@ def _row(family: str, policy: str, seed: int | None = None, **figures: float) ->
         rejected=0,
         time_limit_s=120.0,
         wall_s=1.0,
+        stops_per_trip=figures.get("stops_per_trip"),
+        cusps_per_trip=figures.get("cusps_per_trip"),
+        plan_wait_s=figures.get("plan_wait_s"),
+        planning_sim_s=figures.get("planning_sim_s"),
+        time_scale=figures.get("time_scale"),
     )
 
 
@@ -77,3 +82,25 @@ def test_robots_through_obstacles_are_a_miss_and_never_the_clean_reference() -> 
     assert "| 100% · 0 · 30 s · **1 robot hit obstacles** |" in park
     verdict = auto_table(rows).splitlines()[2]
     assert verdict.endswith("| orca 55 s | 1.20 | 0 | 10 / 30 | 3 robots hit obstacles |")
+
+
+def test_the_smoothness_table_gives_stops_and_cusps_per_trip_for_every_policy() -> None:
+    rows = [
+        _row("swap", "auto", stops_per_trip=2.0, cusps_per_trip=1.0),
+        _row("swap", "orca", stops_per_trip=0.25, cusps_per_trip=0.0),
+        _row("old", "auto"),  # a row of an older --json output: nothing measured
+    ]
+    lines = smoothness_table(rows).splitlines()
+    assert lines[0] == "| scenario (stops / cusps per trip) | auto | orca |"
+    assert lines[2] == "| swap | 2.0 / 1.0 | 0.2 / 0.0 |"
+    assert lines[3] == "| old |  |  |"
+
+
+def test_the_planning_wait_table_shows_the_service_s_share_of_the_fleet_makespan() -> None:
+    rows = [
+        _row("swap", "auto", makespan_s=40.0, plan_wait_s=4.0, planning_sim_s=6.5, time_scale=5),
+        _row("swap", "orca", makespan_s=20.0),  # no service: no line
+    ]
+    lines = planning_wait_table(rows).splitlines()
+    assert "plans' wall time x 5 [s]" in lines[0]
+    assert lines[2:] == ["| swap | auto | 40.0 | 4.0 | 10% | 6.5 |"]

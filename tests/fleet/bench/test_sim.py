@@ -32,6 +32,7 @@ def test_quick_bench_json_has_the_documented_schema(capsys: pytest.CaptureFixtur
         ("independent", 1),
         ("independent", 10),
         ("peers", 4),
+        ("peers+filter", 4),
     ]
     for row in report["rows"]:
         assert set(row) == ROW_KEYS
@@ -44,10 +45,11 @@ def test_quick_bench_prints_a_table(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["bench", "sim", "--quick"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].split()[:4] == ["scene", "robots", "steps", "robot-steps/s"]
-    assert [line.split()[:2] for line in lines[1:4]] == [
+    assert [line.split()[:2] for line in lines[1:5]] == [
         ["independent", "1"],
         ["independent", "10"],
         ["peers", "4"],
+        ["peers+filter", "4"],
     ]
     assert "target at N = 10 000" in lines[-1]
 

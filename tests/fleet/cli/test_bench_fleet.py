@@ -59,3 +59,21 @@ def test_bad_requests_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert "robots: List should have at least 1 item" in capsys.readouterr().err
     assert main(["bench", "fleet", "--from-json", str(bad)]) == 2
     assert "not a bench fleet --json output" in capsys.readouterr().err
+
+
+def test_disturbance_seeds_run_every_policy_on_each_set_of_the_same_robots(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "mine.json"
+    path.write_text(dump_scenarios([swap(2, "left")]))
+    args = ["bench", "fleet", "--scenario-file", str(path), "--policy", "orca", "--json"]
+    assert main([*args, "--disturbance-seeds", "2"]) == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    assert [(r["policy"], r["disturbance_seed"]) for r in rows] == [("orca", 0), ("orca", 1)]
+    assert rows[0]["makespan_s"] != rows[1]["makespan_s"]  # other disturbances, other run
+    assert main(args) == 0  # seed 0 again: the same robots, the same run
+    (again,) = json.loads(capsys.readouterr().out)["rows"]
+    assert again["makespan_s"] == rows[0]["makespan_s"]
+    assert main([*args, "--perfect", "--disturbance-seeds", "2"]) == 0
+    perfect = json.loads(capsys.readouterr().out)["rows"]
+    assert perfect[0]["stops_per_trip"] == 0.0 and perfect[0]["cusps_per_trip"] == 0.0

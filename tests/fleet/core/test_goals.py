@@ -115,3 +115,11 @@ def test_goal_index_moves_a_key_and_rejects_bad_input() -> None:
         GoalIndex(0.0)
     with pytest.raises(ValueError):
         index.add("b", Occupied(math.inf, 0.0, "b"))
+
+
+def test_a_goal_whose_parked_body_would_touch_an_obstacle_body_is_rejected() -> None:
+    """Outside the influence zone but within robot radius + contact margin of the body."""
+    post = [Obstacle(x=0.0, y=0.0, radius=0.3, body=0.3)]
+    with pytest.raises(GoalRejected, match=r"within 0\.05 m of its body"):
+        validate_goal(Pose(x=0.5, y=0.0), YARD, post, [], 1.0, margin=0.2, contact_margin=0.05)
+    validate_goal(Pose(x=0.56, y=0.0), YARD, post, [], 1.0, margin=0.2, contact_margin=0.05)

@@ -212,19 +212,27 @@ def test_mismatched_lengths_are_rejected() -> None:
     wheel_limits,
     st.sampled_from([0.05, 1.0, 4.0]),
     st.floats(0.5, 3.0),
-    st.lists(st.tuples(st.floats(-4, 4), st.floats(-4, 4), st.floats(0.3, 2.0)), max_size=2),
+    st.lists(
+        st.tuples(st.floats(-4, 4), st.floats(-4, 4), st.floats(0.3, 2.0), st.floats(0.0, 0.3)),
+        max_size=2,
+    ),
     st.lists(st.sampled_from([0.0, 0.1, 0.5]), min_size=5, max_size=5),
+    st.sampled_from(
+        [None, reference.Safety(0.05, 0.03, 5.0, 0.0), reference.Safety(0.05, 0.03, 5.0, 0.04)]
+    ),
 )
 def test_batch_with_peers_obstacles_and_delays_equals_the_reference_fleet_loop(
     fleet: Fleet,
     max_wheel_speed: float,
     k_avoid: float,
     peer_radius: float,
-    obstacles: list[tuple[float, float, float]],
+    obstacles: list[tuple[float, float, float, float]],
     delays: list[float],
+    safety: reference.Safety | None,
 ) -> None:
-    """Whole runs of robots that repel each other (Eq. 27), guard against contact, avoid
-    static obstacles and start late agree with the plain-Python fleet loop bit for bit."""
+    """Whole runs of robots that repel each other (Eq. 27), keep clear through the safety
+    filter, avoid static obstacles and start late agree with the plain-Python fleet loop
+    bit for bit."""
     starts, goals, gains, laws = fleet
     n = len(starts)
     tol = Tolerance(position=0.1, heading=0.1)
@@ -232,16 +240,21 @@ def test_batch_with_peers_obstacles_and_delays_equals_the_reference_fleet_loop(
     problem = BatchProblem.build(
         starts, goals, gains, laws, tol, profile,
         obstacles=[o[:2] for o in obstacles], obstacle_radius=[o[2] for o in obstacles],
-        k_avoid=k_avoid, peer_radius=peer_radius, min_x_oa=0.05, start_delay=delays[:n],
+        obstacle_body=[min(o[3], o[2]) for o in obstacles], k_avoid=k_avoid,
+        peer_radius=peer_radius, min_x_oa=0.05, start_delay=delays[:n],
+        safety=step.SAFETY_OFF if safety is None else step.Safety(
+            safety.margin, safety.projection, safety.rate, safety.spread
+        ),
     )  # fmt: skip
     batch = simulate(problem, dt=0.02, max_time=2.0)
     avoidance = reference.Avoidance(
         k_avoid=k_avoid, peer_radius=peer_radius, min_x_oa=0.05, radius=0.2
     )
     runs = reference.simulate_loop(
-        starts, goals, gains, laws, avoidance=avoidance, obstacles=obstacles,
-        start_delay=delays[:n], tol_position=0.1, tol_heading=0.1, dt=0.02, max_time=2.0,
-        limit=_wheel_limit(max_wheel_speed),
+        starts, goals, gains, laws, avoidance=avoidance,
+        obstacles=[(x, y, r, min(b, r)) for x, y, r, b in obstacles], start_delay=delays[:n],
+        tol_position=0.1, tol_heading=0.1, dt=0.02, max_time=2.0,
+        limit=_wheel_limit(max_wheel_speed), safety=safety,
     )  # fmt: skip
     assert batch.done.tolist() == [run.done for run in runs]
     for i, run in enumerate(runs):

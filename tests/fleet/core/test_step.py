@@ -22,8 +22,17 @@ posture = st.tuples(coord, coord, angle)
 gain_triple = st.tuples(st.floats(0.3, 5.0), st.floats(0.3, 10.0), st.floats(0.3, 15.0))
 law: st.SearchStrategy[Law] = st.sampled_from(LAWS)
 point = st.tuples(coord, coord)
-peers_st = st.lists(point, max_size=6)
-obstacles_st = st.lists(st.tuples(coord, coord, st.floats(0.2, 3.0)), max_size=3)
+body_st = st.builds(
+    reference.Body, coord, coord, angle, st.floats(0.05, 0.4), st.sampled_from([0.0, 0.05, 0.5])
+)
+peers_st = st.lists(body_st, max_size=6)
+obstacles_st = st.lists(
+    st.floats(0.2, 3.0).flatmap(lambda r: st.tuples(coord, coord, st.just(r), st.floats(0.0, r))),
+    max_size=3,
+)
+safety_st = st.sampled_from(
+    [None, reference.Safety(0.05, 0.03, 5.0, 0.0), reference.Safety(0.1, 0.05, 2.0, 0.02)]
+)
 limits = st.sampled_from([math.inf, 4.0, 20.0])
 avoidance_st = st.builds(
     reference.Avoidance,
@@ -54,26 +63,44 @@ class Situation:
     law: Law
     limit: float  # [rad/s]
     avoidance: reference.Avoidance
-    peers: list[tuple[float, float]]
-    obstacles: list[tuple[float, float, float]]
+    peers: list[reference.Body]
+    obstacles: list[tuple[float, float, float, float]]
+    safety: reference.Safety | None = None
 
     def compiled(self, limit: float | None = None) -> step.StepResult:
         """The compiled step (``limit`` overrides the wheel limit)."""
         wheel_limit = self.limit if limit is None else limit
+        bodies = np.array(
+            [(b.x, b.y, b.theta, b.radius, b.spread) for b in self.peers], dtype=np.float64
+        ).reshape(-1, 5)
+        safety = self.safety
         return step.step_robot(
             self.pose,
             _params(self.goal, self.gains, self.law, wheel_limit, self.avoidance.radius),
-            peers=np.array(self.peers, dtype=np.float64).reshape(-1, 2).T.copy(),
-            obstacles=np.array(self.obstacles, dtype=np.float64).reshape(-1, 3).T.copy(),
+            peers=bodies[:, :3].T.copy(),
+            shapes=bodies[:, 3:].T.copy(),
+            obstacles=np.array(self.obstacles, dtype=np.float64).reshape(-1, 4).T.copy(),
             k_avoid=self.avoidance.k_avoid,
             peer_radius=self.avoidance.peer_radius,
             min_x_oa=self.avoidance.min_x_oa,
+            safety=step.SAFETY_OFF
+            if safety is None
+            else step.Safety(safety.margin, safety.projection, safety.rate, safety.spread),
             dt=0.02,
         )
 
 
 situations = st.builds(
-    Situation, posture, posture, gain_triple, law, limits, avoidance_st, peers_st, obstacles_st
+    Situation,
+    posture,
+    posture,
+    gain_triple,
+    law,
+    limits,
+    avoidance_st,
+    peers_st,
+    obstacles_st,
+    safety_st,
 )
 
 
@@ -156,13 +183,15 @@ def test_repulsion_term_is_bounded_and_pushes_away(
 @settings(max_examples=400, deadline=None)
 @given(situations)
 def test_compiled_step_equals_the_plain_python_reference(sit: Situation) -> None:
-    """Same order of operations and libm: error, control, repulsion and next pose agree bit
-    for bit, with and without peers, obstacles and wheel limit, for both laws."""
+    """Same order of operations and libm: error, control, repulsion, the safety filter and
+    next pose agree bit for bit, with and without peers, obstacles, filter and wheel limit,
+    for both laws."""
     got = sit.compiled()
-    wheel = None if math.isinf(sit.limit) else reference.WheelLimit(R, B, sit.limit)
+    wheel = reference.WheelLimit(R, B, sit.limit)
     ref = reference.step(
-        sit.pose, sit.goal, sit.gains, sit.law == "cw", 0.02, wheel,
-        avoidance=sit.avoidance, peers=sit.peers, obstacles=sit.obstacles,
+        sit.pose, sit.goal, sit.gains, sit.law == "cw", 0.02,
+        None if math.isinf(sit.limit) else wheel, avoidance=sit.avoidance, peers=sit.peers,
+        obstacles=sit.obstacles, safety=sit.safety,
     )  # fmt: skip
     assert (got.x_e, got.y_e, got.theta_e) == ref.error
     assert (got.u, got.omega, got.repulsion, got.avoiding) == (
@@ -176,14 +205,15 @@ def test_compiled_step_equals_the_plain_python_reference(sit: Situation) -> None
 @given(situations)
 def test_omega_sign_wheel_limit_and_curvature_hold_for_every_step(sit: Situation) -> None:
     got = sit.compiled()
-    assert got.omega >= 0.0 if sit.law == "ccw" else got.omega <= 0.0  # (17) / (20)
+    if sit.safety is None:  # the filter may turn either way to keep a body clear
+        assert got.omega >= 0.0 if sit.law == "ccw" else got.omega <= 0.0  # (17) / (20)
     assert max(abs(got.right), abs(got.left)) <= sit.limit * (1 + 1e-12)
     assert math.isclose(R / 2 * (got.right + got.left), got.u, abs_tol=1e-12)
     assert math.isclose(R / (2 * B) * (got.right - got.left), got.omega, abs_tol=1e-12)
     # saturation divides u + repulsion and omega by one factor: the curvature is kept
-    # (unless the contact guard zeroed u)
+    # (the filter, when on, may change it)
     free = sit.compiled(limit=math.inf)
-    if got.u != 0.0 and free.u != 0.0:
+    if sit.safety is None and got.u != 0.0 and free.u != 0.0:
         assert math.isclose(got.omega * free.u, free.omega * got.u, rel_tol=1e-9, abs_tol=1e-12)
 
 
@@ -191,14 +221,14 @@ def test_omega_sign_wheel_limit_and_curvature_hold_for_every_step(sit: Situation
 @given(
     st.floats(-math.pi, math.pi),
     st.floats(0.0, 2 * math.pi),
-    st.floats(0.0, 0.449),
+    st.floats(0.0, 0.53),
     posture,
     gain_triple,
     law,
-    st.sampled_from([0.01, 0.05, 1.0, 4.0]),
+    st.sampled_from([0.0, 0.05, 1.0, 4.0]),
     peers_st,
 )
-def test_the_contact_guard_never_moves_a_robot_towards_a_peer_within_contact_range(
+def test_the_filter_never_closes_on_a_peer_at_the_margin(
     heading_: float,
     bearing: float,
     distance: float,
@@ -206,24 +236,35 @@ def test_the_contact_guard_never_moves_a_robot_towards_a_peer_within_contact_ran
     gains: GainTriple,
     law_name: Law,
     k_avoid: float,
-    others: list[tuple[float, float]],
+    others: list[reference.Body],
 ) -> None:
-    """Within 2 radius + min_x_oa (0.45 m) of a peer, whatever the law, the gains and the
-    other peers: u never has the sign that closes the distance along the heading."""
+    """With the projected discs at or within the margin of a peer's, whatever the law, the
+    gains and the other peers: the step never brings the discs closer (the barrier's
+    bound is <= 0 there; the second-order allowance is part of it)."""
     avoidance = reference.Avoidance(k_avoid=k_avoid, peer_radius=1.0, min_x_oa=0.05, radius=0.2)
-    peer = (distance * math.cos(bearing), distance * math.sin(bearing))
+    safety = reference.Safety(0.05, 0.03, 5.0, 0.0)
+    peer = reference.Body(distance * math.cos(bearing), distance * math.sin(bearing), 0.0, 0.2)
     pose = (0.0, 0.0, heading_)
-    got = Situation(pose, goal, gains, law_name, 20.0, avoidance, [*others, peer], []).compiled()
-    x_oa = math.cos(heading_) * peer[0] + math.sin(heading_) * peer[1]
-    assert got.u * x_oa <= 0.0
-    if got.u == 0.0 and got.omega != 0.0:
-        assert got.avoiding
-
-
-def test_the_contact_guard_is_off_without_avoidance() -> None:
-    off = reference.Avoidance(k_avoid=0.0, peer_radius=1.0, min_x_oa=0.05, radius=0.2)
     got = Situation(
-        (0.0, 0.0, 0.0), (3.0, 0.0, 0.0), (1.0, 1.0, 1.0), "ccw", 20.0, off, [(0.3, 0.0)], []
+        pose, goal, gains, law_name, 20.0, avoidance, [*others, peer], [], safety
+    ).compiled()
+
+    def disc_gap(x: float, y: float, theta: float) -> float:
+        return math.dist(
+            (x + 0.03 * math.cos(theta), y + 0.03 * math.sin(theta)), (peer.x + 0.03, peer.y)
+        )
+
+    assert (
+        disc_gap(got.x, got.y, got.theta) >= disc_gap(*pose) - 1e-12
+        or disc_gap(got.x, got.y, got.theta) >= 2 * 0.23 + 0.05
+    )
+
+
+def test_the_filter_is_off_in_the_papers_model() -> None:
+    off = reference.Avoidance(k_avoid=0.0, peer_radius=1.0, min_x_oa=0.05, radius=0.2)
+    peer = reference.Body(0.3, 0.0, 0.0, 0.2)
+    got = Situation(
+        (0.0, 0.0, 0.0), (3.0, 0.0, 0.0), (1.0, 1.0, 1.0), "ccw", 20.0, off, [peer], []
     ).compiled()
     assert got.u > 0.0 and not got.avoiding
 
@@ -232,7 +273,8 @@ def test_a_held_robot_stands_still_but_the_stop_rule_is_checked() -> None:
     params = _params((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), "ccw", 20.0, 0.2)
     for pose, done in (((0.0, 0.0, 0.0), True), ((1.0, 1.0, 0.0), False)):
         got = step.step_robot(
-            pose, params, hold=True, peers=np.zeros((2, 0)), obstacles=np.zeros((3, 0)),
+            pose, params, hold=True, peers=np.zeros((3, 0)), shapes=np.zeros((2, 0)),
+            obstacles=np.zeros((4, 0)),
             k_avoid=4.0, peer_radius=1.0, min_x_oa=0.05, dt=0.02,
         )  # fmt: skip
         assert (got.u, got.omega, got.right, got.left) == (0.0, 0.0, 0.0, 0.0)
@@ -256,9 +298,10 @@ def test_compiled_entry_points_refuse_other_types_instead_of_compiling() -> None
         )
     ),
     st.sampled_from([0.05, 4.0]),
+    st.sampled_from([step.SAFETY_OFF, step.Safety(0.05, 0.03, 5.0, 0.02)]),
 )
 def test_one_robot_step_equals_its_row_of_the_batch_step(
-    fleet: tuple[list[Posture], list[Posture], list[Law]], k_avoid: float
+    fleet: tuple[list[Posture], list[Posture], list[Law]], k_avoid: float, safety: step.Safety
 ) -> None:
     """The agent's one-robot call, given the others as peers, is the batch kernel's row."""
     starts, goals, laws = fleet
@@ -269,14 +312,18 @@ def test_one_robot_step_equals_its_row_of_the_batch_step(
     )
     pose = np.array(starts, dtype=np.float64).T.copy()
     done, metrics = np.full(n, -1, dtype=np.int64), np.zeros((2, n))
-    interaction = step.Interaction(group=n, k_avoid=k_avoid, peer_radius=2.0, min_x_oa=0.05)
+    interaction = step.Interaction(
+        group=n, k_avoid=k_avoid, peer_radius=2.0, min_x_oa=0.05, safety=safety
+    )
     schedule = step.Schedule(dt=0.02, first_step=0, max_steps=1)
-    step.advance_batch(pose, params, done, metrics, np.zeros((3, 0)), interaction, schedule)
+    step.advance_batch(pose, params, done, metrics, np.zeros((4, 0)), interaction, schedule)
     for i in range(n):
-        others = np.array([p[:2] for j, p in enumerate(starts) if j != i]).T.copy()
+        others = np.array([p for j, p in enumerate(starts) if j != i]).T.copy()
+        shapes = np.vstack([np.full(n - 1, 0.2), np.full(n - 1, safety.spread)])
         one = step.step_robot(
-            starts[i], params[i : i + 1].copy(), peers=others, obstacles=np.zeros((3, 0)),
-            k_avoid=k_avoid, peer_radius=2.0, min_x_oa=0.05, dt=0.02,
+            starts[i], params[i : i + 1].copy(), peers=others, shapes=shapes,
+            obstacles=np.zeros((4, 0)), k_avoid=k_avoid, peer_radius=2.0, min_x_oa=0.05,
+            safety=safety, dt=0.02,
         )  # fmt: skip
         assert (one.x, one.y, one.theta) == tuple(pose[:, i])
         assert (done[i] == 0) == one.done
@@ -286,7 +333,8 @@ def test_one_robot_step_equals_its_row_of_the_batch_step(
 def test_integrate_wheels_is_the_step_euler_update() -> None:
     params = _params((3.0, 1.0, 0.5), (1.0, 2.0, 1.0), "cw", 20.0, 0.2)
     got = step.step_robot(
-        (0.2, -0.1, 0.3), params, peers=np.zeros((2, 0)), obstacles=np.zeros((3, 0)),
+        (0.2, -0.1, 0.3), params, peers=np.zeros((3, 0)), shapes=np.zeros((2, 0)),
+        obstacles=np.zeros((4, 0)),
         k_avoid=0.0, peer_radius=1.0, min_x_oa=0.05, dt=0.02,
     )  # fmt: skip
     x, y, theta = step.integrate_wheels(0.2, -0.1, 0.3, got.right, got.left, R, B, 0.02, 1)

@@ -14,14 +14,8 @@ import pytest
 from matplotlib.patches import Polygon
 
 from fleet.cli.main import main
-from fleet.paper.plotting import (
-    _triangle,
-    plot_case,
-    plot_compare,
-    plot_pareto,
-    plot_trajectory,
-    save_figure,
-)
+from fleet.drawing import plot_trajectory, save_figure, triangle
+from fleet.paper.plotting import plot_case, plot_compare, plot_pareto
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -99,7 +93,7 @@ def test_errors_are_optional_for_live_recordings(tmp_path: Path) -> None:
 
 
 def test_triangle_points_along_the_heading() -> None:
-    tri = _triangle(np.array([1.0, 2.0, math.pi / 2]), 0.1)
+    tri = triangle(np.array([1.0, 2.0, math.pi / 2]), 0.1)
     nose = tri[0]
     np.testing.assert_allclose(nose, [1.0, 2.1], atol=1e-12)
     assert (tri[1:, 1] < 2.0).all()  # the base lies behind the centre

@@ -363,3 +363,30 @@ def test_a_bay_is_held_from_the_reservation_until_the_task_ends(ledger: TaskLedg
     assert ledger.bays.holder("A1") == "t1"
     ledger.cancel("t1", WALL)
     assert ledger.bays.holder("A1") is None and ledger.sizes()["bays_reserved"] == 0
+
+
+def test_version_rises_with_every_task_transition_and_operator_hold(ledger: TaskLedger) -> None:
+    seen = [ledger.version]
+
+    def rose() -> bool:
+        seen.append(ledger.version)
+        return seen[-1] > seen[-2]
+
+    ledger.reserve(task("t1"))
+    assert not rose()  # a reservation is not planned
+    ledger.add(task("t1"))
+    assert rose()
+    applied(ledger, assign("t1", "r1"))
+    assert rose()
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING), now=0.1, wall=WALL)
+    assert rose()  # acknowledged: driving
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=2), now=0.2, wall=WALL)
+    assert not rose()  # progress only
+    ledger.hold_robot("r1", "paused", now=0.3, wall=WALL)
+    assert rose()
+    ledger.hold_robot("r1", "paused", now=0.3, wall=WALL)
+    assert not rose()  # already held
+    ledger.release_robot("r1", now=0.4, wall=WALL)
+    assert rose()
+    ledger.cancel("t1", WALL)
+    assert rose()

@@ -72,3 +72,31 @@ def test_removing_a_robot_forgets_everything_about_it() -> None:
     assert roster.expired(now=1e9, retention_s=1.0) == []
     assert not roster.known("r1") and roster.view("r1") is None and roster.views() == []
     assert roster.remove("r1") is None
+
+
+def test_version_rises_with_what_a_plan_depends_on_and_not_with_poses() -> None:
+    roster = Roster()
+    seen = [roster.version]
+
+    def rose() -> bool:
+        seen.append(roster.version)
+        return seen[-1] > seen[-2]
+
+    roster.alive("r1", wall=0.0)
+    assert rose()
+    roster.update(state("r1", 0.0), now=1.0, wall=1.0)
+    assert rose()  # first state
+    roster.update(state("r1", 0.5), now=1.1, wall=1.1)
+    assert not rose()  # a pose only
+    roster.update(state("r1", 0.6, RobotMode.DRIVING, "t1"), now=1.2, wall=1.2)
+    assert rose()  # status and task
+    roster.set_in_service("r1", False)
+    assert rose()
+    roster.set_in_service("r1", False)
+    assert not rose()  # no change
+    roster.gone("r1", now=2.0)
+    assert rose()
+    roster.remove("r1")
+    assert rose()
+    roster.remove("r1")
+    assert not rose()  # unknown: nothing removed

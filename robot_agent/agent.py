@@ -3,8 +3,9 @@
 Each tick (default 50 Hz, ``Settings.control_rate_hz``, on the agent's monotonic clock) has
 two phases: :meth:`RobotAgent.sense` reads the pose and applies pending assignment
 messages; :meth:`RobotAgent.act` decides with the pure :func:`robot_agent.logic.decide`,
-commands the wheels and publishes ``RobotState`` on ``keys.state(id)`` (stamped with the
-wall clock). Zenoh edges:
+commands the wheels and publishes ``RobotState`` (stamped with the wall clock) through
+:class:`~robot_agent.state_streams.StateStreams`: every tick on its grid cell's peer key,
+and at the fleet rate (and on every change) on ``keys.state(id)``. Zenoh edges:
 
 * liveliness token ``keys.alive(id)``, and right after it the robot's
   :class:`~fleet.core.wire.RobotDescription` (its profile, ``Settings.may_reverse`` and
@@ -23,8 +24,9 @@ wall clock). Zenoh edges:
   command with a term below the highest seen (a deposed leader's) is dropped on the control
   thread and counted in ``fence.dropped``; operator commands without a term always count;
 * a :class:`~robot_agent.world_feed.WorldFeed` filling a :class:`~robot_agent.world.WorldView`
-  with peers' states (``keys.all_states``) and the
-  obstacles (subscribed and queried once at start), owned or shared with other agents;
+  with the states of peers in the cells around the robot (re-subscribed as it moves, told
+  the robot's position each tick) and the obstacles (subscribed and queried once at
+  start), owned or shared with other agents;
 * a :class:`~robot_agent.link.LinkMonitor` (owned or shared): when the link to the router
   is lost (no router, or nothing heard for ``Settings.link_timeout_s``) an active task
   holds (``holding``, wheels stopped) and resumes when the link returns. A fleet *service*
@@ -49,7 +51,6 @@ from typing import Any
 from fleet.core.wire import (
     CancelAssignment,
     ControlCommand,
-    Keys,
     ParkAssignment,
     Pose,
     RobotDescription,
@@ -74,6 +75,7 @@ from robot_agent.logic import (
     decide,
 )
 from robot_agent.operator import OperatorLatch
+from robot_agent.state_streams import StateStreams
 from robot_agent.world import WorldView
 from robot_agent.world_feed import WorldFeed
 
@@ -120,7 +122,7 @@ class RobotAgent:
         wall_clock: Callable[[], float] = time.time,
         describe: bool = True,
     ) -> None:
-        self.keys = Keys(settings.fleet_name)
+        self.keys = settings.keys()
         self.robot_id = robot_id
         self.keys.state(robot_id)  # validates the id
         self.drive = drive
@@ -157,7 +159,13 @@ class RobotAgent:
         self.tick_errors = 0
         self.last: AgentSnapshot | None = None
         self._handles: list[Any] = []
-        self._publisher: Any = None
+        self.streams = StateStreams(
+            session,
+            self.keys,
+            robot_id,
+            fleet_rate_hz=settings.fleet_rate_hz,
+            encoding=settings.state_encoding,
+        )
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._opened = False
@@ -222,8 +230,7 @@ class RobotAgent:
                 self.feed.attach(self.session)
             if self._owns_link:
                 self.link.attach()
-            self._publisher = self.session.declare_publisher(self.keys.state(self.robot_id))
-            self._handles.append(self._publisher)
+            self.streams.open()
             self._handles.append(
                 self.session.declare_subscriber(
                     self.keys.assignment(self.robot_id), self.guard.wrap(self._on_assignment)
@@ -271,6 +278,7 @@ class RobotAgent:
             now = self.clock.now()
             self._pose = pose
             self.world.update_position(self.robot_id, pose.x, pose.y, pose.theta)
+            self.feed.follow(self.robot_id, pose.x, pose.y)
             self._reading = (pose, stamp, now)
         except Exception as exc:
             self._failure = self._tick_failed(phase, exc)
@@ -418,10 +426,8 @@ class RobotAgent:
         )
         self._seq += 1
         self.world.update_state(state)  # agents sharing this session see it without Zenoh
-        if self._publisher is None:
-            return snapshot
         try:
-            self._publisher.put(encode(state))
+            self.streams.publish(state)
         except Exception:
             self.tick_errors += 1
             _log.exception("%s: publishing state failed", self.robot_id)
@@ -463,7 +469,8 @@ class RobotAgent:
         self._thread = None
         self._safe_stop()
         handles, self._handles = self._handles, []
-        self._publisher = None
+        self.streams.close()
+        self.feed.unfollow(self.robot_id)
         for handle in reversed(handles):
             try:
                 handle.undeclare()

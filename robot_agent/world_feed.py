@@ -1,17 +1,24 @@
 """Zenoh edge of a :class:`~robot_agent.world.WorldView`: peers' states and the obstacles.
 
-:class:`WorldFeed` subscribes to every remote robot's state and to the obstacle set (and
-queries it once, for a late joiner), decodes with drop counters, and writes into the view.
+:class:`WorldFeed` subscribes to the peer stream of the cells around the robots it feeds
+(fleet/core/wire.py, "State streams") and to the obstacle set (and queries it once, for a
+late joiner), decodes with drop counters, and writes into the view. Each agent reports its
+position every tick (:meth:`WorldFeed.follow`); when a robot enters another cell the feed
+subscribes to the new cells of its 3 x 3 block *before* it undeclares the ones no robot
+needs any more, so a peer within reach is never unheard. A feed shared by many agents (a
+simulated fleet on one session) subscribes to the union of their blocks, each cell once.
 Its :attr:`WorldFeed.last_heard` is the link monitor's evidence that the network is alive.
 """
 
 from __future__ import annotations
 
 import logging
+import threading
 import time
+from collections import Counter
 from typing import Any
 
-from fleet.core.wire import Keys, ObstacleSet, RobotState
+from fleet.core.wire import Cell, Keys, ObstacleSet, RobotState, cells_around
 from fleet.io.decoder import CallbackGuard, Decoder
 from robot_agent.world import WorldView
 
@@ -21,14 +28,106 @@ _log = logging.getLogger(__name__)
 class WorldFeed:
     """Feeds ``world`` from a Zenoh session: :meth:`attach`, then :meth:`detach`."""
 
-    def __init__(self, world: WorldView, keys: Keys, decoder: Decoder | None = None) -> None:
+    def __init__(
+        self,
+        world: WorldView,
+        keys: Keys,
+        decoder: Decoder | None = None,
+        *,
+        upstream: WorldFeed | None = None,
+    ) -> None:
         self.world = world
+        self.upstream = upstream  # a shared feed that subscribes for this one (never attached)
         self.keys = keys
         self.decoder = decoder or Decoder("world")
         self.guard = CallbackGuard("world")
         self._handles: list[Any] = []
+        self._session: Any = None
+        self._lock = threading.Lock()  # the cell bookkeeping (never held across Zenoh calls)
+        self._cell_of: dict[str, Cell] = {}  # robot -> the cell its block was taken at
+        self._needed: Counter[Cell] = Counter()  # cell -> robots whose block holds it
+        self._cells: dict[Cell, Any] = {}  # cell -> its subscriber
+        self.resubscriptions = 0  # times a robot's block moved
         #: time.monotonic() of the last valid message from the network (link evidence)
         self.last_heard = float("-inf")
+
+    @property
+    def cells(self) -> frozenset[Cell]:
+        """The cells whose peer stream this feed is subscribed to."""
+        with self._lock:
+            return frozenset(self._cells)
+
+    def follow(self, robot_id: str, x: float, y: float) -> None:
+        """A robot this feed serves stands at (x, y) [m, world frame]: hear every peer
+        within one cell size of it (its 3 x 3 block of cells). Cheap when it stays in its
+        cell; called by the robot's control loop each tick."""
+        if self.upstream is not None:
+            self.upstream.follow(robot_id, x, y)
+        cell = self.keys.cell(x, y)
+        with self._lock:
+            old = self._cell_of.get(robot_id)
+            if old == cell:
+                return
+            self._cell_of[robot_id] = cell
+            add = self._block(cell)
+            drop = self._block(old) if old is not None else frozenset()
+            self._needed.update(add)
+            self._needed.subtract(drop)
+            gone = [c for c in drop if self._needed[c] <= 0]
+            for c in gone:
+                del self._needed[c]
+            new = [c for c in add if c not in self._cells]
+            session = self._session
+            self.resubscriptions += 1
+        if session is None:
+            return
+        self._subscribe(session, new)  # new cells first: no gap at a border
+        self._unsubscribe(gone)
+
+    def unfollow(self, robot_id: str) -> None:
+        """A robot this feed served is gone: release its block."""
+        if self.upstream is not None:
+            self.upstream.unfollow(robot_id)
+        with self._lock:
+            old = self._cell_of.pop(robot_id, None)
+            if old is None:
+                return
+            drop = self._block(old)
+            self._needed.subtract(drop)
+            gone = [c for c in drop if self._needed[c] <= 0]
+            for c in gone:
+                del self._needed[c]
+        self._unsubscribe(gone)
+
+    def _block(self, cell: Cell) -> frozenset[Cell]:
+        """The cells meeting the square of half-width one cell size around any point of
+        ``cell`` (taken at its centre, so the same block every time): its 3 x 3 block."""
+        c = self.keys.cell_m
+        return cells_around((cell[0] + 0.5) * c, (cell[1] + 0.5) * c, c, c)
+
+    def _subscribe(self, session: Any, cells: list[Cell]) -> None:
+        import zenoh
+
+        for cell in cells:
+            handle = session.declare_subscriber(
+                self.keys.cell_states(cell),
+                self.guard.wrap(self._on_state),
+                allowed_origin=zenoh.Locality.REMOTE,
+            )
+            with self._lock:
+                stale = self._cells.get(cell)
+                self._cells[cell] = handle
+            if stale is not None:
+                _undeclare(stale)
+
+    def _unsubscribe(self, cells: list[Cell]) -> None:
+        handles = []
+        with self._lock:
+            for cell in cells:
+                if self._needed[cell] <= 0 and cell in self._cells:
+                    handles.append(self._cells.pop(cell))
+        for handle in handles:
+            _undeclare(handle)
 
     def _on_state(self, sample: Any) -> None:
         state = self.decoder.decode(RobotState, sample.payload.to_bytes())
@@ -52,18 +151,14 @@ class WorldFeed:
 
     def attach(self, session: Any) -> None:
         """Subscribe to remote robot states and the obstacles; query obstacles (late joiner)."""
-        import zenoh
 
-        # Remote states only: agents on this session put their own states straight into
-        # the view (RobotAgent._publish), so a process simulating N robots does not decode
-        # its own N x rate states again.
-        self._handles.append(
-            session.declare_subscriber(
-                self.keys.all_states,
-                self.guard.wrap(self._on_state),
-                allowed_origin=zenoh.Locality.REMOTE,
-            )
-        )
+        # Remote states only (in _subscribe): agents on this session put their own states
+        # straight into the view (RobotAgent._publish), so a process simulating N robots
+        # does not decode its own N x rate states again.
+        with self._lock:
+            self._session = session
+            cells = list(self._needed)
+        self._subscribe(session, cells)
         self._handles.append(
             session.declare_subscriber(self.keys.obstacles, self.guard.wrap(self._on_obstacles))
         )
@@ -71,10 +166,17 @@ class WorldFeed:
         session.get(self.keys.obstacles, self.guard.wrap(self._on_obstacle_reply), timeout=5.0)
 
     def detach(self) -> None:
-        """Undeclare the subscribers (idempotent)."""
-        handles, self._handles = self._handles, []
+        """Undeclare the subscribers (idempotent); the robots followed stay remembered."""
+        with self._lock:
+            self._session = None
+            handles = [*self._handles, *self._cells.values()]
+            self._handles, self._cells = [], {}
         for handle in handles:
-            try:
-                handle.undeclare()
-            except Exception:  # session already closed: nothing left to undeclare
-                _log.debug("undeclare failed", exc_info=True)
+            _undeclare(handle)
+
+
+def _undeclare(handle: Any) -> None:
+    try:
+        handle.undeclare()
+    except Exception:  # session already closed: nothing left to undeclare
+        _log.debug("undeclare failed", exc_info=True)

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from fleet.core.wire import Keys, ObstacleSet, RobotMode, RobotState, validate_id
+from fleet.core.wire import ObstacleSet, RobotMode, RobotState, validate_id
 from fleet.io.settings import Settings
 from fleet.io.trace import TraceHeader, TraceWriter
 from robot_agent.agent import RobotAgent
@@ -188,10 +188,10 @@ class SimFleet:
         self.robot_link = robots.link
         hub = _HubView(self.clock) if robots.link is not None else None
         self.world = hub or WorldView(self.clock.now)  # peers' silence in simulated seconds
-        self.feed = feed = WorldFeed(self.world, Keys(settings.fleet_name))
+        self.feed = feed = WorldFeed(self.world, settings.keys())
         self.link = LinkMonitor(  # one link per session, shared by its agents
             session,
-            Keys(settings.fleet_name),
+            settings.keys(),
             settings.link_timeout_s,
             check_router=(settings.zenoh_mode or "client") == "client",
             heard_elsewhere=lambda: feed.last_heard,
@@ -207,7 +207,8 @@ class SimFleet:
                 view = _LinkedView(spawn.robot_id, index, robots.link, self.clock)
                 hub.views.append(view)
                 self.views.append(view)
-                agent_feed = WorldFeed(view, Keys(settings.fleet_name))  # never attached
+                # never attached: the shared feed subscribes the cells the agent follows
+                agent_feed = WorldFeed(view, settings.keys(), upstream=self.feed)
             self.agents.append(
                 RobotAgent(
                     spawn.robot_id,

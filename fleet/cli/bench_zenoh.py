@@ -14,7 +14,7 @@ def register(commands: Any, bench: Any) -> None:
 
     p = bench.add_parser(
         "zenoh",
-        help="N simulated robots' states at 50 Hz through a router into the fleet service",
+        help="N simulated robots' state streams through a router into the service and robots",
         description=bench_zenoh.__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -36,6 +36,12 @@ def register(commands: Any, bench: Any) -> None:
         "fleet reaches on a small machine)",
     )
     p.add_argument(
+        "--area",
+        type=positive_float,
+        default=10.0,
+        help="robots stand at seeded random spots, one per AREA m² (default 10)",
+    )
+    p.add_argument(
         "--profile", type=Path, help="py-spy recording of the service for the largest N (.svg)"
     )
     p.set_defaults(func=run)
@@ -54,4 +60,5 @@ def run(args: argparse.Namespace) -> int:
         as_json=args.json,
         profile=args.profile,
         source=args.source,
+        area=args.area,
     )

@@ -228,7 +228,7 @@ def fleet_acl(
                 "robots-subscribe",
                 "ingress",
                 ["declare_subscriber"],
-                [keys.all_states, keys.obstacles, keys.control()],
+                [keys.all_states, keys.all_peer_states, keys.obstacles, keys.control()],
             ),
             _rule("robots-query", "ingress", ["query"], [keys.obstacles, ROUTER_ECHO]),
             _rule(
@@ -242,7 +242,7 @@ def fleet_acl(
                 "robots-receive",
                 "egress",
                 ["put"],
-                [keys.all_states, keys.obstacles, keys.control()],
+                [keys.all_states, keys.all_peer_states, keys.obstacles, keys.control()],
             ),
             _rule(
                 "robots-replies",
@@ -267,7 +267,8 @@ def fleet_acl(
                     f"robot-{robot}-publish",
                     "ingress",
                     ["put"],
-                    [keys.state(robot), keys.description(robot)],
+                    # its fleet-rate state, its peer stream in any cell, its description
+                    [keys.state(robot), f"{keys.root}/cell/*/*/{robot}", keys.description(robot)],
                 ),
                 _rule(
                     f"robot-{robot}-describe",

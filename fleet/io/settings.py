@@ -42,7 +42,7 @@ from pydantic_settings import (
 
 from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
 from fleet.core.site import Site
-from fleet.core.wire import validate_id
+from fleet.core.wire import Keys, validate_id
 from fleet.io.site_file import load_site
 
 DEFAULT_ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"
@@ -198,11 +198,28 @@ class RobotSettings(ZenohSettings):
     # Router link silent this long (no peer, service or echo reply) -> hold; a silent peer
     # is never forgotten: it stays an obstacle at its last pose.
     link_timeout_s: Annotated[float, Field(gt=0)] = 3.0
+    # State streams (fleet/core/wire.py): the peer stream at control_rate_hz under grid cells
+    # of peer_cell_m [m] (None: twice avoidance.peer_radius; the same for every robot of a
+    # fleet), and the fleet-rate stream the service reads at fleet_rate_hz (and at once on
+    # a change of mode, task or faults); "json" states for a service of an older release.
+    peer_cell_m: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = None
+    fleet_rate_hz: Annotated[float, Field(gt=0, le=1000)] = 10.0
+    state_encoding: Literal["compact", "json"] = "compact"
     # Drive of ``parkfleet agent``: ``module:factory`` or a name in DRIVES ("sim"), and the
     # simulated drive's start posture (x [m], y [m], theta [rad]).
     drive: str | None = None
     sim_start: tuple[float, float, float] = (0.0, 0.0, 0.0)
     ros2: Ros2Settings = Ros2Settings()  # the ``ros2`` drive (README "Driving a ROS 2 robot")
+
+    @property
+    def cell_m(self) -> float:
+        """[m] grid cell of the peer stream: ``peer_cell_m``, else twice the peer radius
+        (the peer radius of Eq. (27) plus as much again for motion, fleet/core/wire.py)."""
+        return self.peer_cell_m or 2.0 * self.avoidance.peer_radius
+
+    def keys(self) -> Keys:
+        """The key expressions of this fleet (its name and cell size)."""
+        return Keys(self.fleet_name, self.cell_m)
 
     @field_validator("robot_id")
     @classmethod

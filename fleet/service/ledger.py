@@ -404,17 +404,20 @@ class TaskLedger:
         origin_seq: float | None,
         now: float,
         wall: float,
+        relaxed: str | None = None,
     ) -> tuple[Outcome, Effects]:
         """Apply one decision of a plan (see the module docstring).
 
         ``robot_available``: the decision's robot may take a new task now; ``origin_seq``:
-        the robot's state seq at t = 0 of the plan (for the corridor of a kept decision).
+        the robot's state seq at t = 0 of the plan (for the corridor of a kept decision);
+        ``relaxed``: the plan's note when it was made at the standstill margin -- a robot it
+        starts or re-plans carries it as its task's reason, so the history says so.
         """
         task = self._active.get(decision.task_id)
         if task is None:
             return Outcome.STALE, []
         if decision.action == "assign":
-            return self._assign(task, decision, robot_available, plan_safe, now, wall)
+            return self._assign(task, decision, robot_available, plan_safe, now, wall, relaxed)
         if not (
             task.status.under_way
             and task.robot_id == decision.robot_id
@@ -430,12 +433,13 @@ class TaskLedger:
         resumes = task.hold and not decision.hold
         if resumes and not plan_safe:
             return Outcome.UNSAFE, []
+        reason: str | None
         if decision.hold:
             status, reason, event = TaskStatus.WAITING, self._hold_reason(decision), "held"
         elif resumes:
-            status, reason, event = TaskStatus.ASSIGNED, None, "resumed"
+            status, reason, event = TaskStatus.ASSIGNED, relaxed, "resumed"
         else:
-            status, reason, event = task.status, task.reason, "replanned"
+            status, reason, event = task.status, relaxed or task.reason, "replanned"
         revised = self._update(
             task,
             wall,
@@ -461,6 +465,7 @@ class TaskLedger:
         plan_safe: bool,
         now: float,
         wall: float,
+        relaxed: str | None,
     ) -> tuple[Outcome, Effects]:
         named = task.request.robot_id
         if (
@@ -477,7 +482,7 @@ class TaskLedger:
             task,
             wall,
             status=TaskStatus.WAITING if decision.hold else TaskStatus.ASSIGNED,
-            reason=self._hold_reason(decision) if decision.hold else None,
+            reason=self._hold_reason(decision) if decision.hold else relaxed,
             robot_id=decision.robot_id,
             law=decision.law,
             start_delay_s=decision.start_delay_s,

@@ -84,6 +84,7 @@ class PlannerGlue(ServiceState):
         now, wall = clock.monotonic(), clock.wall()
         outcomes: Counter[Outcome] = Counter()
         held = revised = 0
+        relaxed = next((n for n in plan.notes if n.startswith("standstill")), None)
         with self._lock:
             if self._closed:
                 return
@@ -96,6 +97,7 @@ class PlannerGlue(ServiceState):
                     origin_seq=work.origin_seqs.get(d.robot_id),
                     now=now,
                     wall=wall,
+                    relaxed=relaxed,
                 )
                 outcomes[outcome] += 1
                 if outcome is Outcome.APPLIED:
@@ -108,10 +110,10 @@ class PlannerGlue(ServiceState):
         self._counters.add("decisions_stale_dropped", outcomes[Outcome.STALE])
         self._counters.add("plan_fallbacks", held)
         self._counters.add("replans", revised)
-        if any(note.startswith("standstill") for note in plan.notes):
+        if relaxed is not None:
             # No robot could move keeping the separation: planned at the standstill margin.
             self._counters.add("plans_relaxed")
-            _log.warning("relaxed plan: %s", next(n for n in plan.notes if "standstill" in n))
+            _log.warning("relaxed plan: %s", relaxed)
         if outcomes[Outcome.UNSAFE]:
             # A scene the plan could not keep apart (the robots' safety filter still keeps
             # their bodies apart): the decisions that would start robots in it are dropped.

@@ -2,8 +2,11 @@
 
 On :meth:`ZenohFleetBus.start` it declares
 
-* a subscriber on ``robot/*/state`` -> ``sink.on_state`` (the key's robot id must match
-  the payload's, else the sample is dropped);
+* a subscriber on ``robot/*/state`` -> ``sink.on_state``: the robots' fleet-rate stream
+  (``Settings.fleet_rate_hz``, 10 Hz, and at once on a change of mode, task or faults),
+  never their 50 Hz peer stream on the cell keys (fleet/core/wire.py, "State streams");
+  compact states decode without pydantic, JSON ones (older robots, tools) as before; the
+  key's robot id must match the payload's, else the sample is dropped;
 * a liveliness subscriber on ``alive/*`` *with history* (robots already up are reported at
   once) -> ``sink.on_robot_alive`` / ``sink.on_robot_gone``; the service's own token is
   skipped;

@@ -128,7 +128,8 @@ def test_two_agents_on_crossing_paths_keep_a_minimum_separation(
     ):
         fa.start()
         fb.start()
-        wait_for(lambda: len(fa.world.states()) == 2 and len(fb.world.states()) == 2, 10, "peers")
+        # 4.2 m apart: not yet in each other's cells (a peer is heard within one cell size)
+        wait_for(lambda: "a" in fa.world.states() and "b" in fb.world.states(), 10, "ticking")
         assign_until_acked(service, states, park("a", "ta", (3.0, 0.0, 0.0)))
         assign_until_acked(service, states, park("b", "tb", (0.0, 3.0, math.pi / 2)))
         closest = math.inf
@@ -149,6 +150,7 @@ def test_two_agents_on_crossing_paths_keep_a_minimum_separation(
         progress_a = fa.drives["a"].true_pose[0] + 3.0
         progress_b = fb.drives["b"].true_pose[1] + 3.0
     assert closest > 2 * radius, f"robots came within {closest:.3f} m"
+    assert set(fa.world.states()) == set(fb.world.states()) == {"a", "b"}  # met on their cells
     assert progress_a > 1.0 and progress_b > 1.0  # they really drove at each other
     modes = {s.mode for rid in ("a", "b") for s in states.since(rid, -1)}
     assert RobotMode.AVOIDING in modes

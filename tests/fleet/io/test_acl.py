@@ -43,6 +43,7 @@ def test_default_deny_robots_publish_only_their_own_keys() -> None:
     published = {(m, k) for f, m, k in r1 if f == "ingress" and m in ("put", "delete")}
     assert published == {
         ("put", "parkfleet/yard1/robot/r1/state"),
+        ("put", "parkfleet/yard1/cell/*/*/r1"),  # its peer stream, in whatever cell
         ("put", "parkfleet/yard1/robot/r1/description"),
     }
     tokens = {k for f, m, k in r1 if f == "ingress" and m == "liveliness_token"}

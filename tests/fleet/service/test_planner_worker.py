@@ -33,10 +33,11 @@ class Yard:
         self.planner = planner
         self.clock = FakeClock()
         self.bus = MemoryBus()
+        self.store = MemoryTaskStore()
         self.service = FleetService(
             Settings(**settings),  # type: ignore[arg-type]
             self.bus,
-            MemoryTaskStore(),
+            self.store,
             clock=self.clock,
             planner=planner,
         )
@@ -155,17 +156,29 @@ def test_a_decision_that_would_start_a_robot_in_an_unsafe_plan_is_never_sent(
     assert y.service.planner_stats().fallbacks == 1
 
 
-def test_a_relaxed_plan_is_counted_in_the_stats_and_the_counters(
+def test_a_relaxed_plan_is_counted_and_written_into_the_task_history(
     yards: Callable[..., Yard],
 ) -> None:
     note = "standstill: no robot could move keeping 0.50 m; planned keeping 0.42 m"
     y = yards(ScriptedPlanner(assign_queued(), notes=(note,)))
     y.join("r1", 0.0)
     assert y.service.planner_stats().relaxed == 0
-    y.service.submit(req(3.0, 0.0))
+    task = y.service.submit(req(3.0, 0.0))
     y.service.tick()
     assert y.service.planner_stats().relaxed == 1
     assert y.service.counters["plans_relaxed"] == 1
+    assigned = [t for _, event, t in y.store.history(task.id) if event == "assigned"]
+    assert [t.reason for t in assigned] == [note]
+
+
+def test_a_plan_that_is_not_relaxed_leaves_the_reason_empty(yards: Callable[..., Yard]) -> None:
+    y = yards(ScriptedPlanner(assign_queued()))
+    y.join("r1", 0.0)
+    task = y.service.submit(req(3.0, 0.0))
+    y.service.tick()
+    assigned = [t for _, event, t in y.store.history(task.id) if event == "assigned"]
+    assert [t.reason for t in assigned] == [None]
+    assert y.service.planner_stats().relaxed == 0
 
 
 def test_the_worker_replans_as_the_yard_changes_and_resends_only_changes(

@@ -37,15 +37,18 @@ class WorldView:
         self._rows: dict[str, int] = {}  # robot id -> row of _positions
         self._positions: FloatArray = np.zeros((16, self._COLUMNS))
 
-    def update_state(self, state: RobotState) -> None:
-        """Keep the newest state of a robot (by ``seq``, so reordering cannot roll back)."""
+    def update_state(self, state: RobotState, age_s: float = 0.0) -> None:
+        """Keep the newest state of a robot (by ``seq``, so reordering cannot roll back);
+        ``age_s`` [s]: how long before now it was heard (a state replayed by the service)."""
         with self._lock:
             old = self._states.get(state.robot_id)
             if old is not None and state.seq <= old.seq and state.stamp <= old.stamp:
                 return
             self._states[state.robot_id] = state
             p = state.pose
-            self._set_row(state.robot_id, (p.x, p.y, p.theta, state.radius, abs(state.u)))
+            self._set_row(
+                state.robot_id, (p.x, p.y, p.theta, state.radius, abs(state.u)), max(age_s, 0.0)
+            )
 
     def update_position(self, robot_id: str, x: float, y: float, theta: float) -> None:
         """A robot's posture as its agent on this session just measured it, before its
@@ -53,16 +56,18 @@ class WorldView:
         with self._lock:
             row = self._rows.get(robot_id)
             radius, speed = (0.0, 0.0) if row is None else self._positions[row, 3:5]
-            self._set_row(robot_id, (x, y, theta, float(radius), float(speed)))
+            self._set_row(robot_id, (x, y, theta, float(radius), float(speed)), 0.0)
 
-    def _set_row(self, robot_id: str, values: tuple[float, float, float, float, float]) -> None:
+    def _set_row(
+        self, robot_id: str, values: tuple[float, float, float, float, float], age_s: float
+    ) -> None:
         row = self._rows.get(robot_id)
         if row is None:
             row = self._rows[robot_id] = len(self._rows)
             if row >= self._positions.shape[0]:
                 self._positions = np.concatenate([self._positions, np.zeros_like(self._positions)])
         self._positions[row, :5] = values
-        self._positions[row, 5] = self._clock()
+        self._positions[row, 5] = self._clock() - age_s
 
     def set_obstacles(self, obstacles: ObstacleSet) -> None:
         arrays = obstacle_arrays(obstacles.obstacles)

@@ -5,8 +5,11 @@
 late joiner), decodes with drop counters, and writes into the view. Each agent reports its
 position every tick (:meth:`WorldFeed.follow`); when a robot enters another cell the feed
 subscribes to the new cells of its 3 x 3 block *before* it undeclares the ones no robot
-needs any more, so a peer within reach is never unheard. A feed shared by many agents (a
-simulated fleet on one session) subscribes to the union of their blocks, each cell once.
+needs any more, so a peer within reach is never unheard; and it queries each new cell for
+the robots there that publish nothing any more (a dead or cut-off robot, replayed by the
+fleet service with their age: fleet/core/wire.py, "Replay of silent robots"). A feed
+shared by many agents (a simulated fleet on one session) subscribes to the union of their
+blocks, each cell once.
 Its :attr:`WorldFeed.last_heard` is the link monitor's evidence that the network is alive.
 """
 
@@ -18,7 +21,7 @@ import time
 from collections import Counter
 from typing import Any
 
-from fleet.core.wire import Cell, Keys, ObstacleSet, RobotState, cells_around
+from fleet.core.wire import Cell, Keys, ObstacleSet, RobotState, cells_around, parse_age
 from fleet.io.decoder import CallbackGuard, Decoder
 from robot_agent.world import WorldView
 
@@ -119,6 +122,11 @@ class WorldFeed:
                 self._cells[cell] = handle
             if stale is not None:
                 _undeclare(stale)
+            # Non-blocking, after the subscriber: a live robot's stream is newer than any
+            # replay and wins (WorldView.update_state keeps the newest).
+            session.get(
+                self.keys.cell_states(cell), self.guard.wrap(self._on_state_reply), timeout=5.0
+            )
 
     def _unsubscribe(self, cells: list[Cell]) -> None:
         handles = []
@@ -130,14 +138,33 @@ class WorldFeed:
             _undeclare(handle)
 
     def _on_state(self, sample: Any) -> None:
+        state = self._state_of(sample)
+        if state is not None:
+            self.last_heard = time.monotonic()
+            self.world.update_state(state)
+
+    def _on_state_reply(self, reply: Any) -> None:
+        """A silent robot's last state replayed by the service, heard ``age`` [s] ago."""
+        sample = reply.ok
+        if sample is None:
+            return
+        attachment = sample.attachment
+        age = parse_age(None if attachment is None else attachment.to_bytes())
+        if age is None:
+            self.decoder.drop("replay_age", f"a replay on {sample.key_expr} without its age")
+            return
+        state = self._state_of(sample)
+        if state is not None:
+            self.world.update_state(state, age_s=age)
+
+    def _state_of(self, sample: Any) -> RobotState | None:
         state = self.decoder.decode(RobotState, sample.payload.to_bytes())
         if state is None:
-            return
+            return None
         if self.keys.robot_of(str(sample.key_expr)) != state.robot_id:
             self.decoder.drop("key_mismatch", f"{state.robot_id} on {sample.key_expr}")
-            return
-        self.last_heard = time.monotonic()
-        self.world.update_state(state)
+            return None
+        return state
 
     def _on_obstacles(self, sample: Any) -> None:
         obstacles = self.decoder.decode(ObstacleSet, sample.payload.to_bytes())

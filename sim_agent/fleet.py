@@ -126,10 +126,10 @@ class _HubView(WorldView):
         super().__init__(clock.now)
         self.views: list[WorldView] = []
 
-    def update_state(self, state: RobotState) -> None:
-        super().update_state(state)
+    def update_state(self, state: RobotState, age_s: float = 0.0) -> None:
+        super().update_state(state, age_s)
         for view in self.views:
-            view.update_state(state)
+            view.update_state(state, age_s)
 
     def set_obstacles(self, obstacles: ObstacleSet) -> None:
         super().set_obstacles(obstacles)
@@ -145,8 +145,8 @@ class _LinkedView(WorldView):
         super().__init__(clock.now)  # peers' silence in simulated seconds
         self.owner, self.index, self.link, self.clock = owner, index, link, clock
 
-    def update_state(self, state: RobotState) -> None:
-        super().update_state(state)
+    def update_state(self, state: RobotState, age_s: float = 0.0) -> None:
+        super().update_state(state, age_s)
         if state.robot_id == self.owner:
             self.link.send(self.index, state, self.clock.now())
 

@@ -145,6 +145,9 @@ class _TimedSink:
     def obstacles(self) -> list[Any]:
         return self._sink.obstacles()
 
+    def silent_states(self, silent_s: float) -> list[tuple[RobotState, float]]:
+        return self._sink.silent_states(silent_s)
+
 
 class _TimedBus:
     """The real Zenoh bus, delivering to a timed sink (``FleetBus``)."""

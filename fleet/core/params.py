@@ -69,8 +69,11 @@ class SafetyConfig(BaseModel):
     assumes: command-to-wheel latency at most ``max_latency_s`` [s]; a peer's state
     reaching the robot within ``link_delay_s`` [s] of its measurement; pose errors at most
     ``pose_error_m`` [m]; speeds changing by at most ``max_accel_m_s2`` [m/s^2] (the
-    drive's acceleration limit); every robot running the filter. A peer silent for more
-    than ``peer_stale_s`` [s] is a standing obstacle whose spread grows with the silence.
+    drive's acceleration limit); every robot running the filter; a robot silent to its
+    peers for ``peer_stale_s`` [s] has stopped (its agent holds when it has heard nothing
+    for its link timeout, which settings keep at most ``peer_stale_s``; its drive stops
+    when its agent dies). So a silent peer's spread grows with the silence for
+    ``peer_stale_s``, after which it is a standing obstacle at its last pose.
     ``projection_m`` [m]: the point ahead of the axle (at most the half axle);
     ``barrier_rate`` [1/s]: how fast a clearance may be used up.
     """
@@ -85,7 +88,7 @@ class SafetyConfig(BaseModel):
     link_delay_s: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] = 0.2
     pose_error_m: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.02
     max_accel_m_s2: Annotated[float, Field(gt=0.0, le=100.0, allow_inf_nan=False)] = 1.0
-    peer_stale_s: Annotated[float, Field(gt=0.0, le=60.0, allow_inf_nan=False)] = 1.0
+    peer_stale_s: Annotated[float, Field(gt=0.0, le=60.0, allow_inf_nan=False)] = 3.0
 
     def filter_terms(self, spread: float) -> tuple[float, float, float, float]:
         """The compiled step's filter parameters (``fleet.core.step.Safety``: margin,
@@ -111,12 +114,12 @@ class SafetyConfig(BaseModel):
         return self.pose_error_m + self.reach(0.0, self.link_delay_s + self.max_latency_s)
 
     def peer_spread(self, speed: float, silent_s: float) -> float:
-        """A peer's uncertainty [m] (reported ``speed`` [m/s]): its pose error and the
-        motion it may make from its measurement until this robot's command acts; beyond
-        ``peer_stale_s`` of silence [s] the peer is taken as standing still, its spread
-        growing with the silence."""
+        """A peer's uncertainty [m] (reported ``speed`` [m/s], heard ``silent_s`` [s] ago):
+        its pose error and the motion it may make from its measurement until this robot's
+        command acts. The silence counts until ``peer_stale_s``; a peer silent longer has
+        stopped (class docstring) and is a standing obstacle with a standing robot's spread."""
         if silent_s > self.peer_stale_s:
-            speed = 0.0
+            return self.pose_error_m + self.reach(0.0, self.link_delay_s + self.max_latency_s)
         seconds = self.link_delay_s + self.max_latency_s + max(silent_s, 0.0)
         return self.pose_error_m + self.reach(speed, seconds)
 

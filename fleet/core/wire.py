@@ -29,6 +29,13 @@ State streams and their encoding (the hot messages):
   subscribed keys, also at cell borders. Tools and the service may subscribe to
   ``cell/**`` (:attr:`Keys.all_peer_states`) to see everything. Every robot of a fleet
   must use the same cell size (set it in the fleet's shared settings).
+* **Replay of silent robots**: a robot that subscribes to a cell also queries it
+  (``get`` on ``cell/<cx>/<cy>/*``); the fleet service answers with the last state of every
+  robot it has not heard for a while (a dead or cut-off robot publishes nothing a newcomer
+  could hear) whose last pose lies in that cell, on that robot's cell key, with the
+  attachment :func:`encode_age` (how long ago the service heard it [s]). The receiver
+  takes the state as heard that long ago. Compatibility: an older service does not
+  answer and an older robot does not ask; nothing else changes.
 * **Fleet-rate stream** ``robot/<id>/state`` (the key the service and tools always read):
   the same message at the fleet rate (``Settings.fleet_rate_hz``, default 10 Hz), and at
   once whenever the robot's mode, task, revision, detail or faults change, so
@@ -408,6 +415,23 @@ def _trusted(cls: type[M], fields: dict[str, object], names: frozenset[str]) -> 
 
 def _pose(x: float, y: float, theta: float) -> Pose:
     return _trusted(Pose, {"x": x, "y": y, "theta": theta}, _POSE_FIELDS)
+
+
+def encode_age(age_s: float) -> bytes:
+    """Attachment of a replayed state: its age [s] as ASCII decimal (``"1.250"``)."""
+    return f"{max(age_s, 0.0):.3f}".encode("ascii")
+
+
+def parse_age(attachment: bytes | None) -> float | None:
+    """The age [s] of a replayed state's attachment (:func:`encode_age`); None when absent
+    or malformed (the receiver then drops the reply)."""
+    if attachment is None or len(attachment) > 32:
+        return None
+    try:
+        age = float(attachment.decode("ascii"))
+    except (UnicodeDecodeError, ValueError):
+        return None
+    return age if math.isfinite(age) and age >= 0.0 else None
 
 
 def encode_state(state: RobotState) -> bytes:

@@ -230,7 +230,13 @@ def fleet_acl(
                 ["declare_subscriber"],
                 [keys.all_states, keys.all_peer_states, keys.obstacles, keys.control()],
             ),
-            _rule("robots-query", "ingress", ["query"], [keys.obstacles, ROUTER_ECHO]),
+            # the obstacles, the router's echo, and the silent robots of a cell it enters
+            _rule(
+                "robots-query",
+                "ingress",
+                ["query"],
+                [keys.obstacles, keys.all_peer_states, ROUTER_ECHO],
+            ),
             _rule(
                 "robots-watch-alive",
                 "ingress",
@@ -248,7 +254,7 @@ def fleet_acl(
                 "robots-replies",
                 "egress",
                 ["reply"],
-                [keys.obstacles, keys.all_alive, ROUTER_ECHO],
+                [keys.obstacles, keys.all_peer_states, keys.all_alive, ROUTER_ECHO],
             ),
             _rule("robots-alive", "egress", ["liveliness_token"], [keys.all_alive]),
             # Declarations carry no data; clients use them to filter their own writes.

@@ -196,7 +196,8 @@ class RobotSettings(ZenohSettings):
     safety: SafetyConfig = SafetyConfig()  # README "Safety": the filter and its assumptions
     pose_stale_s: Annotated[float, Field(gt=0)] = 0.5  # own pose older than this -> stop
     # Router link silent this long (no peer, service or echo reply) -> hold; a silent peer
-    # is never forgotten: it stays an obstacle at its last pose.
+    # is never forgotten: it stays an obstacle at its last pose. At most
+    # safety.peer_stale_s: peers take a robot silent that long as stopped (README "Safety").
     link_timeout_s: Annotated[float, Field(gt=0)] = 3.0
     # State streams (fleet/core/wire.py): the peer stream at control_rate_hz under grid cells
     # of peer_cell_m [m] (None: twice avoidance.peer_radius; the same for every robot of a
@@ -225,6 +226,16 @@ class RobotSettings(ZenohSettings):
     @classmethod
     def _robot_id_is_key_safe(cls, value: str | None) -> str | None:
         return None if value is None else validate_id(value)
+
+    @model_validator(mode="after")
+    def _silent_robots_stop_before_peers_call_them_stopped(self) -> Self:
+        if self.link_timeout_s > self.safety.peer_stale_s:
+            raise ValueError(
+                f"link_timeout_s ({self.link_timeout_s:g} s) must be at most "
+                f"safety.peer_stale_s ({self.safety.peer_stale_s:g} s): a robot cut off holds "
+                "after link_timeout_s, and its peers take it as stopped after peer_stale_s"
+            )
+        return self
 
 
 class Settings(RobotSettings):

@@ -7,7 +7,8 @@ Incoming: the bus calls the :class:`FleetSink` given to :meth:`FleetBus.start` -
 liveliness tokens appearing/disappearing, ``on_description`` for every decoded
 ``RobotDescription`` (put by the robot, or its answer to the bus's query), ``on_control``
 for every operator command seen on the control keys (from any issuer, the service's own
-included), and ``obstacles()`` to answer late joiners.
+included), ``obstacles()`` to answer late joiners, and ``silent_states()`` to replay the
+robots that publish nothing any more to a robot entering their cell.
 
 :class:`MemoryBus` is the in-memory implementation for unit tests; the Zenoh one is
 :class:`fleet.service.zenoh_bus.ZenohFleetBus`.
@@ -43,6 +44,8 @@ class FleetSink(Protocol):
     def on_control(self, command: ControlCommand) -> None: ...
 
     def obstacles(self) -> list[Obstacle]: ...
+
+    def silent_states(self, silent_s: float) -> list[tuple[RobotState, float]]: ...
 
 
 class FleetBus(Protocol):

@@ -543,6 +543,18 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         with self._lock:
             return list(self._obstacles)
 
+    def silent_states(self, silent_s: float) -> list[tuple[RobotState, float]]:
+        """The last state of every robot not heard for ``silent_s`` [s] and still in the
+        yard (not lost and decommissioned), with its age [s]: what the bus replays to a
+        robot entering its cell (fleet/core/wire.py, "Replay of silent robots")."""
+        now = self._clock.monotonic()
+        with self._lock:
+            return [
+                (rec.state, now - rec.seen)
+                for rec in self._roster.records()
+                if rec.state is not None and now - rec.seen >= silent_s and not rec.gone_for_good
+            ]
+
     def set_obstacles(self, obstacles: list[Obstacle]) -> None:
         """Replace the static obstacles and publish them (``ObstacleSet``)."""
         msg = ObstacleSet(obstacles=list(obstacles))

@@ -21,6 +21,10 @@ On :meth:`ZenohFleetBus.start` it declares
   robot's key must carry a command for that robot), so the service knows the e-stops and
   pauses other tools (``parkfleet estop``) latched;
 * a queryable on ``obstacles`` answering late joiners with the current ``ObstacleSet``;
+* a queryable on ``cell/**`` answering a robot that queries a cell with the last state of
+  every robot there not heard for ``REPLAY_SILENCE_S`` (``sink.silent_states``), each on
+  its cell key with its age as the attachment (fleet/core/wire.py, "Replay of silent
+  robots"): a robot that died or was cut off is an obstacle to newcomers too;
 * the service's liveliness token ``alive/_service``.
 
 Malformed payloads are dropped and counted (``fleet.core.wire.Decoder``); exceptions raised by
@@ -49,12 +53,17 @@ from fleet.core.wire import (
     RobotDescription,
     RobotState,
     encode,
+    encode_age,
+    encode_state,
 )
 from fleet.io.decoder import Decoder
 from fleet.io.operator import put_control
 from fleet.service.bus import FleetSink
 
 _log = logging.getLogger(__name__)
+#: [s] a robot unheard this long is replayed to robots entering its cell (its stream at the
+#: fleet rate, 10 Hz by default, would otherwise have arrived several times).
+REPLAY_SILENCE_S = 0.5
 #: Messages that name their robot, checked against the key they came on.
 _Addressed = TypeVar("_Addressed", RobotState, RobotDescription, ControlCommand)
 #: Robots asked for their description remembered at most (then the memory starts afresh:
@@ -139,6 +148,11 @@ class ZenohFleetBus:
             )
         self._declared.append(
             session.declare_queryable(keys.obstacles, self._guard("query", self._on_query))
+        )
+        self._declared.append(
+            session.declare_queryable(
+                keys.all_peer_states, self._guard("replay", self._on_cell_query)
+            )
         )
         self._declared.append(session.liveliness().declare_token(keys.service_alive))
 
@@ -240,6 +254,17 @@ class ZenohFleetBus:
         msg = ObstacleSet(obstacles=sink.obstacles())
         query.reply(self._keys.obstacles, encode(msg))
         self._count("obstacle_queries")
+
+    def _on_cell_query(self, query: zenoh.Query) -> None:
+        sink = self._sink
+        if sink is None:
+            return
+        keys = self._keys
+        for state, age in sink.silent_states(REPLAY_SILENCE_S):
+            key = keys.peer_state(state.robot_id, keys.cell(state.pose.x, state.pose.y))
+            if query.key_expr.intersects(zenoh.KeyExpr(key)):
+                query.reply(key, encode_state(state), attachment=encode_age(age))
+                self._count("peer_replays")
 
     def _count(self, key: str) -> None:
         with self._lock:

@@ -168,7 +168,8 @@ def test_agent_drops_hostile_payloads_keeps_its_rate_and_still_obeys(
             elif target == "state":
                 if robot_of(RobotState, payload) == "r9":
                     return  # a real peer, not bad input
-                hostile.put(KEYS.state("r9"), payload, congestion_control=BLOCK)
+                # the peer stream of the robot's own cell (it hears no robot/*/state)
+                hostile.put(KEYS.peer_state("r9", (0, 0)), payload, congestion_control=BLOCK)
                 sent["world"] += 1
             else:
                 if valid_as(ObstacleSet, payload):

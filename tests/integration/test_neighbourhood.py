@@ -1,12 +1,15 @@
 """Neighbourhood keys on real Zenoh over loopback: a robot walking across cell borders and
-corners hears every peer within the peer radius on every tick, and never a far one."""
+corners hears every peer within the peer radius on every tick, and never a far one; a
+robot entering a cell learns of a silent robot there from the service."""
 
 from __future__ import annotations
 
 import math
+import time
+from pathlib import Path
 
 import pytest
-from support import StateWatcher, wait_for
+from support import StateWatcher, wait_for, zenoh_fleet_service
 
 from fleet.core.wire import Pose, RobotState
 from fleet.io.settings import Settings
@@ -74,4 +77,45 @@ def test_a_walking_robot_hears_every_near_peer_every_tick_and_no_far_one(
             watcher.close()
             near.close()
             far.close()
+            feed.detach()
+
+
+def test_a_robot_entering_a_cell_learns_of_a_silent_robot_there_from_the_service(
+    client_settings: Settings, tmp_path: Path
+) -> None:
+    """A robot that died publishes nothing a newcomer could hear: the service replays its
+    last state, with its age, to a robot that subscribes to its cell -- and only then."""
+    keys = client_settings.keys()
+    safety = client_settings.safety
+    with (
+        zenoh_fleet_service(client_settings, tmp_path / "fleet.db") as service,
+        open_session(client_settings, "client") as robot,
+        open_session(client_settings, "client") as peers,
+    ):
+        dead = StateStreams(peers, keys, "dead").open()
+        dead_state = RobotState(
+            robot_id="dead", seq=1, stamp=time.time(), pose=Pose(x=-0.5, y=0.3), u=0.4
+        )
+
+        def known() -> bool:
+            dead.publish(dead_state)
+            return "dead" in {r.robot_id for r in service.robots()}
+
+        wait_for(known, 10, "the service to hear the robot", poll=0.05)
+        dead.close()  # it dies: nothing more on either stream
+        wait_for(lambda: bool(service.silent_states(1.0)), 10, "a second of silence")
+        feed = WorldFeed(WorldView(), keys)
+        feed.attach(robot)
+        try:
+            feed.follow("me", 6.5, 0.5)  # three cells away: its block does not hold the cell
+            wait_for(lambda: len(feed.cells) == 9, 10, "the first block")
+            assert "dead" not in feed.world.states()
+            feed.follow("me", 1.5, 0.5)  # the next cell but one: now it does
+            wait_for(lambda: "dead" in feed.world.states(), 10, "the replayed robot")
+            assert feed.world.states()["dead"].pose == dead_state.pose
+            _, shapes = feed.world.peer_bodies("me", safety, 0.2)
+            # heard (by the service) at least a second ago, not just now
+            assert shapes[1, 0] >= safety.peer_spread(0.4, 1.0)
+            assert feed.decoder.dropped_total == 0
+        finally:
             feed.detach()

@@ -11,6 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fleet.core import reference as ref
+from fleet.core.params import SafetyConfig
 
 RADIUS = 0.2
 PROJECTION = 0.03
@@ -87,3 +88,24 @@ def test_no_step_of_the_model_with_latency_brings_bodies_within_the_margin(
         clearances=clearances,
     )
     assert min(clearances) >= MARGIN - 1e-9, min(clearances)
+
+
+@given(
+    speed=st.floats(0.0, 2.0, allow_nan=False),
+    a=st.floats(0.0, 10.0, allow_nan=False),
+    b=st.floats(0.0, 10.0, allow_nan=False),
+)
+def test_a_silent_peer_s_spread_grows_until_it_is_stale_then_is_a_standing_robot_s(
+    speed: float, a: float, b: float
+) -> None:
+    """The spread covers the peer's motion while it may still drive (silence up to
+    peer_stale_s); a peer silent longer has stopped: a standing robot's spread, so a dead
+    robot blocks no more of the yard than its body and that spread."""
+    safety = SafetyConfig()
+    early, late = sorted((a, b))
+    standing = safety.peer_spread(0.0, 0.0)
+    if late <= safety.peer_stale_s:
+        assert safety.peer_spread(speed, early) <= safety.peer_spread(speed, late)
+        assert safety.peer_spread(speed, late) >= safety.own_spread(0.0)
+    if late > safety.peer_stale_s:
+        assert safety.peer_spread(speed, late) == standing == safety.batch_spread()

@@ -22,8 +22,10 @@ from fleet.core.wire import (
     cell_of,
     cells_around,
     encode,
+    encode_age,
     encode_state,
     parse,
+    parse_age,
     parse_state,
 )
 from fleet.io.decoder import Decoder
@@ -178,3 +180,14 @@ def test_peers_exactly_on_cell_borders_and_corners_are_seen(k: int, j: int, cell
     for dx, dy in [(-1, 0), (1, 0), (0, -1), (0, 1), (-0.7, -0.7), (0.7, 0.7), (0.7, -0.7)]:
         peer = (x + dx * cell_m, y + dy * cell_m)
         assert cell_of(*peer, cell_m) in around
+
+
+@given(st.floats(0.0, 1e6, allow_nan=False))
+def test_a_replayed_state_s_age_survives_its_attachment(age: float) -> None:
+    parsed = parse_age(encode_age(age))
+    assert parsed is not None and abs(parsed - age) <= 0.0005 + 1e-12 * age
+
+
+@pytest.mark.parametrize("attachment", [None, b"", b"-1", b"nan", b"inf", b"x", b"\xff", b"1" * 40])
+def test_a_replay_without_a_sane_age_is_refused(attachment: bytes | None) -> None:
+    assert parse_age(attachment) is None

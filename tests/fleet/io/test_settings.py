@@ -93,3 +93,10 @@ def test_a_key_no_role_knows_is_still_an_error_for_a_robot(tmp_path: Path) -> No
     config.write_text("control_rate_hx = 25.0\n")
     with pytest.raises(ValidationError, match="control_rate_hx"):
         load_robot_settings(config)
+
+
+def test_a_link_timeout_longer_than_peers_wait_for_a_silent_robot_is_refused() -> None:
+    # peers take a robot silent for peer_stale_s as stopped; it must have held by then
+    with pytest.raises(ValidationError, match=r"link_timeout_s .* at most safety\.peer_stale_s"):
+        load_settings(link_timeout_s=5.0)
+    assert load_settings(link_timeout_s=5.0, safety={"peer_stale_s": 5.0}).link_timeout_s == 5.0

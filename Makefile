@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install test lint typecheck pytest demo reproduce bench clean
+.PHONY: install test test-fast lint typecheck pytest demo reproduce bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +26,9 @@ pytest: $(STAMP)
 	$(BIN)/pytest -q
 
 test: lint typecheck pytest  ## everything CI runs
+
+test-fast: $(STAMP)  ## the inner loop: unit tests only (no integration), no lint
+	$(BIN)/pytest -q -m "not integration"
 
 demo: $(STAMP)  ## the main job
 	$(BIN)/parkfleet demo

@@ -6,6 +6,7 @@ import math
 import threading
 
 import pytest
+from support import wait_for
 
 from fleet.core.tasks import (
     FleetEvent,
@@ -23,8 +24,10 @@ from fleet.core.tasks import (
 from fleet.core.types import Law
 from fleet.core.wire import (
     Obstacle,
+    ParkAssignment,
     Pose,
     RobotMode,
+    RobotState,
 )
 from fleet.io.settings import Settings
 from fleet.paper.scenarios import SCENARIOS
@@ -314,11 +317,20 @@ def test_parked_robot_blocks_goals_near_it(fleet: Fleet) -> None:
     assert math.isfinite(fleet.service.robot("r1").last_seen)
 
 
-def test_background_thread_dispatches(fleet: Fleet) -> None:
-    service = FleetService(Settings(), MemoryBus(), MemoryTaskStore())
+def test_background_thread_dispatches() -> None:
+    """Nobody calls tick(): the service's own thread plans and sends the assignment."""
+    bus = MemoryBus()
+    service = FleetService(Settings(), bus, MemoryTaskStore())
     with service:
         service.start()  # idempotent
-    service.close()
+        bus.robot_alive("r1")
+        bus.deliver_state(RobotState(robot_id="r1", seq=1, stamp=0.0, pose=Pose(x=0.0, y=0.0)))
+        task = service.submit(req(4.0, 0.0))
+        wait_for(lambda: bool(bus.sent("r1")), 30, "the assignment from the service's thread")
+        sent = bus.sent("r1")[0]
+        assert isinstance(sent, ParkAssignment) and sent.task_id == task.id
+        assert service.task(task.id).robot_id == "r1"
+    service.close()  # idempotent after the with block
 
 
 #: The swaps below were built around the paper's Table 1 gains (the defaults before the

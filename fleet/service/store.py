@@ -96,6 +96,38 @@ def robot_of(task: Task) -> str | None:
     return task.robot_id or task.request.robot_id
 
 
+def list_query(
+    mark: str,
+    status: TaskStatus | None,
+    robot_id: str | None,
+    after: TaskCursor | None,
+    limit: int | None,
+    newest_first: bool,
+) -> tuple[str, list[str | float | int]]:
+    """The SQL (and its arguments) of :meth:`TaskStore.list` for a database whose
+    parameter mark is ``mark`` (``?`` SQLite, ``%s`` PostgreSQL): one indexed range scan
+    (``tasks_*page``), so a page costs the same at any depth."""
+    sql = "SELECT body FROM tasks"
+    where: list[str] = []
+    args: list[str | float | int] = []
+    if status is not None:
+        where.append(f"status = {mark}")
+        args.append(TaskStatus(status).value)
+    if robot_id is not None:
+        where.append(f"robot_id = {mark}")
+        args.append(robot_id)
+    if after is not None:
+        where.append(f"(created_at, id) {'<' if newest_first else '>'} ({mark}, {mark})")
+        args += [float(after[0]), str(after[1])]
+    if where:
+        sql += " WHERE " + " AND ".join(where)
+    sql += " ORDER BY created_at DESC, id DESC" if newest_first else " ORDER BY created_at, id"
+    if limit is not None:
+        sql += f" LIMIT {mark}"
+        args.append(int(limit))
+    return sql, args
+
+
 class TaskStore(Protocol):
     """Persistence of tasks and their history."""
 
@@ -379,25 +411,8 @@ class SqliteTaskStore:
         limit: int | None = None,
         newest_first: bool = False,
     ) -> builtins.list[Task]:
-        """One indexed range scan (``tasks_*page``): a page costs the same at any depth."""
-        sql = "SELECT body FROM tasks"
-        where: builtins.list[str] = []
-        args: builtins.list[str | float | int] = []
-        if status is not None:
-            where.append("status = ?")
-            args.append(TaskStatus(status).value)
-        if robot_id is not None:
-            where.append("robot_id = ?")
-            args.append(robot_id)
-        if after is not None:
-            where.append(f"(created_at, id) {'<' if newest_first else '>'} (?, ?)")
-            args += [float(after[0]), str(after[1])]
-        if where:
-            sql += " WHERE " + " AND ".join(where)
-        sql += " ORDER BY created_at DESC, id DESC" if newest_first else " ORDER BY created_at, id"
-        if limit is not None:
-            sql += " LIMIT ?"
-            args.append(int(limit))
+        """One indexed range scan (:func:`list_query`)."""
+        sql, args = list_query("?", status, robot_id, after, limit, newest_first)
         with self._lock:
             rows = self._conn.execute(sql, args).fetchall()
         return [Task.model_validate_json(r[0]) for r in rows]

@@ -36,7 +36,7 @@ from typing import Any, TypeVar
 import psycopg
 
 from fleet.core.tasks import Task, TaskStatus
-from fleet.service.store import TaskCursor, robot_of
+from fleet.service.store import TaskCursor, list_query, robot_of
 
 _FINAL = [s.value for s in TaskStatus if s.final]
 
@@ -266,25 +266,8 @@ class PostgresTaskStore:
         limit: int | None = None,
         newest_first: bool = False,
     ) -> builtins.list[Task]:
-        """One indexed range scan (``tasks_*page``), as in the SQLite store."""
-        sql = "SELECT body FROM tasks"
-        where: builtins.list[str] = []
-        args: builtins.list[str | float | int] = []
-        if status is not None:
-            where.append("status = %s")
-            args.append(TaskStatus(status).value)
-        if robot_id is not None:
-            where.append("robot_id = %s")
-            args.append(robot_id)
-        if after is not None:
-            where.append(f"(created_at, id) {'<' if newest_first else '>'} (%s, %s)")
-            args += [float(after[0]), str(after[1])]
-        if where:
-            sql += " WHERE " + " AND ".join(where)
-        sql += " ORDER BY created_at DESC, id DESC" if newest_first else " ORDER BY created_at, id"
-        if limit is not None:
-            sql += " LIMIT %s"
-            args.append(int(limit))
+        """One indexed range scan (:func:`~fleet.service.store.list_query`)."""
+        sql, args = list_query("%s", status, robot_id, after, limit, newest_first)
         return [Task.model_validate_json(r[0]) for r in self.query(sql, args)]
 
     def find_by_idempotency_key(self, key: str) -> Task | None:

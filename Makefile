@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install test test-fast lint typecheck pytest demo reproduce bench clean
+.PHONY: install test test-fast docs lint typecheck pytest demo reproduce bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -29,6 +29,9 @@ test: lint typecheck pytest  ## everything CI runs
 
 test-fast: $(STAMP)  ## the inner loop: unit tests only (no integration), no lint
 	$(BIN)/pytest -q -m "not integration"
+
+docs: $(STAMP)  ## the documentation site (docs/, mkdocs-material) into site/; warnings fail
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
 
 demo: $(STAMP)  ## the main job
 	$(BIN)/parkfleet demo

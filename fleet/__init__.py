@@ -1,4 +1,4 @@
-"""parkfleet's fleet package: the layers below, each a subpackage (see README "How it is built").
+"""parkfleet's fleet package: the layers below, each a subpackage (see docs/architecture.md).
 
 =================  =============================================================  ==========
 subpackage         holds                                                          pure?

@@ -10,7 +10,7 @@
   builders, the JSON file format, the suites), :mod:`~fleet.bench.metrics` (metrics on
   time-aligned true poses), :mod:`~fleet.bench.peers` (navground ORCA, HRVO, HL, social
   force on the same robots), :mod:`~fleet.bench.plots` (a PNG per run),
-  :mod:`~fleet.bench.report` (the README's tables).
+  :mod:`~fleet.bench.report` (the tables of docs/benchmarks.md).
 - :mod:`~fleet.bench.soak`: a long random load; the server's memory, fds and store.
 - :mod:`~fleet.bench.plan`: the planner's latency per decision and, offline, its plans'
   quality (:mod:`~fleet.bench.closed_loop`: an offline fleet on the batch simulator that

@@ -1,7 +1,7 @@
 """Tables of a ``parkfleet bench fleet`` run: every policy side by side, and ``auto``'s verdict.
 
 Pure formatting of :class:`~fleet.bench.fleet.FleetBenchRow` lists (one run's rows, or the
-``rows`` of its ``--json`` output) as Markdown, for the README:
+``rows`` of its ``--json`` output) as Markdown, for docs/benchmarks.md:
 
 * :func:`policy_table` -- one line per scenario family, one column per policy; a cell is
   ``success · collisions · makespan`` (means over the family's seeds; with several seeds

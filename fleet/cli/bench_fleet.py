@@ -52,7 +52,7 @@ def register(commands: Any, bench: Any) -> None:
         type=Path,
         metavar="FILE.json",
         help="run the scenarios of FILE instead of the built-in suite (repeatable; format in "
-        "fleet/bench/scenarios.py and the README)",
+        "fleet/bench/scenarios.py and docs/benchmarks.md)",
     )
     p.add_argument(
         "--policy", action="append", choices=POLICIES, help="only these policies (repeatable)"
@@ -82,7 +82,7 @@ def register(commands: Any, bench: Any) -> None:
     p.add_argument(
         "--markdown",
         action="store_true",
-        help="end with the README's tables (policies side by side, auto's verdict)",
+        help="end with the tables of docs/benchmarks.md (policies side by side, auto's verdict)",
     )
     p.add_argument(
         "--from-json",

@@ -102,5 +102,8 @@ def add_site(p: argparse.ArgumentParser, default: str = "none") -> None:
     p.add_argument(
         "--site",
         metavar="FILE",
-        help=f"site map, TOML or JSON (README 'Site map'; 'none': no site; default {default})",
+        help=(
+            f"site map, TOML or JSON (docs/operating.md 'Site map'; 'none': no site; "
+            f"default {default})"
+        ),
     )

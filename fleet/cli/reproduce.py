@@ -58,7 +58,7 @@ def _print_comparison(rows: list[ComparisonRow]) -> None:
                 f"{dev['distance']:+.1%}, {dev['time']:+.2f} s ({mark})"
             )
         print(line)
-    print("Targets: 2 % on effort and distance, 0.02 s on time; README explains the gaps.")
+    print("Targets: 2 % on effort and distance, 0.02 s on time; docs/paper.md explains the gaps.")
 
 
 def _switching(args: argparse.Namespace) -> int:

@@ -62,7 +62,7 @@ class Avoidance(BaseModel):
 
 
 class SafetyConfig(BaseModel):
-    """The safety filter every robot runs each tick (README "Safety"; ``fleet.core.step``).
+    """The safety filter every robot runs each tick (docs/safety.md; ``fleet.core.step``).
 
     ``contact_margin_m`` [m]: no body is to come closer than this to another robot's or an
     obstacle's body. The robot sees itself and each peer with an uncertainty (spread) that

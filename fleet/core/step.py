@@ -44,7 +44,7 @@ for the second-order terms (the projected point's rotation within a step and the
 arc), eps = (l W^2 + V W) dt / rate with V = (1 + ``SIDE_STEP``) |v0| the longest the
 result can be and W the turn-rate bound (wheel limit, or V / l). With rate * dt <= 1 the
 clearance of every pair then never falls below 0 from one step to the next:
-C' >= (1 - rate dt) C (derivation in the README, "Safety").
+C' >= (1 - rate dt) C (derivation in the docs/safety.md).
 The constraints are half-planes a . v <= c with unit a; the command is the point of
 their intersection closest to the nominal v0 (two variables: the nominal, each edge's
 projection or each vertex, the closest feasible one wins -- exact, no solver), or a

@@ -66,7 +66,7 @@ class RobotStatus(StrEnum):
 #: wheel limit, 50 Hz, 0.1 m / 0.1 rad, time first; kx capped at Table 1's (the previous
 #: defaults) so Eq. (27)'s standoff between robots is unchanged. On 1000 held-out trips
 #: (mean 5.4 m) they arrive in 9.4 s (ccw) and 10.0 s (cw) on average, against 53 s and
-#: 61 s with Table 1's gains, over 6.4 m and 6.3 m against 12.4 m and 12.0 m (README).
+#: 61 s with Table 1's gains, over 6.4 m and 6.3 m against 12.4 m and 12.0 m (docs/paper.md).
 DEFAULT_GAINS: dict[Law, Gains] = {
     "ccw": Gains(kx=2.6, ky=72.4, ktheta=9.56),
     "cw": Gains(kx=2.1, ky=129.0, ktheta=12.2),

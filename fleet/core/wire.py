@@ -103,7 +103,7 @@ the fleet service is down:
   ``seq`` is above the last one it applied from that issuer, so repeats (send a command a
   few times: delivery is best effort) and reordered copies are harmless. One-shot tools use
   the wall clock in microseconds as ``seq``.
-Fencing term (:class:`TermFence`, high availability on PostgreSQL, README "Standby and
+Fencing term (:class:`TermFence`, high availability on PostgreSQL, docs/deployment.md "Standby and
 fencing"). Compatibility rule: one additive field, ``v`` stays 1.
 
 * ``term`` (>= 0) on ``ParkAssignment``, ``CancelAssignment`` and ``ControlCommand``: the

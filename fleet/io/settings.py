@@ -61,7 +61,7 @@ FrameId = Annotated[str, Field(pattern=r"^[A-Za-z0-9_./-]{1,256}$")]
 class Ros2Settings(BaseModel):
     """The ``ros2`` drive (``robot_agent/drives``): a ROS 2 robot over rmw_zenoh or the
     zenoh-bridge-ros2dds key mapping. TOML table ``[ros2]``, env ``PARKFLEET_ROS2__*``;
-    README "Driving a ROS 2 robot" explains every field."""
+    docs/robots.md "Driving a ROS 2 robot" explains every field."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -98,10 +98,10 @@ class Ros2Settings(BaseModel):
     max_future_s: Annotated[float, Field(ge=0, le=10)] = 0.1
     # parkfleet agent waits this long [s] for the first usable pose, then exits with a reason.
     first_pose_timeout_s: Annotated[float, Field(gt=0)] = 30.0
-    # Odometry jump (README "Where the two links go"): consecutive odometry poses farther apart
-    # than the profile's top speed x their stamps' interval + odom_jump_m [m] (or turned more
-    # than its top turn rate x interval + odom_jump_rad [rad]), or odometry back at its origin,
-    # hold the robot with a pose_jump fault until re-aligned.
+    # Odometry jump (docs/robots.md "Where the two links go"): consecutive odometry poses
+    # farther apart than the profile's top speed x their stamps' interval + odom_jump_m [m]
+    # (or turned more than its top turn rate x interval + odom_jump_rad [rad]), or odometry
+    # back at its origin, hold the robot with a pose_jump fault until re-aligned.
     odom_jump_m: Annotated[float, Field(gt=0)] = 0.25
     odom_jump_rad: Annotated[float, Field(gt=0)] = 0.5
     # An odometry stamp this far [s] behind the newest, but near this computer's clock, is a
@@ -110,7 +110,7 @@ class Ros2Settings(BaseModel):
 
 
 class ZenohSettings(BaseSettings):
-    """What every process needs to join the fleet's Zenoh network; see README
+    """What every process needs to join the fleet's Zenoh network; see docs/deployment.md
     "Configuration"."""
 
     model_config = SettingsConfigDict(
@@ -126,7 +126,7 @@ class ZenohSettings(BaseSettings):
     connect: list[str] = Field(default_factory=list)
     # Transport lease [ms]: how fast a hung (not killed) peer is seen gone.
     lease_ms: Annotated[int, Field(ge=100)] = 1000
-    # Security (README "Deployment"). Credentials this session presents when it connects:
+    # Security (docs/deployment.md). Credentials this session presents when it connects:
     zenoh_user: str | None = None
     zenoh_password: SecretStr | None = None
     # usrpwd dictionary (``user:password`` per line) a listening router checks; setting it
@@ -188,16 +188,17 @@ class RobotSettings(ZenohSettings):
     robot_id: str | None = None
     control_rate_hz: Annotated[float, Field(gt=0, le=1000)] = 50.0
     profile: RobotProfile = RobotProfile()
-    # What the robot says of itself on ``robot/<id>/description`` (README "Robots describe
-    # themselves"): whether its base may drive backwards, and a model name for people.
+    # What the robot says of itself on ``robot/<id>/description`` (docs/operating.md
+    # "Robots describe themselves"): whether its base may drive backwards, and a model name
+    # for people.
     may_reverse: bool = True
     robot_model: Annotated[str, Field(max_length=64)] | None = None
     avoidance: Avoidance = Avoidance()
-    safety: SafetyConfig = SafetyConfig()  # README "Safety": the filter and its assumptions
+    safety: SafetyConfig = SafetyConfig()  # docs/safety.md: the filter and its assumptions
     pose_stale_s: Annotated[float, Field(gt=0)] = 0.5  # own pose older than this -> stop
     # Router link silent this long (no peer, service or echo reply) -> hold; a silent peer
     # is never forgotten: it stays an obstacle at its last pose. At most
-    # safety.peer_stale_s: peers take a robot silent that long as stopped (README "Safety").
+    # safety.peer_stale_s: peers take a robot silent that long as stopped (docs/safety.md).
     link_timeout_s: Annotated[float, Field(gt=0)] = 3.0
     # State streams (fleet/core/wire.py): the peer stream at control_rate_hz under grid cells
     # of peer_cell_m [m] (None: twice avoidance.peer_radius; the same for every robot of a
@@ -210,7 +211,8 @@ class RobotSettings(ZenohSettings):
     # simulated drive's start posture (x [m], y [m], theta [rad]).
     drive: str | None = None
     sim_start: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    ros2: Ros2Settings = Ros2Settings()  # the ``ros2`` drive (README "Driving a ROS 2 robot")
+    # the ``ros2`` drive (docs/robots.md "Driving a ROS 2 robot")
+    ros2: Ros2Settings = Ros2Settings()
 
     @property
     def cell_m(self) -> float:
@@ -239,8 +241,8 @@ class RobotSettings(ZenohSettings):
 
 
 class Settings(RobotSettings):
-    """Every tunable of parkfleet (the fleet host's and every tool's); see README
-    "Configuration" for the list."""
+    """Every tunable of parkfleet (the fleet host's and every tool's); see
+    docs/deployment.md "Configuration" for the list."""
 
     # Access control on a router (fleet/acl.py): default deny; a robot may publish only its
     # own state and liveliness; only service identities may send assignments.
@@ -259,10 +261,11 @@ class Settings(RobotSettings):
     # Fleet service / API
     data_dir: Path = Path("var")
     # Task store: unset = SQLite at data_dir/parkfleet.db; a path = that SQLite file;
-    # ``postgresql://...`` = PostgreSQL, shared by a leader and its standbys (README "Standby
-    # and fencing"). Leader lease [s]: a leader that cannot reach PostgreSQL stops commanding
-    # within it; a standby tries to take over every leader_poll_s [s]; advertise_url is the
-    # API address a standby names for this service when it leads (default: its own URL).
+    # ``postgresql://...`` = PostgreSQL, shared by a leader and its standbys
+    # (docs/deployment.md "Standby and fencing"). Leader lease [s]: a leader that cannot
+    # reach PostgreSQL stops commanding within it; a standby tries to take over every
+    # leader_poll_s [s]; advertise_url is the API address a standby names for this service
+    # when it leads (default: its own URL).
     store: str | None = None
     leader_lease_s: Annotated[float, Field(gt=0)] = 3.0
     leader_poll_s: Annotated[float, Field(gt=0)] = 0.1
@@ -270,7 +273,7 @@ class Settings(RobotSettings):
     api_host: str = "127.0.0.1"
     api_port: Annotated[int, Field(ge=0, le=65535)] = 8000
     api_token: SecretStr | None = None
-    # API limits (README "REST API"): what one client can make the server hold or do.
+    # API limits (docs/rest-api.md): what one client can make the server hold or do.
     api_max_body_bytes: Annotated[int, Field(ge=1024)] = 262_144  # request body, 413 beyond
     api_tasks_page_max: Annotated[int, Field(ge=1, le=10_000)] = 1000  # GET /tasks page size
     api_sse_max_clients: Annotated[int, Field(ge=1)] = 32  # open /events streams, 503 beyond

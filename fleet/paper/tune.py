@@ -48,7 +48,7 @@ YARD_TOLERANCE = Tolerance(position=0.1, heading=0.1)
 #: repulsion of Eq. (27) is added to u = kx x_e, so where two robots come to a standstill
 #: facing each other depends on kx (and K_avoid) only: capping kx keeps those standoffs, and
 #: the planner's safety margins tuned on them; above it the direction planner found unsafe
-#: choices in most random 10-robot yards (README).
+#: choices in most random 10-robot yards (docs/paper.md).
 YARD_MAX_KX: dict[Law, float] = {law: SCENARIOS["first"].gains[law].kx for law in LAWS}
 #: Longest run [s] of a case target (the paper's first scenario under the wheel limit
 #: takes 73 s with Table 1's ccw gains).

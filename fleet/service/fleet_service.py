@@ -40,7 +40,7 @@ removed, a robot leaves its predicted corridor by more than ``replan_corridor_m`
 come closer than ``safety_separation_m + replan_separation_margin_m``, and every
 ``replan_period_s``. Only decisions that change something are stored and sent.
 
-Operators (README "Operating the fleet"): :meth:`~FleetService.control` pauses, resumes,
+Operators (docs/operating.md): :meth:`~FleetService.control` pauses, resumes,
 e-stops or releases robots -- the command is published through the outbox in a batch of
 its own (never delayed by a store write), the :class:`~fleet.service.control_desk.ControlDesk`
 remembers it and :meth:`~FleetService.on_state` re-sends it to a robot that does not obey;

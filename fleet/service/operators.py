@@ -28,7 +28,7 @@ _log = logging.getLogger(__name__)
 
 
 class OperatorControls(ServiceState):
-    """The operator controls of one fleet service (README "Operating the fleet")."""
+    """The operator controls of one fleet service (docs/operating.md)."""
 
     def _stored_operator_record(self) -> OperatorRecord | None:
         """What operators asked before a restart (holds, robots out of service), if stored

@@ -1,4 +1,4 @@
-"""A fleet service that leads or stands by on PostgreSQL (README "Standby and fencing").
+"""A fleet service that leads or stands by on PostgreSQL (docs/deployment.md "Standby and fencing").
 
 :class:`FailoverService` is what the API talks to when the store is PostgreSQL. It runs a
 :class:`~fleet.service.leadership.Leadership` and

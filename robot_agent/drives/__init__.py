@@ -14,7 +14,8 @@
 - :mod:`~robot_agent.drives.ros2_pose` -- pure: frames (world = origin ∘ pose), stamp
   checks, ROS stamps on the monotonic clock, a localiser carried forward by odometry.
 
-Settings: ``fleet.io.settings.Ros2Settings`` (TOML ``[ros2]``); README "Driving a ROS 2 robot".
+Settings: ``fleet.io.settings.Ros2Settings`` (TOML ``[ros2]``); docs/robots.md, "Driving a
+ROS 2 robot".
 """
 
 __all__: list[str] = []

@@ -11,7 +11,7 @@ The fleet side needs no ROS installation: the drive speaks the ROS 2 wire format
   overridden at the control rate. When the robot merely stands with nothing to do (idle or
   arrived, :meth:`Ros2Drive.release`) the zero is sent :data:`ZERO_REPEATS` times after
   motion, then the drive falls silent so an operator may teleop it. This is **not** a
-  hardware stop (README "Where the two links go").
+  hardware stop (docs/robots.md "Where the two links go").
 * **Pose** -- ``nav_msgs/msg/Odometry`` on ``odom`` or a localiser's
   ``geometry_msgs/msg/PoseWithCovarianceStamped`` (e.g. ``amcl_pose``) carried forward
   by the odometry (:mod:`robot_agent.drives.ros2_pose`), moved into the fleet's world

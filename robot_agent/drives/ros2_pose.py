@@ -20,7 +20,7 @@ moved). The fleet's world frame is related to the message frame by
   the track keeps the new odometry, forgets the history across the jump and reports it
   (:attr:`PoseTrack.jumped`, the agent's ``pose_jump`` fault) until re-aligned -- by the
   next localiser pose stamped after the jump, or, with odometry only, never in this run
-  (README "Where the two links go": set ``ros2.origin`` and restart the agent).
+  (docs/robots.md "Where the two links go": set ``ros2.origin`` and restart the agent).
 * Clock steps -- an odometry stamp more than ``clock_step_s`` behind the newest one but
   close to this computer's clock (a clock without RTC set by NTP, a step back) re-bases
   the track (history forgotten, counted in :attr:`PoseTrack.clock_steps`) instead of

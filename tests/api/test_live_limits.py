@@ -87,9 +87,12 @@ def test_a_client_that_stops_reading_is_dropped_and_cut_off(
         ]
         assert streams == []  # the client's listener went (the app's metrics listen on)
         assert "fell 16 frames behind: dropping it" in caplog.text
-        assert "stalled: closing" in caplog.text
         received = read_to_the_end(sock)
     assert received.startswith(b"HTTP/1.1 200")
+    # Either its writes blocked and the server cut it off after the grace, or the socket's
+    # and the transport's buffers took the queue and the stream ended on its last frame,
+    # the overflow notice (which one is the kernel's choice, not the server's).
+    assert "stalled: closing" in caplog.text or b"event: overflow" in received
     # never more than the queue held, plus the one frame the sender had already taken
     # from it when the rest arrived (whether it had is a race: 16 or 17 frames come)
     frame = len(sse_frame("task", TaskOut.of(big_task_event(0).task).model_dump_json()))

@@ -5,7 +5,7 @@
 every task succeeds and no two robots ever touch -- judged on the sim's time-aligned true
 poses (``parkfleet sim --trace``), not on states that happened to be delivered. Without
 the benchmark's 50-150 ms command latency: with it, today's agents touch on such
-crossings (see the README's table), which is for the planner and the controller to fix.
+crossings (see docs/benchmarks.md), which is for the planner and the controller to fix.
 (b) SIGTERM stops a running ``parkfleet bench fleet`` with its sim child, its navground
 worker and its sessions.
 """

@@ -533,7 +533,7 @@ def test_operator_commands_reach_a_robot_under_the_acl_and_forged_ones_do_not(
 
 
 def test_rest_estop_reaches_a_robot_under_the_acl(credentials: Path, tmp_path: Path) -> None:
-    """``parkfleet serve`` as the ACL router (the README's fleet host): ``POST
+    """``parkfleet serve`` as the ACL router (the fleet host of docs/deployment.md): ``POST
     /control/estop`` stops a robot connected with its own credentials, and the release
     frees it; the service sees both."""
     import httpx

@@ -23,7 +23,7 @@ K1, K2, k1, k2, alpha1, alpha2, T) name:
   directions of travel and zero when u1 is.
 
 sig(z)^a = sign(z) |z|^a. How far this matches the paper's FT rows (Tables 5, 7, 9), and
-what the paper leaves unspecified, is in the README (Reproduction of the paper).
+what the paper leaves unspecified, is in the docs/paper.md.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""The README tables of a run: policies side by side, auto's misses spelled out."""
+"""The benchmark tables of a run (docs/benchmarks.md): policies side by side, auto's misses
+spelled out."""
 
 from __future__ import annotations
 

@@ -44,7 +44,8 @@ def test_json_rows_plots_and_progress_from_a_scenario_file(
     ]
     saved = tmp_path / "run.json"
     saved.write_text(out)
-    assert main(["bench", "fleet", "--from-json", str(saved)]) == 0  # the README's tables
+    # the tables of docs/benchmarks.md
+    assert main(["bench", "fleet", "--from-json", str(saved)]) == 0
     tables = capsys.readouterr().out
     orca, hl = (f"{r['makespan_s']:.0f} s" for r in data["rows"])
     assert f"| swap-2 | 2 | 1 | 100% · 0 · {orca} | 100% · 0 · {hl} |" in tables

@@ -1,4 +1,4 @@
-"""The safety filter's guarantee (README, "Safety"): on the model with command latency, no
+"""The safety filter's guarantee (docs/safety.md): on the model with command latency, no
 step brings two bodies, or a body and an obstacle's body, closer than the margin -- for
 random scenes, laws, goals, wheel limits and latencies; and the compiled filter is the
 reference's, number for number."""

@@ -232,7 +232,7 @@ def test_every_baseline_parks_in_the_comparative_cases(case: str) -> None:
 
 
 def test_vfo_matches_table_9_on_effort_and_distance() -> None:
-    # Case III is the one VFO row that the original equations reproduce (README): effort
+    # Case III is the one VFO row that the original equations reproduce (docs/paper.md): effort
     # and distance within 2 % of Table 9.
     row = PAPER_ROWS[("III", "VFO")]
     run = run_baseline(SCENARIOS["III"], VFO_GAINS["III"])

@@ -70,7 +70,7 @@ def test_case_i_what_table_5_says(
     assert ccw["distance"] > ft["distance"]
     # ... but (20) travels LESS than FT (4.69 m against 5.0882 m): the text's "both
     # controllers of this paper ... move longer distance than VFO and FT" is contradicted
-    # by its own Table 5 (README, "Where the paper disagrees with itself").
+    # by its own Table 5 (docs/paper.md, "Where the paper disagrees with itself").
     assert cw["distance"] < ft["distance"]
     # "VFO controller has the best performance": least effort and distance of the four.
     assert vfo["control_effort"] < min(
@@ -119,7 +119,7 @@ def test_case_iii_what_table_9_says(
     # ... "VFO controller has the minimum time".
     assert vfo["time"] < min(ccw["time"], cw["time"], ft["time"])
     # "the aforementioned metrics of controller (17) have closed values to those of (20)":
-    # within 8 % on effort, but 17 % apart on distance (README).
+    # within 8 % on effort, but 17 % apart on distance (docs/paper.md).
     assert ccw["control_effort"] / cw["control_effort"] < 1.08
     assert ccw["distance"] / cw["distance"] > 1.15
 

@@ -9,12 +9,12 @@ from pydantic import ValidationError
 
 from fleet.io.settings import Ros2Settings, load_settings
 
-README = Path(__file__).resolve().parents[3] / "README.md"
+ROBOTS_PAGE = Path(__file__).resolve().parents[3] / "docs" / "robots.md"
 
 
 def readme_sample() -> str:
-    """The TurtleBot 4 settings file of README "Driving a ROS 2 robot"."""
-    text = README.read_text()
+    """The TurtleBot 4 settings file of docs/robots.md "Driving a ROS 2 robot"."""
+    text = ROBOTS_PAGE.read_text()
     section = text[text.index("### A TurtleBot 4 on Jazzy with rmw_zenoh") :]
     return section[section.index("```toml\n") + 8 : section.index("```\n", 8)]
 

@@ -6,10 +6,10 @@ late joiner), decodes with drop counters, and writes into the view. Each agent r
 position every tick (:meth:`WorldFeed.follow`); when a robot enters another cell the feed
 subscribes to the new cells of its 3 x 3 block *before* it undeclares the ones no robot
 needs any more, so a peer within reach is never unheard; and it queries each new cell for
-the robots there that publish nothing any more (a dead or cut-off robot, replayed by the
-fleet service with their age: fleet/core/wire.py, "Replay of silent robots"). A feed
-shared by many agents (a simulated fleet on one session) subscribes to the union of their
-blocks, each cell once.
+the robots there, replayed by the fleet service with their age, so one that publishes
+nothing any more (dead or cut off) is known too (fleet/core/wire.py, "Replay of last
+states"). A feed shared by many agents (a simulated fleet on one session) subscribes to
+the union of their blocks, each cell once.
 Its :attr:`WorldFeed.last_heard` is the link monitor's evidence that the network is alive.
 """
 
@@ -144,7 +144,7 @@ class WorldFeed:
             self.world.update_state(state)
 
     def _on_state_reply(self, reply: Any) -> None:
-        """A silent robot's last state replayed by the service, heard ``age`` [s] ago."""
+        """A robot's last state replayed by the service, heard ``age`` [s] ago."""
         sample = reply.ok
         if sample is None:
             return

@@ -145,8 +145,8 @@ class _TimedSink:
     def obstacles(self) -> list[Any]:
         return self._sink.obstacles()
 
-    def silent_states(self, silent_s: float) -> list[tuple[RobotState, float]]:
-        return self._sink.silent_states(silent_s)
+    def last_states(self) -> list[tuple[RobotState, float]]:
+        return self._sink.last_states()
 
 
 class _TimedBus:

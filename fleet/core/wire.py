@@ -29,13 +29,15 @@ State streams and their encoding (the hot messages):
   subscribed keys, also at cell borders. Tools and the service may subscribe to
   ``cell/**`` (:attr:`Keys.all_peer_states`) to see everything. Every robot of a fleet
   must use the same cell size (set it in the fleet's shared settings).
-* **Replay of silent robots**: a robot that subscribes to a cell also queries it
+* **Replay of last states**: a robot that subscribes to a cell also queries it
   (``get`` on ``cell/<cx>/<cy>/*``); the fleet service answers with the last state of every
-  robot it has not heard for a while (a dead or cut-off robot publishes nothing a newcomer
-  could hear) whose last pose lies in that cell, on that robot's cell key, with the
-  attachment :func:`encode_age` (how long ago the service heard it [s]). The receiver
-  takes the state as heard that long ago. Compatibility: an older service does not
-  answer and an older robot does not ask; nothing else changes.
+  robot whose last pose lies in that cell (a dead or cut-off robot publishes nothing a
+  newcomer could hear -- also one that fell silent a moment ago, so every robot is
+  replayed, not only those silent a while), on that robot's cell key, with the attachment
+  :func:`encode_age` (how long ago the service heard it [s]). The receiver takes the state
+  as heard that long ago and keeps the newest by ``seq``: a live robot's stream wins.
+  Compatibility: an older service does not answer and an older robot does not ask;
+  nothing else changes.
 * **Fleet-rate stream** ``robot/<id>/state`` (the key the service and tools always read):
   the same message at the fleet rate (``Settings.fleet_rate_hz``, default 10 Hz), and at
   once whenever the robot's mode, task, revision, detail or faults change, so

@@ -7,8 +7,8 @@ Incoming: the bus calls the :class:`FleetSink` given to :meth:`FleetBus.start` -
 liveliness tokens appearing/disappearing, ``on_description`` for every decoded
 ``RobotDescription`` (put by the robot, or its answer to the bus's query), ``on_control``
 for every operator command seen on the control keys (from any issuer, the service's own
-included), ``obstacles()`` to answer late joiners, and ``silent_states()`` to replay the
-robots that publish nothing any more to a robot entering their cell.
+included), ``obstacles()`` to answer late joiners, and ``last_states()`` to replay the robots
+in a cell to a robot entering it (a dead robot publishes nothing it could hear).
 
 :class:`MemoryBus` is the in-memory implementation for unit tests; the Zenoh one is
 :class:`fleet.service.zenoh_bus.ZenohFleetBus`.
@@ -45,7 +45,7 @@ class FleetSink(Protocol):
 
     def obstacles(self) -> list[Obstacle]: ...
 
-    def silent_states(self, silent_s: float) -> list[tuple[RobotState, float]]: ...
+    def last_states(self) -> list[tuple[RobotState, float]]: ...
 
 
 class FleetBus(Protocol):

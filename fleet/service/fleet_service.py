@@ -543,16 +543,18 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         with self._lock:
             return list(self._obstacles)
 
-    def silent_states(self, silent_s: float) -> list[tuple[RobotState, float]]:
-        """The last state of every robot not heard for ``silent_s`` [s] and still in the
-        yard (not lost and decommissioned), with its age [s]: what the bus replays to a
-        robot entering its cell (fleet/core/wire.py, "Replay of silent robots")."""
+    def last_states(self) -> list[tuple[RobotState, float]]:
+        """The last state of every robot still in the yard (not lost and decommissioned),
+        with how long ago it was heard [s]: what the bus replays to a robot entering its
+        cell (fleet/core/wire.py, "Replay of last states"). Every one, not only the
+        silent: a robot that fell silent a moment ago publishes nothing more a newcomer
+        could hear, and a live robot's stream is newer than its replay and wins."""
         now = self._clock.monotonic()
         with self._lock:
             return [
                 (rec.state, now - rec.seen)
                 for rec in self._roster.records()
-                if rec.state is not None and now - rec.seen >= silent_s and not rec.gone_for_good
+                if rec.state is not None and not rec.gone_for_good
             ]
 
     def set_obstacles(self, obstacles: list[Obstacle]) -> None:

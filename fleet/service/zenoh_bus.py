@@ -22,9 +22,9 @@ On :meth:`ZenohFleetBus.start` it declares
   pauses other tools (``parkfleet estop``) latched;
 * a queryable on ``obstacles`` answering late joiners with the current ``ObstacleSet``;
 * a queryable on ``cell/**`` answering a robot that queries a cell with the last state of
-  every robot there not heard for ``REPLAY_SILENCE_S`` (``sink.silent_states``), each on
-  its cell key with its age as the attachment (fleet/core/wire.py, "Replay of silent
-  robots"): a robot that died or was cut off is an obstacle to newcomers too;
+  every robot whose last pose is there (``sink.last_states``), each on its cell key with
+  its age as the attachment (fleet/core/wire.py, "Replay of last states"): a robot that
+  died or was cut off is an obstacle to newcomers too;
 * the service's liveliness token ``alive/_service``.
 
 Malformed payloads are dropped and counted (``fleet.core.wire.Decoder``); exceptions raised by
@@ -61,9 +61,6 @@ from fleet.io.operator import put_control
 from fleet.service.bus import FleetSink
 
 _log = logging.getLogger(__name__)
-#: [s] a robot unheard this long is replayed to robots entering its cell (its stream at the
-#: fleet rate, 10 Hz by default, would otherwise have arrived several times).
-REPLAY_SILENCE_S = 0.5
 #: Messages that name their robot, checked against the key they came on.
 _Addressed = TypeVar("_Addressed", RobotState, RobotDescription, ControlCommand)
 #: Robots asked for their description remembered at most (then the memory starts afresh:
@@ -260,7 +257,7 @@ class ZenohFleetBus:
         if sink is None:
             return
         keys = self._keys
-        for state, age in sink.silent_states(REPLAY_SILENCE_S):
+        for state, age in sink.last_states():
             key = keys.peer_state(state.robot_id, keys.cell(state.pose.x, state.pose.y))
             if query.key_expr.intersects(zenoh.KeyExpr(key)):
                 query.reply(key, encode_state(state), attachment=encode_age(age))

@@ -103,7 +103,9 @@ def test_a_robot_entering_a_cell_learns_of_a_silent_robot_there_from_the_service
 
         wait_for(known, 10, "the service to hear the robot", poll=0.05)
         dead.close()  # it dies: nothing more on either stream
-        wait_for(lambda: bool(service.silent_states(1.0)), 10, "a second of silence")
+        wait_for(
+            lambda: any(age >= 1.0 for _, age in service.last_states()), 10, "a second of silence"
+        )
         feed = WorldFeed(WorldView(), keys)
         feed.attach(robot)
         try:
@@ -119,3 +121,37 @@ def test_a_robot_entering_a_cell_learns_of_a_silent_robot_there_from_the_service
             assert feed.decoder.dropped_total == 0
         finally:
             feed.detach()
+
+
+def test_a_robot_silent_only_a_moment_is_replayed_too(
+    client_settings: Settings, tmp_path: Path
+) -> None:
+    """The race of a SIGKILLed robot: a newcomer entering its cell just after its last
+    message (before any silence threshold) would hear nothing, ever. The service replays
+    every robot it knows there, and the feed keeps the newest state by ``seq``."""
+    keys = client_settings.keys()
+    with (
+        zenoh_fleet_service(client_settings, tmp_path / "fleet.db") as service,
+        open_session(client_settings, "client") as robot,
+        open_session(client_settings, "client") as peers,
+    ):
+        quiet = StateStreams(peers, keys, "quiet").open()
+        try:
+            last = RobotState(robot_id="quiet", seq=7, stamp=time.time(), pose=Pose(x=0.5, y=0.3))
+
+            def known() -> bool:
+                quiet.publish(last)
+                return "quiet" in {r.robot_id for r in service.robots()}
+
+            wait_for(known, 10, "the service to hear the robot's last message", poll=0.05)
+            feed = WorldFeed(WorldView(), keys)
+            feed.attach(robot)
+            try:
+                feed.follow("me", 1.5, 0.5)  # at once: the robot fell silent just now
+                wait_for(lambda: "quiet" in feed.world.states(), 10, "the replayed robot")
+                assert feed.world.states()["quiet"] == last
+                assert feed.decoder.dropped_total == 0
+            finally:
+                feed.detach()
+        finally:
+            quiet.close()

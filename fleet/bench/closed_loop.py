@@ -1,26 +1,31 @@
-"""An offline fleet: robots in the batch simulator, tasks planned as the service plans them.
+"""An offline fleet: robots in the batch simulator, their tasks in the service's own ledger.
 
 Used by ``parkfleet bench plan`` to make scenes with robots under way and to compare
 planners on the same scenarios without Zenoh or processes. The robots are the simulator's
-(the agents' control step, wheel limits, Eq. (27) repulsion from every peer and static
-obstacle); the planner is called on a :class:`~fleet.core.planner.PlanningSnapshot` the way
-the fleet service calls it:
+(the agents' control step with its safety filter, wheel limits, Eq. (27) repulsion from
+every peer and static obstacle). The tasks live in a :class:`fleet.service.ledger.TaskLedger`
+configured as the service configures it (:func:`fleet.service.ledger.ledger_config`), so
+the offline fleet predicts what the service does:
 
-* when tasks arrive or finish, when the previous plan asked for it (held robots,
-  ``Plan.replan_in_s``), when a robot leaves its corridor, and every ``replan_period_s``;
-* its decisions are applied at once (``lead_time_s`` = 0: no delivery delay): ``assign``
-  gives a queued task its robot, law, start delay or hold; ``revise`` replaces them as
-  ``revision + 1`` when the task still has the revision the decision was made from;
-  ``keep`` only refreshes the corridor.
+* tasks are added to the ledger when they arrive (``direction`` the policy: ``auto``, or
+  the fixed law a user would ask for);
+* the planner gets the service's snapshot (:func:`fleet.service.snapshot.planning_input`,
+  lead time 0: no delivery delay) when tasks arrive or finish, when the previous plan asked
+  for it (held robots, ``Plan.replan_in_s``), when a robot leaves its corridor (the
+  ledger's check) and every ``replan_period_s``; its decisions go through
+  :meth:`TaskLedger.apply` (stale status family or revision, unsafe plans dropped);
+* the robots drive what the ledger publishes (each :class:`ParkAssignment` from the moment
+  it is published, its start delay in simulated time) and report states the ledger
+  observes (acknowledgement, arrival, corridor).
 
-Fixed policies (``cw``, ``ccw``) assign the same way (:func:`fleet.core.planner.assign.
-pair_queued`) and start every robot at once with that law: the robots' own avoidance only.
+Fixed policies (``cw``, ``ccw``) pair queued tasks with robots the planner's way
+(:func:`fleet.core.planner.assign.pair_queued`) and assign them through the ledger, every
+robot at once with that law: the robots' own avoidance only. Operator controls, stuck
+recoveries and task timeouts are not exercised (the run's time limit ends it).
 
-Metrics, as the fleet benchmark defines them: success, collisions (pairs of robots closer
-than two body radii), minimum separation between any two robots [m], makespan (from the
-first submission until the last task finished [s]; the time limit when a task did not arrive),
-path ratio (distance driven / straight
-line, mean over tasks), and per planner call its wall time.
+Metrics are the fleet benchmark's (:class:`fleet.bench.metrics.RunMetrics`, fed every
+simulated tick): success, collisions, minimum separation, makespan (the time limit when a
+task did not arrive) and path ratio per task that arrived; per planner call its wall time.
 """
 
 from __future__ import annotations
@@ -32,37 +37,36 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fleet.bench.metrics import RunMetrics, RunResult
 from fleet.bench.scenarios import Scenario, random_yard
 from fleet.core.params import Avoidance, RobotProfile, SafetyConfig, Tolerance
-from fleet.core.planner import Plan, PlannerConfig, PlanningSnapshot, RobotSnapshot, TaskSnapshot
+from fleet.core.planner import Plan, PlannerConfig, PlanningSnapshot, TaskDecision
 from fleet.core.planner.assign import pair_queued
-from fleet.core.planner.corridor import left_corridor
 from fleet.core.planner.rollout import STANDING_DELAY
 from fleet.core.simulate import BatchProblem, batch_filter, simulate
-from fleet.core.tasks import DEFAULT_GAINS, Direction, RobotStatus, TaskStatus
-from fleet.core.types import LAWS, Law, Posture
+from fleet.core.tasks import DEFAULT_GAINS, RobotStatus, Task, TaskRequest
+from fleet.core.types import Law, Posture
+from fleet.core.wire import CancelAssignment, ParkAssignment, Pose, RobotMode, RobotState
+from fleet.io.settings import Settings
+from fleet.io.trace import TraceChunk
+from fleet.service.effects import Effects, Publish, StoreWrite
+from fleet.service.ledger import Outcome, TaskLedger, ledger_config
+from fleet.service.snapshot import PlanInput, RobotFacts, planning_input
 
 Planner = Callable[[PlanningSnapshot], Plan]
 _STAND = Tolerance(position=1e-3, heading=1e-3)
+#: Mode names of the offline fleet's ticks (:class:`RunMetrics` codes are their indices).
+MODES: tuple[str, ...] = tuple(m.value for m in RobotMode)
+_CODE = {m: np.uint8(k) for k, m in enumerate(RobotMode)}
 
 
 @dataclass
-class _Task:
-    task_id: str
-    goal: Posture
-    arrival: float
-    named: str | None
-    status: TaskStatus = TaskStatus.QUEUED
-    robot_id: str | None = None
-    law: Law | None = None
-    revision: int = 0
-    hold: bool = False
-    delay: float = 0.0
-    applied_at: float = 0.0
-    corridor: tuple[tuple[float, float, float], ...] = ()
-    corridor_at: float = 0.0
-    finished_at: float | None = None
-    start_xy: tuple[float, float] = (0.0, 0.0)
+class _Order:
+    """What a simulated robot was last told and when [s, simulated]."""
+
+    assignment: ParkAssignment
+    received_at: float
+    arrived_at: float | None = None
 
 
 @dataclass(frozen=True)
@@ -82,15 +86,17 @@ class ClosedLoopResult:
     plan_clusters: list[int]
     waiting_max: int
     snapshots: list[PlanningSnapshot]
+    outcomes: dict[Outcome, int]  # what became of the decisions (ledger.apply)
 
 
 class OfflineFleet:
-    """The robots and tasks of one scenario, stepped by the batch simulator."""
+    """The robots and tasks of one scenario: simulated robots, the service's ledger."""
 
     def __init__(
         self,
         scenario: Scenario,
         *,
+        direction: Law | None = None,
         arrivals: Sequence[float] | None = None,
         profile: RobotProfile | None = None,
         avoidance: Avoidance | None = None,
@@ -99,165 +105,214 @@ class OfflineFleet:
         safety: SafetyConfig | None = None,
     ) -> None:
         self.scenario = scenario
-        self.profile = profile or RobotProfile()
-        self.avoidance = avoidance or Avoidance()
-        self.safety = safety or SafetyConfig()
-        self.separation = separation
+        self.settings = Settings(
+            profile=profile or RobotProfile(),
+            avoidance=avoidance or Avoidance(),
+            safety=safety or SafetyConfig(),
+            safety_separation_m=separation,
+            control_rate_hz=1.0 / dt,
+        )
+        self.profile = self.settings.profile
         self.dt = dt
+        self.ledger = TaskLedger(ledger_config(self.settings))
+        self.tasks: dict[str, Task] = {}  # every task's latest version (the "store")
+        self.orders: dict[str, _Order] = {}  # robot -> its last assignment
+        self.outcomes: dict[Outcome, int] = dict.fromkeys(Outcome, 0)
+        self.off_corridor = False  # a robot left its corridor since the last plan
         self.ids = scenario.robot_ids
+        self._index = {rid: i for i, rid in enumerate(self.ids)}
         self.pose = np.array(scenario.starts, dtype=np.float64).reshape(-1, 3)
-        self.distance = np.zeros(len(self.ids))
         self.t = 0.0
-        self.version = 0
-        self.min_pair = np.full((len(self.ids), len(self.ids)), np.inf)
+        self._ticks = 0  # control ticks simulated: the robots' state seq
+        self._chunks = [self._chunk(np.array([0.0]), self.pose[None], self._modes()[None])]
         if arrivals is None:
             arrivals = [r.arrival_s for r in scenario.robots]
-        arrivals = list(arrivals)
-        self.tasks = [
-            _Task(
-                task_id=f"t{j + 1}",
-                goal=g,
-                arrival=a,
-                named=self.ids[j] if scenario.named else None,
-            )
-            for j, (g, a) in enumerate(zip(scenario.goals, arrivals, strict=True))
-        ]
-        gains = scenario.law_gains or {}
-        self.gains = {law: gains.get(law, DEFAULT_GAINS[law]) for law in LAWS}
-
-    # -- snapshot and decisions -------------------------------------------------------------
-
-    def _task_of(self, robot_id: str) -> _Task | None:
-        for t in self.tasks:
-            if t.robot_id == robot_id and not t.status.final:
-                return t
-        return None
-
-    def snapshot(self, direction: Direction = "auto") -> PlanningSnapshot:
-        """What the service would give the planner now."""
-        robots = []
-        for i, rid in enumerate(self.ids):
-            task = self._task_of(rid)
-            if task is None:
-                status = RobotStatus.IDLE
-            elif task.hold or self.t < task.applied_at + task.delay:
-                status = RobotStatus.WAITING
-            else:
-                status = RobotStatus.DRIVING
-            robots.append(
-                RobotSnapshot(
-                    robot_id=rid,
-                    pose=(float(self.pose[i, 0]), float(self.pose[i, 1]), float(self.pose[i, 2])),
-                    status=status,
-                    available=task is None,
-                    task_id=None if task is None else task.task_id,
-                    law=None if task is None else task.law,
-                    revision=0 if task is None else task.revision,
+        gains = scenario.law_gains
+        self._pending = sorted(
+            (
+                (
+                    float(a),
+                    f"t{j + 1}",
+                    TaskRequest(
+                        goal=Pose(x=g[0], y=g[1], theta=g[2]),
+                        robot_id=self.ids[j] if scenario.named else None,
+                        direction=direction or "auto",
+                        tolerance=scenario.tolerance,
+                        law_gains=dict(gains) if gains else None,
+                    ),
                 )
-            )
-        tasks = []
-        for t in self.tasks:
-            if t.status.final or t.arrival > self.t + 1e-9:
-                continue
-            tasks.append(
-                TaskSnapshot(
-                    task_id=t.task_id,
-                    goal=t.goal,
-                    direction=direction,
-                    gains=dict(self.gains),
-                    tolerance=self.scenario.tolerance,
-                    status=t.status,
-                    created_at=t.arrival,
-                    named_robot=t.named,
-                    robot_id=t.robot_id,
-                    law=t.law,
-                    revision=t.revision,
-                    hold=t.hold,
-                    start_delay_s=t.delay,
-                    start_delay_left_s=None
-                    if t.robot_id is None
-                    else max(0.0, t.applied_at + t.delay - self.t),
-                )
-            )
-        return PlanningSnapshot(
-            version=self.version,
-            robots=tuple(robots),
-            tasks=tuple(tasks),
-            obstacles=tuple(o.as_obstacle() for o in self.scenario.obstacles),
-            profile=self.profile,
-            avoidance=self.avoidance,
-            safety=self.safety,
-            separation_m=self.separation,
-            control_dt=self.dt,
+                for j, (g, a) in enumerate(zip(scenario.goals, arrivals, strict=True))
+            ),
+            key=lambda p: p[0],
+        )
+        self.task_count = len(self._pending)
+        self.first_arrival = self._pending[0][0] if self._pending else 0.0
+
+    # -- tasks and states ------------------------------------------------------------------
+
+    def submit_arrived(self) -> int:
+        """Put the tasks whose arrival time has come into the ledger; how many."""
+        n = 0
+        while self._pending and self._pending[0][0] <= self.t + 1e-9:
+            at, task_id, request = self._pending.pop(0)
+            task = Task(id=task_id, request=request, created_at=at, updated_at=at)
+            self.tasks[task_id] = task
+            self._run(self.ledger.add(task))
+            n += 1
+        return n
+
+    def next_arrival(self) -> float:
+        """When the next task arrives [s, simulated] (inf: none left)."""
+        return self._pending[0][0] if self._pending else math.inf
+
+    @property
+    def finished(self) -> bool:
+        """Every task submitted and final."""
+        return not self._pending and not self.ledger.active
+
+    def _run(self, effects: Effects) -> None:
+        """Carry out the ledger's effects: store task versions, deliver messages."""
+        for effect in effects:
+            if isinstance(effect, StoreWrite):
+                self.tasks[effect.task.id] = effect.task
+            elif isinstance(effect, Publish):
+                msg = effect.message
+                if isinstance(msg, ParkAssignment):
+                    old = self.orders.get(msg.robot_id)
+                    if old is None or (old.assignment.task_id, old.assignment.revision) != (
+                        msg.task_id,
+                        msg.revision,
+                    ):  # a re-send of the same revision changes nothing (as in the agent)
+                        self.orders[msg.robot_id] = _Order(msg, self.t)
+                elif isinstance(msg, CancelAssignment):
+                    order = self.orders.get(msg.robot_id)
+                    if order is not None and order.assignment.task_id == msg.task_id:
+                        del self.orders[msg.robot_id]
+
+    def _mode(self, robot_id: str) -> RobotMode:
+        order = self.orders.get(robot_id)
+        if order is None:
+            return RobotMode.IDLE
+        if order.arrived_at is not None:
+            return RobotMode.ARRIVED
+        a = order.assignment
+        if a.hold or self.t < order.received_at + a.start_delay_s - 1e-9:
+            return RobotMode.WAITING
+        return RobotMode.DRIVING
+
+    def _modes(self) -> np.ndarray:
+        return np.array([_CODE[self._mode(rid)] for rid in self.ids], dtype=np.uint8)
+
+    def state(self, robot_id: str) -> RobotState:
+        """What the robot would publish now."""
+        x, y, theta = (float(v) for v in self.pose[self._index[robot_id]])
+        order = self.orders.get(robot_id)
+        a = None if order is None else order.assignment
+        return RobotState(
+            robot_id=robot_id,
+            seq=self._ticks,
+            stamp=self.t,
+            pose=Pose(x=x, y=y, theta=theta),
+            mode=self._mode(robot_id),
+            task_id=None if a is None else a.task_id,
+            revision=0 if a is None else a.revision,
+            law=None if a is None else a.law,
+            radius=self.profile.radius,
         )
 
-    def apply(self, result: Plan) -> None:
-        """Apply a plan's decisions (stale ones dropped by revision)."""
-        by_id = {t.task_id: t for t in self.tasks}
-        for d in result.decisions:
-            task = by_id.get(d.task_id)
-            if task is None or task.status.final:
-                continue
-            if d.action == "assign":
-                if task.status != TaskStatus.QUEUED or self._task_of(d.robot_id) is not None:
-                    continue
-                task.robot_id = d.robot_id
-                task.status = TaskStatus.ASSIGNED
-                task.start_xy = tuple(self.pose[self.ids.index(d.robot_id), :2])
-            elif d.action == "revise":
-                if task.robot_id != d.robot_id or task.revision != d.revision:
-                    continue
-                task.revision += 1
-            else:
-                task.corridor, task.corridor_at = d.corridor, self.t
-                continue
-            task.law, task.hold, task.delay = d.law, d.hold, d.start_delay_s
-            task.applied_at = self.t
-            task.status = TaskStatus.WAITING if d.hold else TaskStatus.DRIVING
-            task.corridor, task.corridor_at = d.corridor, self.t
-        self.version += 1
+    def observe(self, wall: dict[str, float] | None = None) -> None:
+        """Every robot's state to the ledger (``wall``: a robot's own report time [s],
+        e.g. the instant it arrived within the last step)."""
+        for rid in self.ids:
+            when = (wall or {}).get(rid, self.t)
+            seen = self.ledger.observe(self.state(rid), self.t, when)
+            self.off_corridor |= seen.off_corridor
+            self._run(seen.effects)
+
+    # -- snapshot and decisions ------------------------------------------------------------
+
+    def snapshot(self) -> PlanInput:
+        """What the service would give the planner now (and the plan's origin seqs)."""
+        robots = []
+        busy = self.ledger.robot_task
+        for rid in self.ids:
+            state = self.state(rid)
+            robots.append(
+                RobotFacts(
+                    state=state,
+                    status=RobotStatus.from_mode(state.mode),
+                    age_s=0.0,
+                    available=rid not in busy,
+                )
+            )
+        acked = {tid: self.t - at for tid, at in self.ledger.acknowledged_at().items()}
+        return planning_input(
+            self.ledger.version,
+            robots,
+            list(self.ledger.active.values()),
+            [o.as_obstacle() for o in self.scenario.obstacles],
+            self.settings,
+            lead_time_s=0.0,
+            time_scale=1.0,
+            avoided=self.ledger.avoided(),
+            acknowledged_s=acked,
+        )
+
+    def apply(self, plan: Plan, work: PlanInput) -> None:
+        """Apply a plan's decisions through the ledger, as the service does."""
+        relaxed = next((n for n in plan.notes if n.startswith("standstill")), None)
+        for d in plan.decisions:
+            self._decide(d, plan.safe, work.origin_seqs.get(d.robot_id), relaxed)
+        self.off_corridor = False
+        self.observe()  # the robots report at once: no delivery delay
+
+    def _decide(
+        self, d: TaskDecision, safe: bool, origin_seq: float | None, relaxed: str | None
+    ) -> None:
+        outcome, effects = self.ledger.apply(
+            d,
+            robot_available=d.robot_id not in self.ledger.robot_task,
+            plan_safe=safe,
+            origin_seq=origin_seq,
+            now=self.t,
+            wall=self.t,
+            relaxed=relaxed,
+        )
+        self.outcomes[outcome] += 1
+        if outcome is Outcome.APPLIED:
+            self._run(effects)
 
     def assign_fixed(self, law: Law) -> None:
         """A fixed policy: queued tasks get robots and go at once with ``law``."""
-        for task, robot in pair_queued(self.snapshot(law), PlannerConfig()):
-            t = next(x for x in self.tasks if x.task_id == task.task_id)
-            t.robot_id, t.law, t.status = robot.robot_id, law, TaskStatus.DRIVING
-            t.applied_at = self.t
-            t.start_xy = tuple(self.pose[self.ids.index(robot.robot_id), :2])
-        self.version += 1
+        work = self.snapshot()
+        for task, robot in pair_queued(work.snapshot, PlannerConfig()):
+            decision = TaskDecision(task.task_id, robot.robot_id, "assign", law, task.revision)
+            self._decide(decision, True, None, None)
+        self.observe()
 
-    # -- time -------------------------------------------------------------------------------
-
-    def off_corridor(self, radius: float, slack: float) -> bool:
-        for t in self.tasks:
-            if t.status.final or t.robot_id is None or not t.corridor:
-                continue
-            i = self.ids.index(t.robot_id)
-            x, y = float(self.pose[i, 0]), float(self.pose[i, 1])
-            if left_corridor(t.corridor, self.t - t.corridor_at, x, y, radius, slack):
-                return True
-        return False
+    # -- time ------------------------------------------------------------------------------
 
     def step(self, duration: float) -> bool:
         """Simulate ``duration`` [s] (less if every robot stands); True if a task finished."""
         n = len(self.ids)
         goal = self.pose.copy()
-        gains = np.tile(self.gains["ccw"].as_tuple(), (n, 1))
+        gains = np.tile(DEFAULT_GAINS["ccw"].as_tuple(), (n, 1))  # standing rows: any gains
         cw = np.zeros(n, dtype=bool)
         tol: list[Tolerance] = [_STAND] * n
         delay = np.full(n, STANDING_DELAY)  # robots without a task never move
-        active: dict[int, _Task] = {}
-        for t in self.tasks:
-            if t.status.final or t.robot_id is None or t.hold or t.law is None:
+        moving: list[int] = []
+        for rid, order in self.orders.items():
+            a = order.assignment
+            if order.arrived_at is not None or a.hold:
                 continue
-            i = self.ids.index(t.robot_id)
-            active[i] = t
-            goal[i] = t.goal
-            gains[i] = self.gains[t.law].as_tuple()
-            cw[i] = t.law == "cw"
-            tol[i] = self.scenario.tolerance
-            delay[i] = max(0.0, t.applied_at + t.delay - self.t)
-        if not active:
+            i = self._index[rid]
+            moving.append(i)
+            goal[i] = a.goal.as_tuple()
+            gains[i] = a.gains.as_tuple()
+            cw[i] = a.law == "cw"
+            tol[i] = a.tolerance
+            delay[i] = max(0.0, order.received_at + a.start_delay_s - self.t)
+        if not moving:
             self.t += duration
             return False
         problem = BatchProblem.build(
@@ -270,48 +325,67 @@ class OfflineFleet:
             obstacles=[(o.x, o.y) for o in self.scenario.obstacles],
             obstacle_radius=[o.radius for o in self.scenario.obstacles],
             obstacle_body=[o.body for o in self.scenario.obstacles],
-            k_avoid=self.avoidance.k_avoid,
-            peer_radius=self.avoidance.peer_radius,
-            min_x_oa=self.avoidance.min_x_oa,
-            safety=batch_filter(self.safety),
+            k_avoid=self.settings.avoidance.k_avoid,
+            peer_radius=self.settings.avoidance.peer_radius,
+            min_x_oa=self.settings.avoidance.min_x_oa,
+            safety=batch_filter(self.settings.safety),
             start_delay=delay,
         )
-        result = simulate(problem, dt=self.dt, max_time=duration, track_separation=True)
-        assert result.min_pair_distance is not None
-        np.minimum(self.min_pair, result.min_pair_distance, out=self.min_pair)
-        self.pose = result.final_pose.copy()
-        self.distance += result.distance
-        finished = False
-        for i, t in active.items():
+        result = simulate(problem, dt=self.dt, max_time=duration, record=True)
+        assert result.trajectory is not None
+        steps = max(result.steps, 1)
+        ticks = self.t + self.dt * np.arange(1, steps + 1)
+        modes = np.repeat(self._modes()[None], steps, axis=0)
+        arrived: dict[str, float] = {}
+        for i in moving:
+            rid = self.ids[i]
+            order = self.orders[rid]
+            start = order.received_at + order.assignment.start_delay_s
+            modes[ticks < start - 1e-9, i] = _CODE[RobotMode.WAITING]
+            modes[ticks >= start - 1e-9, i] = _CODE[RobotMode.DRIVING]
             if result.done[i]:
-                t.status = TaskStatus.SUCCEEDED
-                t.finished_at = self.t + float(result.time[i])
-                finished = True
-        self.t += max(result.steps, 1) * self.dt
-        return finished
+                at = self.t + float(result.time[i])
+                modes[ticks >= at - 1e-9, i] = _CODE[RobotMode.ARRIVED]
+                order.arrived_at = arrived[rid] = at
+        poses = result.trajectory.poses[1 : steps + 1]
+        if len(poses) < steps:  # a batch that stands still at once records no step
+            poses = np.repeat(result.final_pose[None], steps, axis=0)
+        self._chunks.append(self._chunk(ticks, poses, modes))
+        self.pose = result.final_pose.copy()
+        self._ticks += steps
+        self.t += steps * self.dt
+        self.observe(arrived)
+        return bool(arrived)
 
-    def result(self, policy: str, limit_s: float = math.inf) -> dict[str, float | int]:
-        done = [t for t in self.tasks if t.status == TaskStatus.SUCCEEDED]
-        ratios = []
-        for t in self.tasks:
-            if t.robot_id is None:
+    @staticmethod
+    def _chunk(t: np.ndarray, poses: np.ndarray, modes: np.ndarray) -> TraceChunk:
+        return TraceChunk(t=t, poses=np.array(poses, dtype=np.float64), modes=modes)
+
+    # -- metrics ---------------------------------------------------------------------------
+
+    def metrics(self) -> RunResult:
+        """The fleet benchmark's figures of the run so far (every simulated tick)."""
+        n = len(self.ids)
+        goals = np.full((n, 3), np.nan)
+        legs = []
+        for task in sorted(self.tasks.values(), key=lambda t: t.created_at):
+            if task.robot_id is None:
                 continue
-            straight = math.dist(t.start_xy, t.goal[:2])
-            if straight > 0:
-                ratios.append(float(self.distance[self.ids.index(t.robot_id)]) / straight)
-        start = min(t.arrival for t in self.tasks)
-        ends = [t.finished_at for t in done if t.finished_at is not None]
-        min_sep = float(self.min_pair.min()) if len(self.ids) > 1 else math.inf
-        contact = 2 * self.profile.radius
-        iu = np.triu_indices(len(self.ids), 1)
-        return {
-            "success_rate": len(done) / len(self.tasks),
-            "collisions": int(np.count_nonzero(self.min_pair[iu] < contact)),
-            "min_separation_m": min_sep,
-            # as the fleet bench (RunResult.makespan): the time limit when a task did not arrive
-            "makespan_s": (max(ends) - start) if len(done) == len(self.tasks) else limit_s,
-            "path_ratio": float(np.mean(ratios)) if ratios else math.nan,
-        }
+            i = self._index[task.robot_id]
+            g = task.request.goal
+            goals[i] = g.as_tuple()  # a robot's last task
+            legs.append((i, g.x, g.y))
+        metrics = RunMetrics(
+            [self.profile.radius] * n,
+            goals,
+            [(o.x, o.y, o.body) for o in self.scenario.obstacles],
+            MODES,
+            t_start=self.first_arrival,
+            tasks=legs,
+        )
+        for chunk in self._chunks:
+            metrics.add(chunk)
+        return metrics.result()
 
 
 def run_closed_loop(
@@ -326,57 +400,62 @@ def run_closed_loop(
     dt: float = 0.02,
 ) -> ClosedLoopResult:
     """Run ``scenario`` to the end under ``policy`` (``auto`` with ``planner``, or a law)."""
-    fleet = OfflineFleet(scenario, arrivals=arrivals, dt=dt)
+    if policy not in ("auto", "cw", "ccw"):
+        raise ValueError(f"unknown policy {policy!r}: auto, cw or ccw")
+    if policy == "auto" and planner is None:
+        raise ValueError("policy auto needs a planner")
+    fixed: Law | None = None if policy == "auto" else ("cw" if policy == "cw" else "ccw")
+    fleet = OfflineFleet(scenario, direction=fixed, arrivals=arrivals, dt=dt)
     walls: list[float] = []
     rollouts: list[int] = []
     clusters: list[int] = []
     snaps: list[PlanningSnapshot] = []
     waiting_max = 0
-    next_plan, seen_arrivals = 0.0, -1
-    arrivals = sorted({t.arrival for t in fleet.tasks})
-    while fleet.t < time_limit_s and not all(t.status.final for t in fleet.tasks):
-        arrived = sum(1 for a in arrivals if a <= fleet.t + 1e-9)
-        trigger = arrived != seen_arrivals or fleet.t >= next_plan - 1e-9
-        if policy == "auto":
-            trigger = trigger or fleet.off_corridor(0.5, 2.0)
+    next_plan = 0.0
+    while fleet.t < time_limit_s and not fleet.finished:
+        trigger = fleet.submit_arrived() > 0 or fleet.t >= next_plan - 1e-9
+        if planner is not None:
+            trigger = trigger or fleet.off_corridor
         if trigger:
-            seen_arrivals = arrived
-            if policy == "auto":
-                assert planner is not None
-                snap = fleet.snapshot()
+            if planner is not None:
+                work = fleet.snapshot()
                 if keep_snapshots:
-                    snaps.append(snap)
+                    snaps.append(work.snapshot)
                 began = time.perf_counter()
-                result = planner(snap)
+                result = planner(work.snapshot)
                 walls.append(time.perf_counter() - began)
                 rollouts.append(result.rollouts)
                 clusters.append(result.clusters)
                 waiting_max = max(waiting_max, result.waiting)
-                fleet.apply(result)
+                fleet.apply(result, work)
                 retry = result.replan_in_s if result.replan_in_s is not None else math.inf
                 next_plan = fleet.t + min(replan_period_s, retry)
             else:
-                fleet.assign_fixed("cw" if policy == "cw" else "ccw")
+                assert fixed is not None
+                fleet.assign_fixed(fixed)
                 next_plan = fleet.t + replan_period_s
-        upcoming = [a for a in arrivals if a > fleet.t + 1e-9]
-        horizon = min([next_plan, *upcoming[:1]]) - fleet.t
+        upcoming = fleet.next_arrival()
+        horizon = min(next_plan, upcoming) - fleet.t
         if fleet.step(max(horizon, dt)):
             next_plan = fleet.t  # a robot is free: plan again now
-    metrics = fleet.result(policy, time_limit_s)
+    run = fleet.metrics()
+    tasks = fleet.task_count
+    ratio = run.path_ratio()
     return ClosedLoopResult(
         scenario=scenario.name,
         policy=policy,
         robots=len(fleet.ids),
-        success_rate=float(metrics["success_rate"]),
-        collisions=int(metrics["collisions"]),
-        min_separation_m=float(metrics["min_separation_m"]),
-        makespan_s=float(metrics["makespan_s"]),
-        path_ratio=float(metrics["path_ratio"]),
+        success_rate=run.success_count() / tasks if tasks else 1.0,
+        collisions=run.collision_pairs,
+        min_separation_m=math.inf if run.min_separation_m is None else run.min_separation_m,
+        makespan_s=run.makespan(tasks, time_limit_s),
+        path_ratio=math.nan if ratio is None else ratio,
         plan_wall_s=walls,
         plan_rollouts=rollouts,
         plan_clusters=clusters,
         waiting_max=waiting_max,
         snapshots=snaps,
+        outcomes=dict(fleet.outcomes),
     )
 
 

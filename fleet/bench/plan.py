@@ -134,7 +134,7 @@ class QualityRow(BaseModel):
     collisions: int
     min_separation_m: float
     makespan_s: float
-    path_ratio: float
+    path_ratio: float | None  # over the tasks that arrived; None: none did
 
 
 def quality_scenarios(quick: bool = False) -> list[Scenario]:
@@ -168,7 +168,7 @@ def quality(
                 collisions=run.collisions,
                 min_separation_m=round(run.min_separation_m, 3),
                 makespan_s=round(run.makespan_s, 2),
-                path_ratio=round(run.path_ratio, 3),
+                path_ratio=None if math.isnan(run.path_ratio) else round(run.path_ratio, 3),
             )
             rows.append(row)
             if progress is not None:

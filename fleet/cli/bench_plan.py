@@ -84,6 +84,6 @@ def print_row(row: QualityRow) -> None:
     print(
         f"{row.scenario:<14} {row.robots:>3} {row.policy:<5} {row.success_rate:>8.0%} "
         f"{row.collisions:>10} {row.min_separation_m:>9.3f} {row.makespan_s:>10.1f} "
-        f"{row.path_ratio:>6.2f}",
+        f"{'-' if row.path_ratio is None else f'{row.path_ratio:.2f}':>6}",
         flush=True,
     )

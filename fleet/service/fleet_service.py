@@ -87,7 +87,7 @@ from fleet.service.bus import FleetBus
 from fleet.service.clock import Clock, SystemClock
 from fleet.service.control_desk import ControlDesk
 from fleet.service.effects import Publish, PurgeFinished
-from fleet.service.ledger import LedgerConfig, TaskLedger
+from fleet.service.ledger import RESEND_INTERVAL_S, TaskLedger, ledger_config
 from fleet.service.operators import OperatorControls
 from fleet.service.outbox import Batch, Listener, Outbox
 from fleet.service.paths import PathSample
@@ -101,8 +101,6 @@ from fleet.service.submission import Submission
 
 _log = logging.getLogger(__name__)
 
-#: Seconds between re-sends of an unacknowledged assignment (and of a cancel).
-RESEND_INTERVAL_S = 0.2
 #: Period of the tick thread [s].
 TICK_INTERVAL_S = RESEND_INTERVAL_S / 2
 #: Minimum interval of pose-only robot events per robot [s] (status changes are immediate).
@@ -138,16 +136,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         peer_radius = max(settings.avoidance.peer_radius, 0.1)
         self._roster = Roster(parked_cell=peer_radius)
         self._ledger = TaskLedger(
-            LedgerConfig(
-                task_timeout_s=settings.task_timeout_s,
-                resend_interval_s=RESEND_INTERVAL_S,
-                on_robot_lost=settings.on_robot_lost,
-                avoidance=settings.avoidance,
-                goal_cell=peer_radius,
-                corridor_m=settings.replan_corridor_m,
-                control_hz=settings.control_rate_hz,
-                stuck_after_s=settings.stuck_after_s,
-            ),
+            ledger_config(settings),
             site=settings.site,
         )
         self._outbox = Outbox(store, bus, self._counters, self._holds_lock)

@@ -66,6 +66,7 @@ from fleet.core.planner.model import TaskDecision
 from fleet.core.site import Site
 from fleet.core.tasks import Task, TaskEvent, TaskNotFound, TaskStatus
 from fleet.core.wire import CancelAssignment, ParkAssignment, RobotMode, RobotState
+from fleet.io.settings import Settings
 from fleet.service.bays import BayBook
 from fleet.service.effects import Effects, Notify, Publish, StoreWrite
 from fleet.service.horizon import Corridor
@@ -78,6 +79,8 @@ _MOVING = frozenset({RobotMode.DRIVING, RobotMode.AVOIDING})
 _STILL_ON_PURPOSE = frozenset({RobotMode.WAITING, RobotMode.PAUSED, RobotMode.ESTOP})
 #: How many finished task ids are remembered for stray robots.
 FINISHED_REMEMBERED = 10_000
+#: [s] between re-sends of an unacknowledged assignment (and, by the service, of a cancel).
+RESEND_INTERVAL_S = 0.2
 _NEVER = float("-inf")
 
 
@@ -95,13 +98,27 @@ class LedgerConfig:
     """The settings the ledger's transitions depend on."""
 
     task_timeout_s: float = 120.0  # [s] from assignment
-    resend_interval_s: float = 0.2  # [s] between sends of an unacknowledged assignment
+    resend_interval_s: float = RESEND_INTERVAL_S
     on_robot_lost: Literal["fail", "requeue"] = "fail"
     avoidance: Avoidance = field(default_factory=Avoidance)  # sent with every assignment
     goal_cell: float = 1.0  # [m] cell of the goal grid (the peer radius)
     corridor_m: float = 0.3  # [m] an observed pose farther than this from its prediction
     control_hz: float = 50.0  # the robots' control rate (state seq per second)
     stuck_after_s: float = 30.0  # [s] no progress this long: stuck (recoveries, then failed)
+
+
+def ledger_config(settings: Settings) -> LedgerConfig:
+    """The ledger's settings as the fleet service takes them from its ``settings`` (also the
+    offline fleet's, so it predicts the service)."""
+    return LedgerConfig(
+        task_timeout_s=settings.task_timeout_s,
+        on_robot_lost=settings.on_robot_lost,
+        avoidance=settings.avoidance,
+        goal_cell=max(settings.avoidance.peer_radius, 0.1),
+        corridor_m=settings.replan_corridor_m,
+        control_hz=settings.control_rate_hz,
+        stuck_after_s=settings.stuck_after_s,
+    )
 
 
 @dataclass(slots=True)

@@ -1,0 +1,78 @@
+"""The offline fleet drives the service's own ledger and reports the fleet bench's metrics."""
+
+from __future__ import annotations
+
+import math
+
+from fleet.bench.closed_loop import OfflineFleet, run_closed_loop
+from fleet.bench.scenarios import swap
+from fleet.core.planner import Plan, TaskDecision, plan
+from fleet.core.tasks import TaskStatus
+from fleet.service.ledger import Outcome
+
+
+def test_a_planned_swap_parks_every_task_through_the_ledger() -> None:
+    scenario = swap(2, "left")
+    fleet = OfflineFleet(scenario)
+    assert fleet.submit_arrived() == 2
+    work = fleet.snapshot()
+    assert {t.status for t in work.snapshot.tasks} == {TaskStatus.QUEUED}
+    fleet.apply(plan(work.snapshot), work)
+    # the ledger assigned them and the robots acknowledged at once (no delivery delay)
+    assert {t.status for t in fleet.tasks.values()} <= {TaskStatus.DRIVING, TaskStatus.WAITING}
+    assert set(fleet.orders) == set(scenario.robot_ids)
+    while not fleet.finished and fleet.t < 60.0:
+        fleet.step(2.0)
+    assert {t.status for t in fleet.tasks.values()} == {TaskStatus.SUCCEEDED}
+    assert all(t.attempts == 1 for t in fleet.tasks.values())
+    run = fleet.metrics()
+    assert run.success_count() == 2 and run.collision_pairs == 0
+    ratio = run.path_ratio()
+    assert ratio is not None and ratio >= 1.0
+
+
+def test_decisions_the_ledger_refuses_move_no_robot() -> None:
+    fleet = OfflineFleet(swap(2, "right"))
+    fleet.submit_arrived()
+    work = fleet.snapshot()
+    first = plan(work.snapshot)
+    starts = [d for d in first.decisions if d.action == "assign" and not d.hold]
+    assert starts
+    unsafe = Plan(work.snapshot.version, tuple(starts), safe=False, min_separation_m=0.0)
+    fleet.apply(unsafe, work)
+    assert fleet.outcomes[Outcome.UNSAFE] == len(starts) and not fleet.orders
+    fleet.apply(first, work)
+    assert fleet.outcomes[Outcome.APPLIED] == len(first.decisions)
+    fleet.apply(first, work)  # the same decisions again: the tasks are no longer queued
+    assert fleet.outcomes[Outcome.STALE] == len(first.decisions)
+    assert fleet.outcomes[Outcome.APPLIED] == len(first.decisions)
+
+
+def test_a_fixed_law_that_blocks_fails_with_the_limit_as_makespan_and_no_path_ratio() -> None:
+    """ccw on a right-hand swap: the robots meet head on and never park (the bench's own
+    case where a simple rule breaks); the planner gets them both home."""
+    scenario = swap(2, "right")
+    blocked = run_closed_loop(scenario, "ccw", time_limit_s=60.0)
+    assert blocked.success_rate == 0.0
+    assert blocked.makespan_s == 60.0
+    assert math.isnan(blocked.path_ratio)  # over tasks that arrived: none did
+    assert blocked.outcomes[Outcome.APPLIED] == 2  # both assigned, through the ledger
+    planned = run_closed_loop(scenario, "auto", plan, time_limit_s=60.0)
+    assert planned.success_rate == 1.0 and planned.collisions == 0
+    assert planned.makespan_s < 60.0 and planned.path_ratio >= 1.0
+
+
+def test_a_decision_names_its_robot_and_law_in_what_the_robot_is_told() -> None:
+    fleet = OfflineFleet(swap(2, "left"))
+    fleet.submit_arrived()
+    work = fleet.snapshot()
+    task = work.snapshot.tasks[0]
+    robot = work.snapshot.robots[0].robot_id
+    decision = TaskDecision(task.task_id, robot, "assign", "cw", task.revision, start_delay_s=1.0)
+    fleet.apply(Plan(work.snapshot.version, (decision,), safe=True, min_separation_m=1.0), work)
+    order = fleet.orders[robot].assignment
+    assert (order.task_id, order.law, order.start_delay_s) == (task.task_id, "cw", 1.0)
+    assert fleet.state(robot).mode == "waiting"  # its start delay runs in simulated time
+    fleet.step(1.0)
+    assert fleet.state(robot).mode in ("driving", "avoiding", "arrived")
+    assert fleet.tasks[task.task_id].status is TaskStatus.DRIVING

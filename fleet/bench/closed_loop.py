@@ -256,6 +256,7 @@ class OfflineFleet:
             time_scale=1.0,
             avoided=self.ledger.avoided(),
             acknowledged_s=acked,
+            pinned=self.ledger.pinned(),
         )
 
     def apply(self, plan: Plan, work: PlanInput) -> None:

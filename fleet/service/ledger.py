@@ -17,13 +17,16 @@ Task life cycle::
     assigned/driving/waiting -> queued again when the robot is lost and ``on_robot_lost ==
     "requeue"``, when it is decommissioned, or as the third recovery of a stuck robot
                                 (planned for another robot: :meth:`TaskLedger.avoided`)
-    driving -> driving (revision + 1) as a recovery of a stuck robot (flip the law, or wait)
+    driving -> waiting (revision + 1, held) as a recovery of a stuck robot (flip the law,
+               or wait), until a plan resumes it
 
 Operator holds (:meth:`TaskLedger.hold_robot`): while an operator holds a robot still
-(paused or e-stopped, as asked or as it reports), its task keeps its status, its timeout
-does not run (the deadline moves on by the time held), it is not stuck, and the planner
-sees it standing; the hold and its end are stored in the task's history
-(``operator_hold`` / ``operator_release``, with the reason).
+(paused or e-stopped, as asked or as it reports), its task is held (a revision with
+``hold``, ``waiting``), its timeout does not run (the deadline moves on by the time held),
+it is not stuck, and the planner sees it standing; the hold and its end are stored in the
+task's history (``operator_hold`` / ``operator_release``, with the reason). When the
+operator lets go, the robot stands until a plan resumes it, so a robot is started or moved
+only by a decision that passed the plan's check (:meth:`TaskLedger.apply`).
 
 Stuck robots (:mod:`~fleet.service.stuck`): every state of a robot driving its task feeds
 its progress watch; :meth:`TaskLedger.stuck` lists the tasks with no progress for
@@ -38,7 +41,10 @@ The plan's decisions (:class:`fleet.core.planner.TaskDecision`) are applied by
 ``revise`` stores ``revision + 1`` with the new law, delay or hold (a flip, a hold, a
 resume); ``keep`` sends nothing. A decision made on a task that has since changed (another
 revision, robot or status family) is :attr:`Outcome.STALE` and dropped; a decision that would
-start or resume a robot in a plan predicted unsafe is :attr:`Outcome.UNSAFE` and dropped.
+start, resume or re-plan a moving robot (a new law or start delay) in a plan predicted
+unsafe is :attr:`Outcome.UNSAFE` and dropped (holding is always allowed); a decision that
+would start a robot an operator holds still changes nothing (``unchanged``): a plan after
+the release starts it.
 
 Indexes kept on every transition, so no hot path walks every task: queued tasks, tasks
 under way (with a robot), the task of each robot, claims (active tasks naming or holding a
@@ -65,6 +71,7 @@ from fleet.core.params import Avoidance
 from fleet.core.planner.model import TaskDecision
 from fleet.core.site import Site
 from fleet.core.tasks import Task, TaskEvent, TaskNotFound, TaskStatus
+from fleet.core.types import Law
 from fleet.core.wire import CancelAssignment, ParkAssignment, RobotMode, RobotState
 from fleet.io.settings import Settings
 from fleet.service.bays import BayBook
@@ -79,6 +86,8 @@ _MOVING = frozenset({RobotMode.DRIVING, RobotMode.AVOIDING})
 _STILL_ON_PURPOSE = frozenset({RobotMode.WAITING, RobotMode.PAUSED, RobotMode.ESTOP})
 #: How many finished task ids are remembered for stray robots.
 FINISHED_REMEMBERED = 10_000
+#: The reason of a task whose robot an operator let go, until a plan resumes it.
+RELEASED_REASON = "released by the operator: waiting for the next plan"
 #: [s] between re-sends of an unacknowledged assignment (and, by the service, of a cancel).
 RESEND_INTERVAL_S = 0.2
 _NEVER = float("-inf")
@@ -88,9 +97,9 @@ class Outcome(StrEnum):
     """What became of one decision of a plan."""
 
     APPLIED = "applied"  # stored, then sent
-    UNCHANGED = "unchanged"  # same as what the robot has: nothing sent
+    UNCHANGED = "unchanged"  # same as what the robot has (or operator-held): nothing sent
     STALE = "stale"  # the task changed since the snapshot: dropped
-    UNSAFE = "unsafe"  # would start or resume a robot in a plan predicted unsafe: dropped
+    UNSAFE = "unsafe"  # would move a robot in a plan predicted unsafe: dropped
 
 
 @dataclass(frozen=True)
@@ -178,6 +187,7 @@ class TaskLedger:
         self.stuck_watch = StuckWatch(config.stuck_after_s)  # progress of tasks under way
         self._held: dict[str, str] = {}  # robots an operator holds still -> why
         self._avoid: dict[str, str] = {}  # task -> robot it was taken from (stuck)
+        self._pinned: dict[str, Law] = {}  # task under way -> the law a recovery chose
         self._active: dict[str, Task] = {}  # every non-final task, by id
         self._queued: dict[str, Task] = {}
         self._under_way: dict[str, Task] = {}  # assigned, driving, waiting (with a robot)
@@ -239,6 +249,11 @@ class TaskLedger:
         """Queued tasks taken from a stuck robot -> that robot (the planner gives them to
         another robot if it can)."""
         return {tid: rid for tid, rid in self._avoid.items() if tid in self._queued}
+
+    def pinned(self) -> dict[str, Law]:
+        """Tasks under way whose law a stuck recovery flipped -> that law (the planner
+        keeps it: the robot was stuck with the other)."""
+        return dict(self._pinned)
 
     def acknowledged_at(self) -> dict[str, float]:
         """Tasks under way whose robot reports their current revision -> when it first did
@@ -312,6 +327,7 @@ class TaskLedger:
         self.bays.release(task.id)
         self.stuck_watch.forget(task.id)
         self._avoid.pop(task.id, None)
+        self._pinned.pop(task.id, None)
         self._tracking.pop(task.id, None)
         self.paths.finish(task.id)
         self._finished[task.id] = task.status
@@ -447,9 +463,11 @@ class TaskLedger:
             if decision.corridor:
                 track.corridor = self._corridor(task.revision, decision, origin_seq)
             return Outcome.UNCHANGED, []
+        if task.robot_id in self._held and not decision.hold:
+            return Outcome.UNCHANGED, []  # an operator holds it: a plan after the release
         resumes = task.hold and not decision.hold
-        if resumes and not plan_safe:
-            return Outcome.UNSAFE, []
+        if not decision.hold and not plan_safe:
+            return Outcome.UNSAFE, []  # it would start, resume or re-route a robot
         reason: str | None
         if decision.hold:
             status, reason, event = TaskStatus.WAITING, self._hold_reason(decision), "held"
@@ -582,6 +600,7 @@ class TaskLedger:
             revision=task.revision + 1,
         )
         self._tracking.pop(task.id, None)
+        self._pinned.pop(task.id, None)  # another robot may take it: its own best law
         effects: Effects = []
         self._transition(requeued, event, effects)
         if stop_robot and task.robot_id is not None:
@@ -601,7 +620,10 @@ class TaskLedger:
 
     def hold_robot(self, robot_id: str, why: str, now: float, wall: float) -> Effects:
         """An operator holds the robot still (paused or e-stopped): its task's timeout stops
-        and it is not stuck; stored in the task's history (``operator_hold``)."""
+        and it is not stuck; stored in the task's history (``operator_hold``). A task under
+        way and not held already gets a held revision (``hold``, sent; the agent applies
+        assignments while paused), so when the operator lets go the robot stands until a
+        plan resumes it through the plan's safety check (:meth:`apply`)."""
         if robot_id in self._held:
             return []
         self._held[robot_id] = why
@@ -612,12 +634,26 @@ class TaskLedger:
         track = self._tracking[task.id]
         track.held_at, track.reason_before_hold = now, task.reason
         effects: Effects = []
-        self._transition(self._update(task, wall, reason=why), "operator_hold", effects)
+        if task.hold:
+            self._transition(self._update(task, wall, reason=why), "operator_hold", effects)
+            return effects
+        held = self._update(
+            task,
+            wall,
+            status=TaskStatus.WAITING,
+            reason=why,
+            hold=True,
+            revision=task.revision + 1,
+        )
+        self._transition(held, "operator_hold", effects)
+        track.sent_at, track.corridor = now, None
+        effects.append(Publish(assignment_of(held, self.config.avoidance)))
         return effects
 
     def release_robot(self, robot_id: str, now: float, wall: float) -> Effects:
         """The operator's hold on the robot ended: its task's deadline moves on by the time
-        held, its progress window restarts; stored (``operator_release``)."""
+        held, its progress window restarts; stored (``operator_release``). The task stays
+        held (:meth:`hold_robot`) until a plan resumes it."""
         if self._held.pop(robot_id, None) is None:
             return []
         self._version += 1
@@ -628,6 +664,8 @@ class TaskLedger:
         if track.held_at is not None:
             track.deadline += now - track.held_at
         reason, track.held_at, track.reason_before_hold = track.reason_before_hold, None, None
+        if task.hold:
+            reason = RELEASED_REASON if reason is None else f"{reason} ({RELEASED_REASON})"
         self.stuck_watch.start(task.id, now)
         effects: Effects = []
         self._transition(self._update(task, wall, reason=reason), "operator_release", effects)
@@ -652,11 +690,13 @@ class TaskLedger:
 
     def recover_stuck(self, task_id: str, cause: str, now: float, wall: float) -> Effects:
         """The next recovery of a stuck task (:data:`~fleet.service.stuck.RECOVERIES`):
-        ``flip`` -- a new revision with the other law (``auto`` tasks; else it waits);
-        ``wait`` -- a new revision with a start delay of a third of the window, so a peer
-        passes; ``requeue`` -- queued again, its robot told to stop, planned for another
-        robot if there is one; after the last the task fails. ``cause`` (what the service
-        sees) goes into the reason and the history (``recovery``)."""
+        ``flip`` -- a held revision with the other law (``auto`` tasks; else as ``wait``),
+        the law pinned for the planner (:meth:`pinned`); ``wait`` -- a held revision, so a
+        peer passes; either way the robot stands until a plan resumes it through the plan's
+        check (:meth:`apply`), with the start delay the plan chooses. ``requeue`` -- queued
+        again, its robot told to stop, planned for another robot if there is one; after
+        the last the task fails. ``cause`` (what the service sees) goes into the reason and
+        the history (``recovery``)."""
         task = self._under_way[task_id]
         assert task.robot_id is not None and task.law is not None
         step = self.stuck_watch.next_recovery(task_id, now)
@@ -669,14 +709,14 @@ class TaskLedger:
             return self._requeue(task, reason, "recovery", wall, stop_robot=True)
         law = task.law
         if step == "flip" and task.request.direction == "auto":
-            law = "cw" if task.law == "ccw" else "ccw"
-        delay = 0.0 if law != task.law else self.config.stuck_after_s / 3
+            law = self._pinned[task_id] = "cw" if task.law == "ccw" else "ccw"
         revised = self._update(
             task,
             wall,
+            status=TaskStatus.WAITING,
             law=law,
-            start_delay_s=delay,
-            hold=False,
+            start_delay_s=0.0,
+            hold=True,
             revision=task.revision + 1,
             reason=reason,
         )

@@ -57,6 +57,7 @@ class PlannerGlue(ServiceState):
             tasks = list(self._ledger.active.values())
             held = set(self._ledger.held)
             avoided = self._ledger.avoided()
+            pinned = self._ledger.pinned()
             acknowledged = {t: now - at for t, at in self._ledger.acknowledged_at().items()}
             obstacles = list(self._obstacles)
             version = self._snapshot_version()
@@ -75,6 +76,7 @@ class PlannerGlue(ServiceState):
             held,
             avoided,
             acknowledged,
+            pinned,
         )
 
     def _apply_plan(self, plan: Plan, work: PlanInput) -> None:

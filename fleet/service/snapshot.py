@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from fleet.core.params import RobotProfile
 from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.tasks import RobotStatus, Task, TaskStatus
-from fleet.core.types import LAWS
+from fleet.core.types import LAWS, Law
 from fleet.core.wire import Obstacle, RobotState
 from fleet.io.settings import Settings
 
@@ -58,14 +58,18 @@ def worth_planning(robots: Sequence[RobotFacts], tasks: Sequence[Task]) -> bool:
 
 
 def _task_snapshot(
-    task: Task, held: Collection[str], avoided: Mapping[str, str], running_s: Mapping[str, float]
+    task: Task,
+    held: Collection[str],
+    avoided: Mapping[str, str],
+    running_s: Mapping[str, float],
+    pinned: Mapping[str, Law],
 ) -> TaskSnapshot:
     request = task.request
     under_way = task.status.under_way
     return TaskSnapshot(
         task_id=task.id,
         goal=request.goal.as_tuple(),
-        direction=request.direction,
+        direction=pinned.get(task.id, request.direction),
         gains={law: request.gains_for(law) for law in LAWS},
         tolerance=request.tolerance,
         status=task.status,
@@ -94,12 +98,14 @@ def planning_input(
     held: Collection[str] = (),
     avoided: Mapping[str, str] | None = None,
     acknowledged_s: Mapping[str, float] | None = None,
+    pinned: Mapping[str, Law] | None = None,
 ) -> PlanInput:
     """The planner's snapshot (robots sorted by id, tasks oldest first). ``held``: robots an
     operator holds still (their tasks stand, ``hold``); ``avoided``: queued task -> the
     stuck robot it was taken from; ``acknowledged_s``: task under way -> how long ago [s,
     monotonic] its robot first reported the current revision (so the planner knows how much
-    of the start delay is left, in robot time)."""
+    of the start delay is left, in robot time); ``pinned``: task under way -> the law a
+    stuck recovery chose (the planner may only use it)."""
     hz = settings.control_rate_hz
     running = {tid: ago * time_scale for tid, ago in (acknowledged_s or {}).items()}
     robot_snaps = []
@@ -124,7 +130,7 @@ def planning_input(
         version=version,
         robots=tuple(robot_snaps),
         tasks=tuple(
-            _task_snapshot(t, held, avoided or {}, running)
+            _task_snapshot(t, held, avoided or {}, running, pinned or {})
             for t in sorted(tasks, key=lambda t: t.created_at)
         ),
         obstacles=tuple(obstacles),

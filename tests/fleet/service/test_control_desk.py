@@ -10,6 +10,7 @@ import pytest
 from fleet.core.tasks import GoalRejected, RobotNotFound, Task, TaskConflict, TaskStatus
 from fleet.core.wire import ControlAction, ControlCommand, Hold, Pose, RobotMode, RobotState
 from fleet.service.control_desk import RESEND_S, ControlDesk, ControlState
+from fleet.service.ledger import RELEASED_REASON
 from fleet.service.store import MemoryTaskStore, SqliteTaskStore
 from tests.fleet.service.conftest import Fleet, ScriptedPlanner, assign_queued, req
 
@@ -90,12 +91,18 @@ def test_estopped_robots_keep_their_tasks_without_timeout_and_take_no_new_ones(
     for _ in range(5):
         fleet.clock.advance(20.0)  # 100 s > task_timeout_s
         fleet.service.tick()
-    assert fleet.service.task(task.id).status is TaskStatus.DRIVING
+    held = fleet.service.task(task.id)
+    assert (held.status, held.hold, held.revision) == (TaskStatus.WAITING, True, 1)
+    assert fleet.parks("r1")[-1].hold  # sent: after the release it stands until a plan
     assert fleet.service.task(other.id).status is TaskStatus.QUEUED  # nobody free to take it
     fleet.service.control(ControlAction.RELEASE)
+    assert fleet.service.task(task.id).hold  # the release itself starts nothing
+    fleet.robot("r1", 0.1, 0.0, mode=RobotMode.WAITING, task_id=task.id, revision=1)
     fleet.robot("r2", 5.0, 5.0, mode=RobotMode.IDLE)
     fleet.service.tick()
     assert fleet.service.task(other.id).status is TaskStatus.ASSIGNED
+    resumed = fleet.parks("r1")[-1]  # the plan after the release resumed it
+    assert (resumed.task_id, resumed.revision, resumed.hold) == (task.id, 2, False)
     assert fleet.service.counters["estops_requested"] == 1
 
 
@@ -190,11 +197,11 @@ def test_holds_are_in_the_history_the_plan_and_resent_to_late_joiners() -> None:
         fleet.service.control(ControlAction.RESUME)
         held_reason = "paused by the operator: lunch"
         assert fleet.service.task(task.id).reason == held_reason  # it still reports paused
-        fleet.robot("r1", 0.1, 0.0, mode=RobotMode.DRIVING, task_id=task.id)
+        fleet.robot("r1", 0.1, 0.0, mode=RobotMode.WAITING, task_id=task.id, revision=1)
         rows = [(event, t.reason) for _, event, t in fleet.service.history(task.id)]
         assert rows[-2:] == [
             ("operator_hold", held_reason),
-            ("operator_release", None),
+            ("operator_release", RELEASED_REASON),  # it stands until a plan resumes it
         ]
     finally:
         fleet.service.close()
@@ -254,5 +261,5 @@ def test_commands_of_other_tools_are_taken_up_in_their_order(fleet: Fleet) -> No
     fleet.clock.advance(1.0)
     fleet.robot("r2", 5.0, 5.0)  # not e-stopped: nothing is re-sent any more
     assert len(fleet.bus.controls) == 1
-    assert fleet.service.task(task.id).reason is None
+    assert fleet.service.task(task.id).reason == RELEASED_REASON  # until a plan resumes it
     assert fleet.service.counters["control_adopted"] == 2

@@ -10,7 +10,7 @@ from fleet.core.planner import TaskDecision
 from fleet.core.tasks import Task, TaskEvent, TaskNotFound, TaskRequest, TaskStatus
 from fleet.core.wire import CancelAssignment, ParkAssignment, Pose, RobotMode, RobotState
 from fleet.service.effects import Effects, Notify, Publish, StoreWrite
-from fleet.service.ledger import LedgerConfig, Outcome, TaskLedger
+from fleet.service.ledger import RELEASED_REASON, LedgerConfig, Outcome, TaskLedger
 
 WALL = 1.7e9
 
@@ -175,9 +175,14 @@ def test_an_unsafe_plan_never_starts_or_resumes_a_robot(ledger: TaskLedger) -> N
     assert outcome(assign("t1", "r1", hold=True)) is Outcome.APPLIED  # holding is safe
     assert outcome(TaskDecision("t1", "r1", "revise", "cw", revision=0)) is Outcome.UNSAFE
     assert ledger.active["t1"].hold
-    # A robot already moving may be flipped in an unsafe plan (it does not start anything).
-    applied(ledger, assign("t2", "r2", law="ccw"))
-    assert outcome(TaskDecision("t2", "r2", "revise", "cw", revision=0)) is Outcome.APPLIED
+    # Nor is a robot already moving re-planned by it (a new law or a shorter start delay
+    # moves it otherwise than the last checked plan); it may be held.
+    applied(ledger, assign("t2", "r2", law="ccw", start_delay_s=5.0))
+    assert outcome(TaskDecision("t2", "r2", "revise", "cw", revision=0)) is Outcome.UNSAFE
+    assert outcome(TaskDecision("t2", "r2", "revise", "ccw", revision=0)) is Outcome.UNSAFE
+    assert ledger.active["t2"].start_delay_s == 5.0
+    hold = TaskDecision("t2", "r2", "revise", "ccw", revision=0, hold=True)
+    assert outcome(hold) is Outcome.APPLIED
 
 
 def test_resends_until_acknowledged_and_timeouts_stop_the_robot(ledger: TaskLedger) -> None:
@@ -284,14 +289,23 @@ def test_an_operator_hold_stops_the_timeout_and_is_stored_with_the_reason(
     applied(ledger, assign("t1", "r1"), now=0.0)  # deadline 30 s
     ledger.observe(state("r1", "t1", RobotMode.DRIVING), 1.0, WALL)
     effects = ledger.hold_robot("r1", "emergency stop by cli: drill", 10.0, WALL + 10)
-    assert kinds(effects) == ["store:operator_hold", "notify:driving"]
-    assert ledger.active["t1"].reason == "emergency stop by cli: drill"
+    # a held revision, sent: let go, the robot stands until a plan resumes it
+    assert kinds(effects) == ["store:operator_hold", "notify:waiting", "publish:park"]
+    held = ledger.active["t1"]
+    assert (held.reason, held.hold, held.revision) == ("emergency stop by cli: drill", True, 1)
     assert ledger.hold_robot("r1", "again", 11.0, WALL) == []  # held once
     assert ledger.timeouts(100.0, WALL + 100) == []  # no deadline while held
+    start = TaskDecision("t1", "r1", "revise", "cw", revision=1)
+    outcome, _ = ledger.apply(
+        start, robot_available=False, plan_safe=True, origin_seq=None, now=50.0, wall=WALL
+    )
+    assert outcome is Outcome.UNCHANGED  # an operator holds it: no plan starts it
     effects = ledger.release_robot("r1", 100.0, WALL + 100)
-    assert kinds(effects) == ["store:operator_release", "notify:driving"]
-    assert ledger.active["t1"].reason is None and dict(ledger.held) == {}
+    assert kinds(effects) == ["store:operator_release", "notify:waiting"]
+    assert ledger.active["t1"].reason == RELEASED_REASON and dict(ledger.held) == {}
     assert ledger.release_robot("r1", 101.0, WALL) == []
+    assert kinds(applied(ledger, start, now=101.0)) == ["store:resumed", "notify:assigned",
+                                                         "publish:park"]  # fmt: skip
     # 10 s ran before the hold: the deadline moved on by the 90 s held, to 120 s.
     assert ledger.timeouts(119.9, WALL) == [] and ledger.timeouts(120.0, WALL)
 
@@ -323,26 +337,43 @@ def test_a_stuck_task_is_recovered_in_order_then_failed() -> None:
     assert ledger.stuck(29.0) == [] and [t.id for t in ledger.stuck(30.0)] == ["t1"]
 
     effects = ledger.recover_stuck("t1", "a peer in the way", 30.0, WALL)
-    assert kinds(effects) == ["store:recovery", "notify:driving", "publish:park"]
+    # a held revision with the other law: the robot stands until a plan resumes it
+    assert kinds(effects) == ["store:recovery", "notify:waiting", "publish:park"]
     t = ledger.active["t1"]
-    assert (t.law, t.revision, t.start_delay_s) == ("cw", 1, 0.0)
+    assert (t.law, t.revision, t.hold, t.status) == ("cw", 1, True, TaskStatus.WAITING)
     assert t.reason == "stuck: a peer in the way; recovery 1: flip"
-    ledger.observe(state("r1", "t1", RobotMode.WAITING, seq=2, revision=1), 45.0, WALL)
-    assert ledger.stuck(74.0) == []  # standing still on purpose restarts the window
-    ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=3, revision=1), 46.0, WALL)
+    assert ledger.pinned() == {"t1": "cw"}  # the planner keeps the flipped law
+    assert ledger.stuck(1000.0) == []  # held on purpose: not stuck
+
+    def resume(revision: int, now: float, safe: bool = True) -> Outcome:
+        decision = TaskDecision("t1", "r1", "revise", "cw", revision=revision)
+        return ledger.apply(
+            decision, robot_available=False, plan_safe=safe, origin_seq=None, now=now, wall=WALL
+        )[0]
+
+    assert resume(1, 31.0, safe=False) is Outcome.UNSAFE  # only a checked plan starts it
+    assert resume(1, 31.0) is Outcome.APPLIED
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=3, revision=2), 46.0, WALL)
     (stuck,) = ledger.stuck(76.0)
     ledger.recover_stuck(stuck.id, "no progress", 76.0, WALL)
-    assert ledger.active["t1"].start_delay_s == 10.0  # wait: a third of the window
+    t = ledger.active["t1"]
+    assert (t.law, t.revision, t.hold) == ("cw", 3, True)  # wait: held, the same law
+    assert t.reason == "stuck: no progress; recovery 2: wait"
+    assert resume(3, 77.0) is Outcome.APPLIED
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=4, revision=4), 78.0, WALL)
 
-    effects = ledger.recover_stuck("t1", "no progress", 106.0, WALL)
+    (stuck,) = ledger.stuck(108.0)
+    effects = ledger.recover_stuck("t1", "no progress", 108.0, WALL)
     assert kinds(effects) == ["store:recovery", "notify:queued", "publish:cancel"]
-    assert ledger.avoided() == {"t1": "r1"}
-    applied(ledger, assign("t1", "r2", revision=3), now=107.0)
+    assert ledger.avoided() == {"t1": "r1"} and ledger.pinned() == {}  # another robot: free
+    applied(ledger, assign("t1", "r2", revision=5), now=109.0)
     assert ledger.avoided() == {}  # under way again: nothing to avoid in a plan
-    ledger.hold_robot("r2", "paused", 108.0, WALL)
+    ledger.hold_robot("r2", "paused", 110.0, WALL)
     assert ledger.stuck(1000.0) == []  # held: not stuck
     ledger.release_robot("r2", 1000.0, WALL)
-    ledger.observe(state("r2", "t1", RobotMode.DRIVING, seq=4, revision=3), 1000.0, WALL)
+    assert ledger.stuck(1030.0) == []  # let go, it stands held until a plan resumes it
+    applied(ledger, TaskDecision("t1", "r2", "revise", "cw", revision=6), now=1000.0)
+    ledger.observe(state("r2", "t1", RobotMode.DRIVING, seq=5, revision=7), 1000.0, WALL)
     (stuck,) = ledger.stuck(1030.0)
     effects = ledger.recover_stuck(stuck.id, "no progress", 1030.0, WALL)
     assert kinds(effects) == ["store:failed", "notify:failed", "publish:cancel"]

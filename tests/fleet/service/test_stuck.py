@@ -87,28 +87,36 @@ def test_a_stuck_task_is_flipped_then_delayed_then_requeued_to_another_robot_the
         fleet.service.tick()
 
     stand_still("r1", 0)
+    # the recovery holds the robot with the other law; the plan it asks for resumes it
+    # (a checked plan, the flipped law kept)
+    held, resumed = fleet.parks("r1")[-2:]
+    assert (held.revision, held.hold, held.law) == (1, True, resumed.law)
+    assert (resumed.revision, resumed.hold) == (2, False) and resumed.law != assigned.law
     flipped = fleet.service.task(task.id)
-    assert flipped.law != assigned.law and flipped.revision == 1
-    assert flipped.reason == "stuck: a peer in the way: r2 at 0.80 m; recovery 1: flip"
-    assert fleet.parks("r1")[-1].revision == 1 and fleet.parks("r1")[-1].start_delay_s == 0.0
+    assert (flipped.law, flipped.revision) == (resumed.law, 2)
+    (recovery,) = [t for _, e, t in fleet.service.history(task.id) if e == "recovery"]
+    assert recovery.reason == "stuck: a peer in the way: r2 at 0.80 m; recovery 1: flip"
+    (seen,) = [t for t in planner.snapshots[-1].tasks if t.task_id == task.id]
+    assert seen.direction == resumed.law  # pinned: the planner may only use the flipped law
 
-    stand_still("r1", 1)
+    stand_still("r1", 2)
+    held, resumed = fleet.parks("r1")[-2:]
+    assert (held.revision, held.hold) == (3, True) and resumed.revision == 4
     waited = fleet.service.task(task.id)
-    assert waited.law == flipped.law and waited.revision == 2
-    assert fleet.parks("r1")[-1].start_delay_s == pytest.approx(WINDOW / 3)
+    assert waited.law == flipped.law and waited.revision == 4
 
     fleet.robot("r2", 0.0, 4.0)  # the peer moved on, out of r1's way
-    stand_still("r1", 2)
+    stand_still("r1", 4)
     fleet.service.tick()  # planned: to the other robot, although r1 is free again
     (seen,) = [t for t in planner.snapshots[-1].tasks if t.task_id == task.id]
     assert seen.avoid_robot == "r1"  # a planner input: give it to another robot if any
     moved = fleet.service.task(task.id)
     assert moved.robot_id == "r2" and moved.status is TaskStatus.ASSIGNED
-    assert moved.attempts == 2 and moved.revision == 3  # a requeue is a new revision
+    assert moved.attempts == 2 and moved.revision == 5  # a requeue is a new revision
     assert fleet.cancels("r1")[-1].task_id == task.id
 
     for _ in range(3):
-        fleet.robot("r2", 0.0, 4.0, mode=RobotMode.DRIVING, task_id=task.id, revision=3)
+        fleet.robot("r2", 0.0, 4.0, mode=RobotMode.DRIVING, task_id=task.id, revision=5)
         fleet.clock.advance(WINDOW / 2)
     fleet.service.tick()
     failed = fleet.service.task(task.id)

@@ -9,6 +9,9 @@ distinct goals 1.5 m apart (the yard is widened to 200 m x 200 m so thousands fi
 each request from send to the 201.
 Client, server and robots share this machine, so their CPU is part of the numbers; the
 CPU of each (1.0 = one core) is reported. ``--robots 0`` gives the idle-server figure.
+``planners``: where the server plans -- ``thread`` (the default of ``parkfleet serve``) or
+``process`` (``Settings.planner_process``: fleet/service/planner_process.py); both: one
+server each, one after the other in the same run, so their figures compare.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ import statistics
 import subprocess
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -84,7 +87,11 @@ async def post_all(
     return latencies, statuses, wall
 
 
+PLANNERS = ("thread", "process")
+
+
 class BenchResult(BaseModel):
+    planner: str = "thread"  # where the server planned (PLANNERS)
     requests: int
     concurrency: int
     robots: int
@@ -159,11 +166,19 @@ def measure(
     warmup: int = 200,
     robots: int = ROBOTS,
     rate: float = RATE_HZ,
+    planner: str = "thread",
 ) -> BenchResult:
-    """Start a server and its robots, warm up, then time ``requests`` POSTs."""
+    """Start a server (planning on ``planner``) and its robots, warm up, then time
+    ``requests`` POSTs."""
+    if planner not in PLANNERS:
+        raise ValueError(f"planner must be one of {', '.join(PLANNERS)}")
     token = "bench-token"
     headers = {"Authorization": f"Bearer {token}"}
-    env = {"PARKFLEET_YARD": json.dumps(YARD), "PARKFLEET_API_TOKEN": token}
+    env = {
+        "PARKFLEET_YARD": json.dumps(YARD),
+        "PARKFLEET_API_TOKEN": token,
+        "PARKFLEET_PLANNER_PROCESS": str(planner == "process").lower(),
+    }
     if robots > (YARD[1] - YARD[0] - 3.0) / 3.0:
         raise ValueError(f"at most {int((YARD[1] - YARD[0] - 3.0) / 3.0)} robots fit the row")
     bodies = [{"goal": g} for g in goals(warmup + requests, start=FREE_ROWS * GRID_SIDE)]
@@ -186,6 +201,7 @@ def measure(
     q = statistics.quantiles(latencies, n=100, method="inclusive")
     created = statuses.get(201, 0)
     return BenchResult(
+        planner=planner,
         requests=requests,
         concurrency=concurrency,
         robots=robots,
@@ -209,31 +225,45 @@ def run(
     as_json: bool = False,
     robots: int = ROBOTS,
     rate: float = RATE_HZ,
+    planners: Sequence[str] = ("thread",),
 ) -> int:
     if requests < 2 or concurrency < 1 or robots < 0:
         raise ValueError(
             "--requests must be at least 2, --concurrency at least 1, --robots at least 0"
         )
-    r = measure(requests, concurrency, robots=robots, rate=rate)
+    results = [
+        measure(requests, concurrency, robots=robots, rate=rate, planner=p) for p in planners
+    ]
     if as_json:
-        print(r.model_dump_json())
+        if len(results) == 1:
+            print(results[0].model_dump_json())
+        else:
+            print(json.dumps([r.model_dump(mode="json") for r in results]))
         return 0
     print(
         f"POST /tasks, store on, {concurrency} concurrent clients, {requests} requests, "
         f"{robots} robots streaming state at {rate:g} Hz:"
     )
-    print(f"  created     {r.created} (statuses {r.statuses})")
-    print(
-        f"  throughput  {r.tasks_per_s:.0f} tasks/s  "
-        f"(target >= {TARGET_RATE:.0f}: ratio {r.tasks_per_s / TARGET_RATE:.2f})"
-    )
-    print(
-        f"  latency     p50 {r.p50_ms:.1f} ms   p99 {r.p99_ms:.1f} ms   max {r.max_ms:.1f} ms"
-        f"  (target p99 < {TARGET_P99_MS:.0f} ms: ratio {r.p99_ms / TARGET_P99_MS:.2f})"
-    )
-    print(
-        f"  load        CPU server {r.cpu_server:.2f}, robots {r.cpu_robots:.2f} cores; "
-        f"{r.robots_busy_at_end} of {robots} robots on a task at the end"
-    )
-    print(f"  target met: {'yes' if r.meets_target else 'no'}")
+    for r in results:
+        print(f"planner on a {r.planner}:")
+        print(f"  created     {r.created} (statuses {r.statuses})")
+        print(
+            f"  throughput  {r.tasks_per_s:.0f} tasks/s  "
+            f"(target >= {TARGET_RATE:.0f}: ratio {r.tasks_per_s / TARGET_RATE:.2f})"
+        )
+        print(
+            f"  latency     p50 {r.p50_ms:.1f} ms   p99 {r.p99_ms:.1f} ms   max {r.max_ms:.1f} ms"
+            f"  (target p99 < {TARGET_P99_MS:.0f} ms: ratio {r.p99_ms / TARGET_P99_MS:.2f})"
+        )
+        print(
+            f"  load        CPU server {r.cpu_server:.2f}, robots {r.cpu_robots:.2f} cores; "
+            f"{r.robots_busy_at_end} of {robots} robots on a task at the end"
+        )
+        print(f"  target met: {'yes' if r.meets_target else 'no'}")
+    if len(results) == 2:
+        a, b = results
+        print(
+            f"{b.planner} / {a.planner}: throughput x{b.tasks_per_s / a.tasks_per_s:.2f}, "
+            f"p99 x{b.p99_ms / a.p99_ms:.2f}"
+        )
     return 0

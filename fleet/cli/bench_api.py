@@ -24,6 +24,13 @@ def register(commands: Any, bench: Any) -> None:
     b.add_argument(
         "--rate", type=positive_float, default=50.0, help="their control rate [Hz] (default 50)"
     )
+    b.add_argument(
+        "--planner",
+        choices=("thread", "process", "both"),
+        default="thread",
+        help="where the server plans: on a thread (serve's default), in its own process "
+        "(planner_process), or both, one server after the other (default thread)",
+    )
     b.set_defaults(func=run)
 
 
@@ -36,4 +43,5 @@ def run(args: argparse.Namespace) -> int:
         as_json=args.json,
         robots=args.robots,
         rate=args.rate,
+        planners=("thread", "process") if args.planner == "both" else (args.planner,),
     )

@@ -91,6 +91,7 @@ from fleet.service.ledger import RESEND_INTERVAL_S, TaskLedger, ledger_config
 from fleet.service.operators import OperatorControls
 from fleet.service.outbox import Batch, Listener, Outbox
 from fleet.service.paths import PathSample
+from fleet.service.planner_process import PlannerProcess
 from fleet.service.planner_worker import PlanFunction, PlannerWorker
 from fleet.service.planning import PlannerGlue
 from fleet.service.roster import RobotRecord, Roster
@@ -140,6 +141,10 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             site=settings.site,
         )
         self._outbox = Outbox(store, bus, self._counters, self._holds_lock)
+        #: The planner's own process (``Settings.planner_process``, the default planner).
+        self._planner_process: PlannerProcess | None = None
+        if planner is None and settings.planner_process:
+            planner = self._planner_process = PlannerProcess(plan, self._counters)
         self._planner = PlannerWorker(
             self._take_snapshot,
             planner if planner is not None else plan,
@@ -206,6 +211,8 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=10.0)
         self._planner.close()
+        if self._planner_process is not None:
+            self._planner_process.close()
         self._outbox.close()
         self._bus.close()
 

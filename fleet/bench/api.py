@@ -245,7 +245,7 @@ def run(
         f"{robots} robots streaming state at {rate:g} Hz:"
     )
     for r in results:
-        print(f"planner on a {r.planner}:")
+        print("planner in its own process:" if r.planner == "process" else "planner on a thread:")
         print(f"  created     {r.created} (statuses {r.statuses})")
         print(
             f"  throughput  {r.tasks_per_s:.0f} tasks/s  "

@@ -141,10 +141,11 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             site=settings.site,
         )
         self._outbox = Outbox(store, bus, self._counters, self._holds_lock)
-        #: The planner's own process (``Settings.planner_process``, the default planner).
-        self._planner_process: PlannerProcess | None = None
-        if planner is None and settings.planner_process:
-            planner = self._planner_process = PlannerProcess(plan, self._counters)
+        #: The planner's own process, when it plans there (fleet.service.host opens it):
+        #: its restarts count among the service's counters.
+        self._planner_process = planner if isinstance(planner, PlannerProcess) else None
+        if self._planner_process is not None:
+            self._planner_process.counters = self._counters
         self._planner = PlannerWorker(
             self._take_snapshot,
             planner if planner is not None else plan,
@@ -211,8 +212,6 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=10.0)
         self._planner.close()
-        if self._planner_process is not None:
-            self._planner_process.close()
         self._outbox.close()
         self._bus.close()
 

@@ -4,6 +4,9 @@
 runs the real service (:mod:`fleet.bench.fleet`, :mod:`fleet.bench.zenoh`) open the fleet
 here, so they run the same thing in the same order:
 
+0. the planner's own process (``Settings.planner_process``, off by default:
+   :mod:`fleet.service.planner_process`), spawned first (multiprocessing ``spawn``, a fresh
+   interpreter: safe beside an open Zenoh session, which a fork is not);
 1. the Zenoh session in ``router`` mode (the router the robots connect to), unless one is
    given (a benchmark sharing one router between runs, a test's client session);
 2. the task store, from ``store`` -- the store choice is this one parameter
@@ -25,6 +28,7 @@ from dataclasses import dataclass
 
 import zenoh
 
+from fleet.core.planner import plan
 from fleet.core.wire import Keys
 from fleet.io.heap import HeapTrimmer
 from fleet.io.settings import Settings
@@ -32,6 +36,7 @@ from fleet.io.transport import listening_locators, open_session
 from fleet.service.bus import FleetBus
 from fleet.service.clock import Clock
 from fleet.service.fleet_service import FleetService
+from fleet.service.planner_process import PlannerProcess
 from fleet.service.store import SqliteTaskStore, TaskStore
 from fleet.service.zenoh_bus import ZenohFleetBus
 
@@ -76,6 +81,10 @@ def open_fleet(
     ``wrap_bus``: wraps the Zenoh bus before the service gets it (benchmarks time it).
     """
     with ExitStack() as stack:
+        planner: PlannerProcess | None = None
+        if settings.planner_process:
+            planner = PlannerProcess(plan)
+            stack.callback(planner.close)  # after the service stopped planning
         locators: list[str] = []
         if session is None:
             session = open_session(settings, "router")
@@ -87,7 +96,7 @@ def open_fleet(
         stack.callback(bus.close)
         if wrap_bus is not None:
             bus = wrap_bus(bus)
-        service = FleetService(settings, bus, tasks, clock=clock)
+        service = FleetService(settings, bus, tasks, clock=clock, planner=planner)
         stack.callback(service.close)
         service.start()
         trimmer = HeapTrimmer(settings.heap_trim_interval_s)

@@ -4,7 +4,8 @@
 planner worker's thread calls it with the snapshot, it runs the pure planner
 (:func:`fleet.core.planner.plan`) in one worker process and returns the plan. Waiting on the
 pipe releases the GIL, so request threads, the tick and the Zenoh callbacks run on while it
-plans (``Settings.planner_process``; off: the planner runs on the worker thread).
+plans. :func:`fleet.service.host.open_fleet` opens it when ``Settings.planner_process`` is on
+(off by default: the planner runs on the worker thread).
 
 * The worker is started by multiprocessing ``spawn`` (a fresh interpreter, never a bare
   fork: a forked child of a process with an open Zenoh session hangs) and warmed up at once
@@ -60,7 +61,8 @@ class PlannerProcess:
 
     def __init__(self, plan_fn: PlanFunction, counters: Counters | None = None) -> None:
         self._plan_fn = plan_fn
-        self._counters = counters if counters is not None else Counters()
+        #: Where restarts are counted (``planner_restarts``); the service sets its own.
+        self.counters = counters if counters is not None else Counters()
         self._context = multiprocessing.get_context("spawn")
         self._lock = threading.Lock()  # the pool reference (a restart replaces it)
         self._closed = False
@@ -97,7 +99,7 @@ class PlannerProcess:
         with self._lock:
             if self._closed or self._pool is not broken:
                 return
-        self._counters.add("planner_restarts")
+        self.counters.add("planner_restarts")
         _log.error("the planner process died: restarting it")
         broken.shutdown(wait=False, cancel_futures=True)
         fresh = self._start()

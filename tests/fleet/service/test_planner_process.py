@@ -75,17 +75,23 @@ def test_closing_stops_the_process_and_refuses_plans(snapshot: PlanningSnapshot)
         planner(snapshot)
 
 
-def test_the_service_plans_in_its_own_process_when_asked() -> None:
-    fleet = Fleet(planner_process=True)
+def test_a_service_planning_in_the_process_counts_its_restarts() -> None:
+    process = PlannerProcess(plan)
+    fleet = Fleet(planner=process)
     try:
-        process = fleet.service._planner_process
-        assert process is not None and process.pid is not None
         pid = process.pid
+        assert pid is not None
         fleet.join("r1", 0.0, 0.0)
-        task = fleet.service.submit(req(3.0, 0.0))
+        first = fleet.service.submit(req(3.0, 0.0))
         fleet.service.tick()
-        assert fleet.service.task(task.id).status is TaskStatus.ASSIGNED
-        assert fleet.service.counters["plans"] >= 1
+        assert fleet.service.task(first.id).status is TaskStatus.ASSIGNED
+        os.kill(pid, signal.SIGKILL)
+        fleet.join("r2", 0.0, 3.0)
+        second = fleet.service.submit(req(-3.0, 3.0))
+        fleet.service.tick()
+        assert fleet.service.task(second.id).status is TaskStatus.ASSIGNED
+        assert fleet.service.counters["planner_restarts"] == 1
     finally:
         fleet.service.close()
+        process.close()
     assert not _alive(pid)

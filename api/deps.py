@@ -113,8 +113,12 @@ Authorized = Depends(require_token)
 async def checked_obstacles(
     body: Annotated[ObstaclesIn, Body()], settings: SettingsDep
 ) -> ObstaclesIn:
-    """The obstacle list, every centre checked against the configured yard (422 otherwise)."""
-    errors = yard_errors([(("body", i), o.x, o.y) for i, o in enumerate(body)], settings.yard)
+    """The obstacle list, every centre and wall end checked against the configured yard
+    (422 otherwise)."""
+    points: list[tuple[tuple[str | int, ...], float, float]]
+    points = [(("body", i), o.x, o.y) for i, o in enumerate(body)]
+    points += [(("body", i, "end"), *o.end) for i, o in enumerate(body) if o.end is not None]
+    errors = yard_errors(points, settings.yard)
     if errors:
         raise RequestValidationError(errors)
     return body

@@ -147,8 +147,9 @@ class ControlIn(_In):
 
 
 class ObstacleIn(_In):
-    """A static circular obstacle: centre inside the yard [m], influence radius [m] of
-    Eq. (27) and body radius [m] that robots keep ``contact_margin_m`` from."""
+    """A static obstacle: a post at (x, y), or with ``end`` a wall segment from (x, y) to
+    ``end`` (both inside the yard) [m]; influence radius [m] of Eq. (27) and body radius
+    [m] (a wall's half thickness) that robots keep ``contact_margin_m`` from."""
 
     x: Coordinate
     y: Coordinate
@@ -159,6 +160,10 @@ class ObstacleIn(_In):
         f"{DEFAULT_OBSTACLE_BODY_M} m (a post)",
     )
 
+    end: tuple[Coordinate, Coordinate] | None = Field(
+        default=None, description="[x, y] of a wall segment's far end [m]; omitted: a post"
+    )
+
     @model_validator(mode="after")
     def _body_within_influence(self) -> ObstacleIn:
         if self.body is not None and self.body > self.radius:
@@ -166,7 +171,7 @@ class ObstacleIn(_In):
         return self
 
     def to_obstacle(self) -> Obstacle:
-        return Obstacle(x=self.x, y=self.y, radius=self.radius, body=self.body)
+        return Obstacle(x=self.x, y=self.y, radius=self.radius, body=self.body, end=self.end)
 
 
 ObstaclesIn = Annotated[list[ObstacleIn], Field(max_length=1000)]
@@ -412,10 +417,16 @@ class ObstacleOut(BaseModel):
     y: float
     radius: float = Field(description="influence radius of Eq. (27) [m]")
     body: float = Field(description="body radius [m] (the default when none was given)")
+    end: tuple[float, float] | None = Field(
+        default=None, description="a wall segment's far end [m]; null: a post"
+    )
 
     @classmethod
     def of(cls, obstacle: Obstacle) -> ObstacleOut:
-        return cls(x=obstacle.x, y=obstacle.y, radius=obstacle.radius, body=obstacle.body_radius)
+        return cls(
+            x=obstacle.x, y=obstacle.y, radius=obstacle.radius, body=obstacle.body_radius,
+            end=obstacle.end,
+        )  # fmt: skip
 
 
 class PathPointOut(BaseModel):

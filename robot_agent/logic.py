@@ -135,13 +135,12 @@ def within_tolerance(pose: Sequence[float] | FloatArray, assignment: ParkAssignm
     return bool(step.within_tolerance(x_e, y_e, theta_e, tol.position**2, tol.heading))
 
 
-def obstacle_arrays(obstacles: Sequence[Obstacle]) -> tuple[FloatArray, FloatArray]:
-    """Static obstacles as centres (M, 2) [m] and radii (M, 2) [m]: influence, body."""
-    if not obstacles:
-        return np.zeros((0, 2)), np.zeros((0, 2))
-    centres = np.array([(o.x, o.y) for o in obstacles], dtype=np.float64)
-    radii = np.array([(o.radius, o.body_radius) for o in obstacles], dtype=np.float64)
-    return centres, radii
+def obstacle_arrays(obstacles: Sequence[Obstacle]) -> FloatArray:
+    """Static obstacles as the compiled step's rows (``OBSTACLE_ROWS``, K) [m]: start x, y,
+    influence radius, body radius, end x, y (a post's end is its centre)."""
+    rows = [(o.x, o.y, o.radius, o.body_radius, *o.far_end) for o in obstacles]
+    array = np.array(rows, dtype=np.float64).reshape(-1, step.OBSTACLE_ROWS)
+    return np.ascontiguousarray(array.T)
 
 
 #: No peers: postures (3, 0) and shapes (2, 0).
@@ -181,7 +180,7 @@ def decide(
     pose_age: float,
     task: AgentTask | None,
     peers: tuple[FloatArray, FloatArray],
-    obstacles: tuple[FloatArray, FloatArray],
+    obstacles: FloatArray,
     profile: RobotProfile,
     avoidance: Avoidance,
     pose_stale_s: float,
@@ -205,8 +204,9 @@ def decide(
     peers : (postures (3, M), shapes (2, M))
         Every other robot's last posture (x, y, theta) and its body radius and spread [m]
         (:meth:`robot_agent.world.WorldView.peer_bodies`; never forgotten, even when silent).
-    obstacles : (centres (K, 2), radii (K, 2))
-        Static obstacles, their influence and body radii [m], from :func:`obstacle_arrays`.
+    obstacles : (``OBSTACLE_ROWS``, K)
+        Static posts and wall segments with their influence and body radii [m], from
+        :func:`obstacle_arrays`.
     profile : RobotProfile
         Wheel radius, half axle and wheel-speed limit of this robot.
     avoidance : Avoidance
@@ -244,7 +244,6 @@ def decide(
     limit = profile.max_wheel_speed
     if a.max_wheel_speed is not None:
         limit = min(limit, a.max_wheel_speed)  # never above the robot's own limit
-    centres, radii = obstacles
     hold = task.waiting(now)
     postures, shapes = peers
     result = step.step_robot(
@@ -253,7 +252,7 @@ def decide(
         hold=hold,
         peers=np.ascontiguousarray(postures, dtype=np.float64),
         shapes=np.ascontiguousarray(shapes, dtype=np.float64),
-        obstacles=np.ascontiguousarray(np.vstack([centres.T, radii.T]), dtype=np.float64),
+        obstacles=obstacles,
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius,
         min_x_oa=avoid.min_x_oa,

@@ -33,7 +33,7 @@ class WorldView:
         self._clock = clock
         self._states: dict[str, RobotState] = {}
         self._obstacles: list[Obstacle] = []
-        self._obstacle_arrays: tuple[FloatArray, FloatArray] = obstacle_arrays([])
+        self._obstacle_arrays: FloatArray = obstacle_arrays([])
         self._rows: dict[str, int] = {}  # robot id -> row of _positions
         self._positions: FloatArray = np.zeros((16, self._COLUMNS))
 
@@ -79,8 +79,8 @@ class WorldView:
         with self._lock:
             return dict(self._states)
 
-    def obstacles(self) -> tuple[FloatArray, FloatArray]:
-        """Static obstacle centres (K, 2) and influence radii (K,) [m]."""
+    def obstacles(self) -> FloatArray:
+        """Static obstacles as the compiled step's rows (:func:`obstacle_arrays`)."""
         with self._lock:
             return self._obstacle_arrays
 

@@ -332,7 +332,12 @@ export class YardMap {
 
   drawObstacles(obstacles) {
     const ctx = this.ctx;
+    this.drawn.walls = 0;
     obstacles.forEach((o, i) => {
+      if (o.end) {
+        this.drawWall(o);
+        return;
+      }
       const [cx, cy] = this.toCanvas(o.x, o.y);
       const r = o.radius * this.scale;
       ctx.beginPath();
@@ -358,6 +363,26 @@ export class YardMap {
         ctx.fillText(`obstacle ${i}`, cx, cy + body + 3);
       }
     });
+  }
+
+  /** A wall segment: its influence band, then its body (a thick line with round ends). */
+  drawWall(o) {
+    const ctx = this.ctx;
+    const [ax, ay] = this.toCanvas(o.x, o.y);
+    const [bx, by] = this.toCanvas(o.end[0], o.end[1]);
+    ctx.save();
+    ctx.lineCap = "round";
+    ctx.beginPath();
+    ctx.moveTo(ax, ay);
+    ctx.lineTo(bx, by);
+    ctx.strokeStyle = COLORS.obstacleZone;
+    ctx.lineWidth = 2 * o.radius * this.scale;
+    ctx.stroke();
+    ctx.strokeStyle = COLORS.obstacleCore;
+    ctx.lineWidth = Math.max(3, 2 * (o.body ?? 0) * this.scale);
+    ctx.stroke();
+    ctx.restore();
+    this.drawn.walls += 1;
   }
 
   drawTrails(robots) {

@@ -43,7 +43,7 @@ from fleet.core.params import Avoidance, RobotProfile, SafetyConfig, Tolerance
 from fleet.core.planner import Plan, PlannerConfig, PlanningSnapshot, TaskDecision
 from fleet.core.planner.assign import pair_queued
 from fleet.core.planner.rollout import STANDING_DELAY
-from fleet.core.simulate import BatchProblem, batch_filter, simulate
+from fleet.core.simulate import BatchProblem, batch_filter, obstacle_columns, simulate
 from fleet.core.tasks import DEFAULT_GAINS, RobotStatus, Task, TaskRequest
 from fleet.core.types import Law, Posture
 from fleet.core.wire import CancelAssignment, ParkAssignment, Pose, RobotMode, RobotState
@@ -250,7 +250,7 @@ class OfflineFleet:
             self.ledger.version,
             robots,
             list(self.ledger.active.values()),
-            [o.as_obstacle() for o in self.scenario.obstacles],
+            self.scenario.static_obstacles(),
             self.settings,
             lead_time_s=0.0,
             time_scale=1.0,
@@ -323,9 +323,7 @@ class OfflineFleet:
             cw,
             tolerance=tol,
             profile=self.profile,
-            obstacles=[(o.x, o.y) for o in self.scenario.obstacles],
-            obstacle_radius=[o.radius for o in self.scenario.obstacles],
-            obstacle_body=[o.body for o in self.scenario.obstacles],
+            **obstacle_columns(self.scenario.static_obstacles()),
             k_avoid=self.settings.avoidance.k_avoid,
             peer_radius=self.settings.avoidance.peer_radius,
             min_x_oa=self.settings.avoidance.min_x_oa,
@@ -379,7 +377,7 @@ class OfflineFleet:
         metrics = RunMetrics(
             [self.profile.radius] * n,
             goals,
-            [(o.x, o.y, o.body) for o in self.scenario.obstacles],
+            self.scenario.static_obstacles(),
             MODES,
             t_start=self.first_arrival,
             tasks=legs,
@@ -475,6 +473,10 @@ def mirrored(scenario: Scenario) -> Scenario:
                 for r in scenario.robots
             ],
             "obstacles": [o.model_copy(update={"y": -o.y}) for o in scenario.obstacles],
+            "walls": [
+                w.model_copy(update={"points": [(x, -y) for x, y in w.points]})
+                for w in scenario.walls
+            ],
         }
     )
 

@@ -263,10 +263,6 @@ def arrival_radius(scenario: Scenario) -> float:
     return max(ARRIVAL_RADIUS_M, scenario.tolerance.position + 0.15)
 
 
-def _obstacle_rows(scenario: Scenario) -> list[tuple[float, float, float]]:
-    return [(o.x, o.y, o.body) for o in scenario.obstacles]
-
-
 # -- navground peers -----------------------------------------------------------------------
 
 
@@ -281,7 +277,7 @@ def run_peer_policy(
     metrics = RunMetrics(
         [s.profile.radius] * len(scenario.robots),
         goals_by_robot(scenario, owner),
-        _obstacle_rows(scenario),
+        scenario.static_obstacles(),
         MODES,
         t_end=scenario.end_s,
         arrival_radius_m=arrival_radius(scenario),
@@ -423,7 +419,7 @@ def run_fleet_policy(
             command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )
         stack.callback(terminate, proc, 15)
-        service.set_obstacles([o.as_obstacle() for o in scenario.obstacles])
+        service.set_obstacles(scenario.static_obstacles())
         deadline = time.monotonic() + STARTUP_S
         while len(service.robots()) < len(ids) or clock.now() is None:
             if time.monotonic() > deadline or proc.poll() is not None:
@@ -533,7 +529,7 @@ def _measure_trace(
     metrics = RunMetrics(
         header.radii,
         goals,
-        _obstacle_rows(scenario),
+        scenario.static_obstacles(),
         header.modes,
         t_start=t0,
         t_end=t0 + scenario.end_s,

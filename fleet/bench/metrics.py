@@ -46,6 +46,7 @@ import numpy as np
 import numpy.typing as npt
 
 from fleet.core.types import BoolArray, FloatArray
+from fleet.core.wire import Obstacle
 from fleet.io.trace import NO_MODE, ModeArray, TraceChunk
 
 IntArray = npt.NDArray[np.int64]
@@ -71,6 +72,20 @@ MOVING_SPEED_M_S = 0.02
 STOP_MIN_S = 0.2
 #: Pair-distance entries computed at once (bounds the scratch memory).
 _BLOCK = 1_000_000
+
+
+def segment_distances(xy: FloatArray, starts: FloatArray, ends: FloatArray) -> FloatArray:
+    """Distances [m] (T, N, K) from points ``xy`` (T, N, 2) to the K segments from
+    ``starts`` (K, 2) to ``ends`` (K, 2) (a point where they coincide):
+    :func:`fleet.core.geometry.segment_distance`, vectorised."""
+    edge = ends - starts  # (K, 2)
+    length_sq = (edge * edge).sum(axis=1)  # (K,)
+    rel = xy[:, :, None, :] - starts[None, None, :, :]  # (T, N, K, 2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(length_sq > 0.0, (rel * edge).sum(axis=3) / length_sq, 0.0)
+    t = np.clip(t, 0.0, 1.0)
+    offset = rel - t[..., None] * edge[None, None, :, :]
+    return np.asarray(np.hypot(offset[..., 0], offset[..., 1]))
 
 
 def percentile(values: npt.ArrayLike, q: float) -> float:
@@ -183,16 +198,16 @@ class RunMetrics:
 
     ``radii`` [m] per robot; ``goals`` (N, 3) with NaN rows for robots without a task (a
     robot's last task: path ratio and deadlocks); ``tasks`` (robot index, goal x, goal y)
-    per task, default one per row of ``goals``; ``obstacles`` (K, 3) rows of (x, y, body
-    radius) [m]; ``modes`` the trace's mode names; ticks outside [``t_start``, ``t_end``]
-    are ignored; one tick in ``path_stride`` is kept.
+    per task, default one per row of ``goals``; ``obstacles`` the posts and wall segments
+    (a hit: a body overlapping one's body); ``modes`` the trace's mode names; ticks outside
+    [``t_start``, ``t_end``] are ignored; one tick in ``path_stride`` is kept.
     """
 
     def __init__(
         self,
         radii: Sequence[float],
         goals: FloatArray | Sequence[Sequence[float]],
-        obstacles: FloatArray | Sequence[Sequence[float]],
+        obstacles: Sequence[Obstacle],
         modes: Sequence[str],
         *,
         t_start: float = 0.0,
@@ -214,7 +229,10 @@ class RunMetrics:
         self._leg_driven = np.zeros(n)  # distance driven when the robot's leg began [m]
         self._leg_start: FloatArray | None = None  # (N, 2) where each robot's leg began
         self.arrival_radius_m = arrival_radius_m
-        self.obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
+        #: (K, 5): start x, y, body radius, end x, y [m] of every post and wall segment.
+        self.obstacles = np.array(
+            [(o.x, o.y, o.body_radius, *o.far_end) for o in obstacles], dtype=np.float64
+        ).reshape(-1, 5)
         self._n = n
         self._pairs = np.triu_indices(n, k=1)
         self._radii = np.asarray(radii, dtype=np.float64)
@@ -286,10 +304,8 @@ class RunMetrics:
                 self._touched |= touching.any(axis=0)
                 self._touching = touching[-1]
             if n_obs:
-                centre = np.hypot(
-                    *(xy[:, :, None] - self.obstacles[None, None, :, :2]).transpose(3, 0, 1, 2)
-                )
-                clearance = centre - self._radii[None, :, None] - self.obstacles[None, None, :, 2]
+                core = segment_distances(xy, self.obstacles[:, :2], self.obstacles[:, 3:])
+                clearance = core - self._radii[None, :, None] - self.obstacles[None, None, :, 2]
                 self._min_clear = min(self._min_clear, float(clearance.min()))
                 self._hit |= (clearance < -COLLISION_SLACK_M).any(axis=(0, 2))
 

@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Any, Protocol
 
 import numpy as np
@@ -47,7 +48,7 @@ from scipy.optimize import linear_sum_assignment
 from fleet.bench.scenarios import Scenario
 from fleet.core.params import RobotProfile
 from fleet.core.types import FloatArray
-from fleet.core.wire import Pose, RobotMode
+from fleet.core.wire import Obstacle, Pose, RobotMode
 from fleet.io.trace import TraceChunk
 
 #: Policy name -> navground behaviour type.
@@ -191,6 +192,31 @@ def _wheels(u: float, omega: float, profile: RobotProfile) -> tuple[float, float
     return (right / scale, left / scale) if scale > 1.0 else (right, left)
 
 
+def _navground_obstacles(
+    scenario: Scenario, core: ModuleType
+) -> tuple[list[Any], list[tuple[Any, Obstacle]]]:
+    """The scenario's posts as navground discs, and each wall segment as its outline: the
+    two sides (line segments ``body`` to either side) and a disc at each end -- the same
+    capsule the fleet's filter keeps clear of (navground's lines have no thickness)."""
+    discs: list[Any] = []  # navground.core.Disc
+    lines: list[tuple[Any, Obstacle]] = []  # navground.core.LineSegment
+    for o in scenario.static_obstacles():
+        body = max(o.body_radius, 0.01)
+        (ax, ay), (bx, by) = (o.x, o.y), o.far_end
+        length = math.hypot(bx - ax, by - ay)
+        discs.append(core.Disc((ax, ay), body))
+        if length == 0.0:
+            continue
+        discs.append(core.Disc((bx, by), body))
+        nx, ny = -(by - ay) / length * body, (bx - ax) / length * body
+        for side in (1.0, -1.0):
+            segment = core.LineSegment(
+                (ax + side * nx, ay + side * ny), (bx + side * nx, by + side * ny)
+            )
+            lines.append((segment, o))
+    return discs, lines
+
+
 def run_peer(scenario: Scenario, run: PeerRun) -> Iterator[TraceChunk]:
     """Run ``scenario`` with a navground behaviour on ``run.robots``; yields its ticks until
     every task is done or the time limit (:attr:`Scenario.end_s`) passes. Raises
@@ -223,7 +249,7 @@ def run_peer(scenario: Scenario, run: PeerRun) -> Iterator[TraceChunk]:
         ]
     robots = run.robots.build(starts, profile, run.seed, run.dt)
     clock, drives, link = robots.clock, robots.drives, robots.link
-    discs = [core.Disc((o.x, o.y), max(o.body, 0.01)) for o in scenario.obstacles]
+    discs, lines = _navground_obstacles(scenario, core)
     kinematics = core.kinematics.TwoWheelsDifferentialDriveKinematics(
         max_speed=profile.wheel_radius * profile.max_wheel_speed,
         wheel_axis=2.0 * profile.half_axle,
@@ -296,6 +322,9 @@ def run_peer(scenario: Scenario, run: PeerRun) -> Iterator[TraceChunk]:
                 ]
                 env.static_obstacles = [
                     d for d in discs if math.dist(d.position, (x, y)) <= VIEW_RANGE_M + d.radius
+                ]
+                env.line_obstacles = [
+                    line for line, near in lines if near.distance(x, y) <= VIEW_RANGE_M
                 ]
                 cmd = behaviour.compute_cmd(run.dt)
                 behaviour.actuate(cmd, run.dt)  # its own velocity: the one commanded

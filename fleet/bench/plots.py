@@ -34,6 +34,11 @@ def plot_run(scenario: Scenario, result: RunResult, title: str, path: str | Path
     for o in scenario.obstacles:
         ax.add_patch(Circle((o.x, o.y), o.radius, fill=False, linestyle=":", color="0.6"))
         ax.add_patch(Circle((o.x, o.y), max(o.body, 0.02), color="0.35"))
+    for wall in scenario.walls:
+        points = [*wall.points, wall.points[0]] if wall.closed else wall.points
+        xs, ys = zip(*points, strict=True)
+        # The wall's body: a line as thick as the wall (points: 72 per inch, 8 in per figure).
+        ax.plot(xs, ys, color="0.35", solid_capstyle="round", linewidth=2.0, zorder=1)
     n = result.paths.shape[1] if result.paths.size else len(scenario.robots)
     colours = [f"C{k % 10}" for k in range(n)]
     size = 0.35

@@ -11,7 +11,9 @@ Units: metres, radians, simulated seconds, world frame. ``named``: each task nam
 robot (robot k parks at goal k); otherwise the fleet assigns goals to robots. ``arrival_s``:
 when the task is submitted, after the run's start. Optional fields: ``robots[].id``;
 ``obstacles[].body`` (physical radius [m], default 0.1: what counts as hitting it; ``radius``
-is the influence radius of Eq. 27, as in the API); ``law_gains`` (``{"ccw": {"kx", "ky",
+is the influence radius of Eq. 27, as in the API); ``walls`` (as in a site file:
+``[{"points": [[x, y], ...], "closed": false, "body": 0.05, "radius": 0.3}]``, every edge
+a segment with a body); ``law_gains`` (``{"ccw": {"kx", "ky",
 "ktheta"}, "cw": {...}}``); ``tolerance`` (``{"position", "heading"}``, default 0.1 m /
 0.1 rad); ``time_limit_s`` (default 120: the run stops this long after the last arrival);
 ``family`` and ``seed`` (group seeds of one family in the summary). Built-in scenarios
@@ -51,6 +53,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from fleet.core.goals import Occupied, validate_goal
 from fleet.core.params import Avoidance, Gains, Tolerance
+from fleet.core.site import Wall
 from fleet.core.tasks import GoalRejected
 from fleet.core.types import Law, Posture
 from fleet.core.wire import Obstacle, Pose, RobotId
@@ -107,6 +110,8 @@ class Scenario(BaseModel):
     named: bool = True
     robots: Annotated[list[RobotSpec], Field(min_length=1, max_length=200)]
     obstacles: list[ObstacleSpec] = []
+    #: Walls (polylines, polygons) as in a site file: segments with a body.
+    walls: Annotated[list[Wall], Field(max_length=100)] = []
     law_gains: dict[Law, Gains] | None = None
     tolerance: Tolerance = BENCH_TOLERANCE
     time_limit_s: Annotated[float, Field(gt=0.0, le=3600.0)] = 120.0
@@ -118,7 +123,7 @@ class Scenario(BaseModel):
         ids = self.robot_ids
         if len(set(ids)) != len(ids):
             raise ValueError("robot ids must be unique")
-        obstacles = [o.as_obstacle() for o in self.obstacles]
+        obstacles = self.static_obstacles()
         peer_radius = Avoidance().peer_radius
         taken: list[Occupied] = []
         for k, r in enumerate(self.robots):
@@ -129,6 +134,12 @@ class Scenario(BaseModel):
                 raise ValueError(f"robot {k} ({ids[k]}): {exc}") from None
             taken.append(Occupied(goal.x, goal.y, f"the goal of robot {k} ({ids[k]})"))
         return self
+
+    def static_obstacles(self) -> list[Obstacle]:
+        """Posts and wall segments, as the fleet publishes them."""
+        return [o.as_obstacle() for o in self.obstacles] + [
+            segment for wall in self.walls for segment in wall.segments()
+        ]
 
     @property
     def robot_ids(self) -> list[str]:

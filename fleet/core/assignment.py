@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fleet.core.params import Avoidance, Gains, RobotProfile, Tolerance
-from fleet.core.simulate import BatchProblem, simulate
+from fleet.core.simulate import BatchProblem, obstacle_columns, simulate
 from fleet.core.types import FloatArray, Law, Posture
 from fleet.core.wire import Obstacle
 
@@ -94,8 +94,7 @@ def predicted_times(
         [law for _, _, law in rows],
         tolerance=[tasks[j].tolerance for _, j, _ in rows],
         profile=[profiles[i] for i, _, _ in rows],
-        obstacles=[(o.x, o.y) for o in obstacles],
-        obstacle_radius=[o.radius for o in obstacles],
+        **obstacle_columns(obstacles),
         k_avoid=avoidance.k_avoid,
         min_x_oa=avoidance.min_x_oa,
     )

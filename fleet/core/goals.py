@@ -60,18 +60,22 @@ def validate_goal(
             f"x in [{xmin:g}, {xmax:g}], y in [{ymin:g}, {ymax:g}] m"
         )
     for i, obs in enumerate(obstacles):
-        d = math.hypot(goal.x - obs.x, goal.y - obs.y)
+        d = obs.distance(goal.x, goal.y)
+        what = f"obstacle {i} at ({obs.x:.2f}, {obs.y:.2f})"
+        if obs.end is not None:
+            ex, ey = obs.far_end
+            what = f"wall segment {i} from ({obs.x:.2f}, {obs.y:.2f}) to ({ex:.2f}, {ey:.2f})"
         if d <= obs.radius:
             raise GoalRejected(
-                f"goal ({goal.x:.2f}, {goal.y:.2f}) lies inside the influence zone of obstacle "
-                f"{i} at ({obs.x:.2f}, {obs.y:.2f}) (radius {obs.radius:g} m, distance {d:.2f} m)"
+                f"goal ({goal.x:.2f}, {goal.y:.2f}) lies inside the influence zone of {what} "
+                f"(radius {obs.radius:g} m, distance {d:.2f} m)"
             )
         reach = obs.body_radius + margin + contact_margin
         if d <= reach:
             raise GoalRejected(
-                f"goal ({goal.x:.2f}, {goal.y:.2f}) is {d:.2f} m from obstacle {i} at "
-                f"({obs.x:.2f}, {obs.y:.2f}): a parked robot (radius {margin:g} m) would come "
-                f"within {contact_margin:g} m of its body (radius {obs.body_radius:g} m)"
+                f"goal ({goal.x:.2f}, {goal.y:.2f}) is {d:.2f} m from {what}: a parked robot "
+                f"(radius {margin:g} m) would come within {contact_margin:g} m of its body "
+                f"(radius {obs.body_radius:g} m)"
             )
     for zone in keep_out:
         d = zone.distance(goal.x, goal.y)

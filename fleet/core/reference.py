@@ -67,6 +67,24 @@ class Body:
     spread: float = 0.0
 
 
+#: A static obstacle: (x, y, influence radius, body radius) for a post, plus (end x, end y)
+#: for a wall segment from (x, y) to the end [m].
+ObstacleRow = tuple[float, ...]
+
+
+def obstacle_offset(obstacle: ObstacleRow, px: float, py: float) -> tuple[float, float]:
+    """(dx, dy) [m] from (px, py) to the closest point of the obstacle's post or segment."""
+    ax, ay = obstacle[0], obstacle[1]
+    if len(obstacle) < 6:
+        return ax - px, ay - py
+    ex, ey = obstacle[4] - ax, obstacle[5] - ay
+    length_sq = ex * ex + ey * ey
+    t = 0.0
+    if length_sq > 0.0:
+        t = min(max(((px - ax) * ex + (py - ay) * ey) / length_sq, 0.0), 1.0)
+    return ax + t * ex - px, ay + t * ey - py
+
+
 SIDE_STEP = 0.5
 _SQRT_HALF = math.sqrt(0.5)
 _TOL = 1e-12
@@ -141,12 +159,12 @@ def safety_filter(
     radius: float,
     limit: WheelLimit | None,
     peers: Sequence[Body],
-    obstacles: Sequence[tuple[float, float, float]],
+    obstacles: Sequence[ObstacleRow],
     safety: Safety,
     dt: float,
 ) -> tuple[float, float, bool]:
     """(u, omega) closest to the nominal that keeps every body clear, and whether it acted
-    (the maths of ``fleet.core.step.safety_filter``; obstacles are (x, y, body radius))."""
+    (the maths of ``fleet.core.step.safety_filter``; ``obstacles`` as in :func:`step`)."""
     x, y, theta = pose
     c, s = math.cos(theta), math.sin(theta)
     ahead, rate = safety.projection, safety.rate
@@ -173,9 +191,9 @@ def safety_filter(
         more = _body_half_planes(dx, dy, c, s, gap, safety.spread + peer.spread, 0.5 * rate, reach)
         stop = stop or more is None
         planes += more or []
-    for ox, oy, body in obstacles:
-        dx, dy = ox - px, oy - py
-        gap = math.sqrt(dx * dx + dy * dy) - own - body
+    for obstacle in obstacles:
+        dx, dy = obstacle_offset(obstacle, px, py)
+        gap = math.sqrt(dx * dx + dy * dy) - own - obstacle[3]
         more = _body_half_planes(dx, dy, c, s, gap, safety.spread, rate, reach)
         stop = stop or more is None
         planes += more or []
@@ -291,13 +309,14 @@ def step(
     *,
     avoidance: Avoidance | None = None,
     peers: Sequence[Body] = (),
-    obstacles: Sequence[tuple[float, float, float, float]] = (),
+    obstacles: Sequence[ObstacleRow] = (),
     hold: bool = False,
     safety: Safety | None = None,
 ) -> Step:
     """One closed-loop step of ``dt`` [s]: error (5), law (17)/(20), repulsion (27) from
     ``peers`` within the peer radius and ``obstacles`` (x, y, influence radius, body
-    radius) within their influence radius, saturation, the safety filter (``safety``),
+    radius[, end x, end y]: a post, or a wall segment from (x, y) to the end) within their
+    influence radius, saturation, the safety filter (``safety``),
     saturation again, Euler on (3). ``hold``: stand still."""
     x, y, theta = pose
     error = pose_error(pose, goal, cw)
@@ -314,8 +333,9 @@ def step(
             if dx * dx + dy * dy < avoidance.peer_radius * avoidance.peer_radius:
                 repulsion += repulsion_term(c * dx + s * dy, k, guard)  # Eq. (26)
                 avoiding = True
-        for ox, oy, radius, _body in obstacles:
-            dx, dy = ox - x, oy - y
+        for obstacle in obstacles:
+            dx, dy = obstacle_offset(obstacle, x, y)
+            radius = obstacle[2]
             if dx * dx + dy * dy < radius * radius:
                 repulsion += repulsion_term(c * dx + s * dy, k, guard)
                 avoiding = True
@@ -325,7 +345,7 @@ def step(
     if safety is not None and safety.margin >= 0.0:
         u, omega, acted = safety_filter(
             pose, u, omega, cw=cw, radius=avoidance.radius if avoidance else 0.0, limit=limit,
-            peers=peers, obstacles=[(o[0], o[1], o[3]) for o in obstacles], safety=safety,
+            peers=peers, obstacles=obstacles, safety=safety,
             dt=dt,
         )  # fmt: skip
         if acted:
@@ -351,7 +371,7 @@ def simulate_loop(
     laws: Sequence[Law],
     *,
     avoidance: Avoidance | None = None,
-    obstacles: Sequence[tuple[float, float, float, float]] = (),
+    obstacles: Sequence[ObstacleRow] = (),
     start_delay: Sequence[float] | None = None,
     tol_position: float = 0.05,
     tol_heading: float = 0.02,
@@ -365,7 +385,7 @@ def simulate_loop(
     """Simulate N robots step by step until each is done or ``max_time`` [s] has passed.
 
     With ``avoidance`` every robot is a peer of every other (Eq. 27 and, with ``safety``,
-    the filter) and static ``obstacles`` (x, y, influence radius, body radius) act;
+    the filter) and static ``obstacles`` (rows as in :func:`step`) act;
     without it the robots are independent. A robot is done at the first step k whose
     pre-step error satisfies x_e^2 + y_e^2 < ``tol_position``^2 [m] and |theta_e| <
     ``tol_heading`` [rad]; that step is still applied (time (k + 1) dt), then it stands
@@ -447,13 +467,14 @@ def simulate_loop(
 
 
 def _smallest_clearance(
-    poses: Sequence[Posture], radius: float, obstacles: Sequence[tuple[float, float, float, float]]
+    poses: Sequence[Posture], radius: float, obstacles: Sequence[ObstacleRow]
 ) -> float:
     """Smallest body clearance [m] between two robots or a robot and an obstacle's body."""
     smallest = math.inf
     for i, a in enumerate(poses):
         for b in poses[i + 1 :]:
             smallest = min(smallest, math.hypot(a[0] - b[0], a[1] - b[1]) - 2.0 * radius)
-        for ox, oy, _influence, body in obstacles:
-            smallest = min(smallest, math.hypot(a[0] - ox, a[1] - oy) - radius - body)
+        for obstacle in obstacles:
+            dx, dy = obstacle_offset(obstacle, a[0], a[1])
+            smallest = min(smallest, math.hypot(dx, dy) - radius - obstacle[3])
     return smallest

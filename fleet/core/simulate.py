@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -35,6 +36,7 @@ from fleet.core.params import (
 from fleet.core.step import (
     DISTANCE,
     EFFORT,
+    OBSTACLE_ROWS,
     RECORD_COLUMNS,
     SAFETY_OFF,
     Interaction,
@@ -45,6 +47,7 @@ from fleet.core.step import (
     robot_params,
 )
 from fleet.core.types import BoolArray, FloatArray, Law
+from fleet.core.wire import Obstacle
 
 PAPER_DT = 0.01
 #: Tolerance [s] on the end of a start delay (as ``robot_agent.logic.DELAY_EPS``).
@@ -57,6 +60,25 @@ def batch_filter(config: SafetyConfig) -> Safety:
     """The safety filter the batch runs for robots configured with ``config``: every robot
     with :meth:`SafetyConfig.batch_spread` (the batch has no command latency or link)."""
     return Safety(*config.filter_terms(config.batch_spread()))
+
+
+class ObstacleColumns(TypedDict):
+    """The static-obstacle arguments of :meth:`BatchProblem.build`."""
+
+    obstacles: list[tuple[float, float]]
+    obstacle_radius: list[float]
+    obstacle_body: list[float]
+    obstacle_end: list[tuple[float, float]]
+
+
+def obstacle_columns(obstacles: Sequence[Obstacle]) -> ObstacleColumns:
+    """Posts and wall segments as :meth:`BatchProblem.build`'s obstacle arguments."""
+    return ObstacleColumns(
+        obstacles=[(o.x, o.y) for o in obstacles],
+        obstacle_radius=[o.radius for o in obstacles],
+        obstacle_body=[o.body_radius for o in obstacles],
+        obstacle_end=[o.far_end for o in obstacles],
+    )
 
 
 def _column(values: npt.ArrayLike, n: int, name: str) -> FloatArray:
@@ -86,6 +108,9 @@ class BatchProblem:
     obstacle_radius: FloatArray = field(default_factory=lambda: np.zeros(0))  # (M,) [m]
     #: (M,) body radius [m] of each obstacle (the safety filter's); None: 0 m (a point).
     obstacle_body: FloatArray | None = None
+    #: (M, 2) [m] the far end of each obstacle's segment (a wall from ``obstacles`` to it);
+    #: None: every obstacle is a post.
+    obstacle_end: FloatArray | None = None
     k_avoid: float = 0.0  # K_avoid of Eq. (27) [m^2/s]
     peer_radius: float = 0.0  # influence radius of each robot on its peers [m]; 0 = off
     min_x_oa: float = DEFAULT_MIN_X_OA
@@ -134,6 +159,7 @@ class BatchProblem:
         start_delay: npt.ArrayLike | None = None,
         obstacle_body: npt.ArrayLike = 0.0,
         safety: Safety = SAFETY_OFF,
+        obstacle_end: npt.ArrayLike | None = None,
     ) -> BatchProblem:
         """Broadcast per-robot inputs (scalars, models or arrays) to an N-robot problem."""
         start_arr = np.atleast_2d(np.asarray(start, dtype=np.float64))
@@ -157,6 +183,9 @@ class BatchProblem:
         tols = tolerance if isinstance(tolerance, Sequence) else [tolerance] * n
         profs = profile if isinstance(profile, Sequence) else [profile] * n
         obs = np.asarray(obstacles, dtype=np.float64).reshape(-1, 2)
+        ends = None if obstacle_end is None else np.asarray(obstacle_end, np.float64).reshape(-1, 2)
+        if ends is not None and ends.shape != obs.shape:
+            raise ValueError(f"obstacle_end must have shape {obs.shape}, got {ends.shape}")
         return cls(
             start=start_arr.copy(),
             goal=goal_arr.copy(),
@@ -170,6 +199,7 @@ class BatchProblem:
             obstacles=obs,
             obstacle_radius=_column(obstacle_radius, obs.shape[0], "obstacle_radius"),
             obstacle_body=_column(obstacle_body, obs.shape[0], "obstacle_body"),
+            obstacle_end=ends,
             k_avoid=float(k_avoid),
             peer_radius=float(peer_radius),
             min_x_oa=float(min_x_oa),
@@ -255,14 +285,15 @@ def simulate(
     params = problem.params()
     done_step = np.full(n, -1, dtype=np.int64)
     metrics = np.zeros((2, n))
-    obstacles = np.zeros((4, 0))
+    obstacles = np.zeros((OBSTACLE_ROWS, 0))
     filtered = problem.safety.margin >= 0.0
     if (problem.k_avoid > 0 or filtered) and problem.obstacles.shape[0] > 0:
         m = problem.obstacles.shape[0]
         body = np.zeros(m) if problem.obstacle_body is None else problem.obstacle_body
         influence = problem.obstacle_radius if problem.k_avoid > 0 else np.zeros(m)
+        end = problem.obstacles if problem.obstacle_end is None else problem.obstacle_end
         obstacles = np.ascontiguousarray(
-            np.vstack([problem.obstacles.T, influence[None, :], body[None, :]])
+            np.vstack([problem.obstacles.T, influence[None, :], body[None, :], end.T])
         )
     interaction = Interaction(
         g, problem.k_avoid, problem.peer_radius, problem.min_x_oa, problem.safety

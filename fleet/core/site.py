@@ -5,12 +5,14 @@ A :class:`Site` is what an operator writes in a site file (TOML or JSON, loaded 
 the fleet, x and y in metres, theta in radians counter-clockwise from +x.
 
 * ``yard`` -- the rectangle goals must lie in (replaces ``Settings.yard``);
-* ``obstacles`` -- static circular obstacles with their influence radius (the paper's
-  Section 6; robots are repelled by Eq. (27) inside it, goals must lie outside it);
+* ``obstacles`` -- static circular obstacles (posts) with their body and influence radius
+  (the paper's Section 6; robots are repelled by Eq. (27) inside it, goals must lie outside
+  it);
+* ``walls`` -- polylines and polygons with a body (half their thickness): every edge is a
+  segment obstacle the robots' safety filter keeps clear of (:meth:`Site.static_obstacles`);
 * ``keep_out`` -- named zones (polygon, rectangle or circle) where no goal may lie, nor a
-  parked robot's body. They restrict goals; robots are not steered around them (the control
-  law of the paper knows only circular obstacles): put an obstacle where robots must not
-  drive through;
+  parked robot's body. They restrict goals; robots are not steered around them: put a wall
+  or a post where robots must not drive through;
 * ``bays`` -- named parking postures, optionally in a ``group`` such as ``charging``; a
   task may ask for a bay by name or for any free bay of a group.
 
@@ -25,6 +27,7 @@ from typing import Annotated, Self
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from fleet.core.geometry import first_self_crossing, segment_distance
 from fleet.core.wire import Obstacle, Pose
 
 Coordinate = Annotated[float, Field(allow_inf_nan=False)]
@@ -47,6 +50,8 @@ class SiteError(ValueError):
 MAX_BAYS = 10_000
 MAX_ZONES = 1_000
 MAX_VERTICES = 256
+#: Posts plus wall segments: one obstacle set (:class:`fleet.core.wire.ObstacleSet`).
+MAX_OBSTACLES = 1000
 
 
 class _Strict(BaseModel):
@@ -120,9 +125,59 @@ class KeepOutZone(_Strict):
         if _inside_polygon(vertices, x, y):
             return 0.0
         return min(
-            _segment_distance(x, y, a, b)
+            segment_distance(x, y, a, b)
             for a, b in zip(vertices, vertices[1:] + vertices[:1], strict=True)
         )
+
+
+#: A wall's body radius (half its thickness) [m] when the site file gives none.
+DEFAULT_WALL_BODY_M = 0.05
+#: A wall's influence radius of Eq. (27) [m] when none is given: no more than a robot's
+#: centre can come near a wall anyway, so by default walls act through the safety filter
+#: only (no repulsion that would slow robots driving along them).
+DEFAULT_WALL_INFLUENCE_M = 0.3
+
+
+class Wall(_Strict):
+    """A wall: the segments of a polyline through ``points`` (``closed``: a polygon, the
+    last point joined to the first), each a body of radius ``body`` (half the wall's
+    thickness) [m] that robots keep ``contact_margin_m`` from, and ``radius`` [m], the
+    influence radius of Eq. (27) around it."""
+
+    name: Name | None = None
+    points: Annotated[list[Point], Field(min_length=2, max_length=MAX_VERTICES)]
+    closed: bool = False
+    body: Annotated[float, Field(ge=0, le=5.0, allow_inf_nan=False)] = DEFAULT_WALL_BODY_M
+    radius: Annotated[float, Field(gt=0, le=20.0, allow_inf_nan=False)] = DEFAULT_WALL_INFLUENCE_M
+
+    @model_validator(mode="after")
+    def _simple(self) -> Self:
+        if self.body > self.radius:
+            raise ValueError(f"body: {self.body} m exceeds the influence radius {self.radius} m")
+        if self.closed and len(self.points) < 3:
+            raise ValueError("points: a closed wall (a polygon) needs at least 3 points")
+        n = len(self.points)
+        edges = n if self.closed else n - 1
+        for i in range(edges):
+            if self.points[i] == self.points[(i + 1) % n]:
+                raise ValueError(f"points: point {(i + 1) % n} repeats point {i} (an empty edge)")
+        crossing = first_self_crossing(self.points, self.closed)
+        if crossing is not None:
+            i, j = crossing
+            raise ValueError(
+                f"points: the wall crosses itself (edge {i}, from point {i}, and edge {j}, "
+                f"from point {j})"
+            )
+        return self
+
+    def segments(self) -> list[Obstacle]:
+        """The wall as obstacles: one segment per edge."""
+        n = len(self.points)
+        edges = n if self.closed else n - 1
+        ends = [(self.points[i], self.points[(i + 1) % n]) for i in range(edges)]
+        return [
+            Obstacle(x=a[0], y=a[1], end=b, radius=self.radius, body=self.body) for a, b in ends
+        ]
 
 
 class Bay(_Strict):
@@ -138,7 +193,10 @@ class Site(_Strict):
 
     name: Annotated[str, Field(max_length=200)] = "site"
     yard: Yard
-    obstacles: Annotated[list[Obstacle], Field(max_length=1000)] = Field(default_factory=list)
+    obstacles: Annotated[list[Obstacle], Field(max_length=MAX_OBSTACLES)] = Field(
+        default_factory=list
+    )
+    walls: Annotated[list[Wall], Field(max_length=MAX_ZONES)] = Field(default_factory=list)
     keep_out: Annotated[list[KeepOutZone], Field(max_length=MAX_ZONES)] = Field(
         default_factory=list
     )
@@ -156,6 +214,12 @@ class Site(_Strict):
                 if name in seen:
                     raise SiteError(f"two {what}s are named {name!r}", (field, i, "name"))
                 seen.add(name)
+        count = len(self.obstacles) + sum(len(w.segments()) for w in self.walls)
+        if count > MAX_OBSTACLES:
+            raise SiteError(
+                f"{count} obstacles and wall segments: at most {MAX_OBSTACLES} (one obstacle set)",
+                ("walls",),
+            )
         for i, bay in enumerate(self.bays):
             if not self.yard.contains(bay.pose.x, bay.pose.y):
                 p = bay.pose
@@ -163,6 +227,11 @@ class Site(_Strict):
                     f"bay {bay.name} at ({p.x:g}, {p.y:g}) is outside the yard", ("bays", i, "pose")
                 )
         return self
+
+    def static_obstacles(self) -> list[Obstacle]:
+        """Everything static a robot must keep clear of: the posts, then every wall's
+        segments (the obstacle set the fleet publishes)."""
+        return list(self.obstacles) + [seg for wall in self.walls for seg in wall.segments()]
 
     def bay(self, name: str) -> Bay | None:
         return next((b for b in self.bays if b.name == name), None)
@@ -184,14 +253,21 @@ class Site(_Strict):
         out: list[SiteError] = []
         for i, bay in enumerate(self.bays):
             x, y = bay.pose.x, bay.pose.y
-            for obstacle in self.obstacles:
-                d = math.hypot(x - obstacle.x, y - obstacle.y)
-                if d <= obstacle.radius:
+            for obstacle in self.static_obstacles():
+                d = obstacle.distance(x, y)
+                reach = max(obstacle.radius, obstacle.body_radius + robot_radius)
+                if d <= reach:
+                    what = (
+                        f"the obstacle at ({obstacle.x:g}, {obstacle.y:g})"
+                        if obstacle.end is None
+                        else f"the wall from ({obstacle.x:g}, {obstacle.y:g}) to "
+                        f"({obstacle.far_end[0]:g}, {obstacle.far_end[1]:g})"
+                    )
                     out.append(
                         SiteError(
-                            f"bay {bay.name} lies inside the influence zone of the obstacle at "
-                            f"({obstacle.x:g}, {obstacle.y:g}) (distance {d:.2f} m, radius "
-                            f"{obstacle.radius:g} m)",
+                            f"bay {bay.name} lies within {reach:g} m of {what} (distance "
+                            f"{d:.2f} m; influence radius {obstacle.radius:g} m, body "
+                            f"{obstacle.body_radius:g} m plus a robot's {robot_radius:g} m)",
                             ("bays", i, "pose"),
                         )
                     )
@@ -239,11 +315,3 @@ def _inside_polygon(vertices: list[tuple[float, float]], x: float, y: float) -> 
             inside = not inside
         j = i
     return inside
-
-
-def _segment_distance(x: float, y: float, a: tuple[float, float], b: tuple[float, float]) -> float:
-    ax, ay = a
-    dx, dy = b[0] - ax, b[1] - ay
-    length2 = dx * dx + dy * dy
-    t = 0.0 if length2 == 0.0 else max(0.0, min(1.0, ((x - ax) * dx + (y - ay) * dy) / length2))
-    return math.hypot(x - (ax + t * dx), y - (ay + t * dy))

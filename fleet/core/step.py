@@ -17,8 +17,9 @@ One step of one robot (:func:`robot_step`), in this order:
 4. law (17) (``ccw``) or (20) (``cw``): u = kx x_e, omega = +-(ky y_e^2 + ktheta theta_e^2)
    e^-|theta_e|;
 5. Eq. (27): -K_avoid / x_OA added to u for every peer closer than ``peer_radius`` and every
-   static obstacle closer than its own radius; x_OA (Eq. 26, the obstacle's coordinate
-   along the heading) is floored at ``min_x_oa`` keeping its sign (0 counts as ahead);
+   static obstacle whose core (a post's centre, a wall segment's closest point) is closer
+   than its influence radius; x_OA (Eq. 26, that point's coordinate along the heading) is
+   floored at ``min_x_oa`` keeping its sign (0 counts as ahead);
 6. saturation: u and omega divided by the same factor so that neither wheel of Eq. (2)
    exceeds ``max_wheel_speed`` (the curvature omega/u is kept);
 7. safety filter (:func:`safety_filter`, when ``safety.margin`` >= 0): the command changed as
@@ -35,7 +36,9 @@ ahead of the axle centre c moves, in one Euler step, by dt (u e + l omega e_perp
 second-order term, so in v = (u, l omega) the motion is linear. A robot's *disc* (radius
 R + l around p) holds its body. For a peer j (its disc predicted at the instant the
 command acts, with an uncertainty ``spread`` E [m]: pose error and the motion it may have
-made since it was seen) and a static obstacle (centre, body radius), with clearance
+made since it was seen) and a static obstacle (the closest point of its segment, body
+radius: the distance to a segment is convex in p, so its linearisation never overstates the
+clearance, as for a point), with clearance
 C = |p_i - p_j| - (R_i + l) - (R_j + l) - margin, the robot keeps its *closing speed*
 along every direction within E of the estimated one to at most share * rate * (C_lo - eps):
 share 1/2 for a peer (the peer takes the other half: every robot runs this filter), 1 for
@@ -60,9 +63,10 @@ equals the plain-Python reference bit for bit when both sum in the same order. T
 
 **Data.** A robot is a row of ``params`` (columns ``GOAL_X`` ... ``DELAY_END``, built by
 :func:`robot_params`); positions are rows: ``positions[0]`` = x, ``positions[1]`` = y [m];
-static obstacles are ``obstacles[0]`` = x, ``obstacles[1]`` = y, ``obstacles[2]`` = influence
-radius, ``obstacles[3]`` = body radius [m]; peers are columns of ``positions`` (rows x, y,
-theta) with ``shapes[0]`` = body radius and ``shapes[1]`` = spread E [m].
+static obstacles are capsules (rows ``OBSTACLE_X`` ... ``END_Y``): the segment from
+(x, y) to its end (a post when the two coincide: a wall is a chain of them), the influence
+radius of Eq. (27) and the body radius around the segment [m]; peers are columns of
+``positions`` (rows x, y, theta) with ``shapes[0]`` = body radius and ``shapes[1]`` = spread E [m].
 
 **Compilation.** Every function is compiled with ``cache=True`` (machine code kept in this
 package's ``__pycache__``, or numba's per-user cache directory when that is read-only).
@@ -104,6 +108,17 @@ MAX_WHEEL_SPEED = 11  # [rad/s], inf = unlimited
 BODY_RADIUS = 12  # [m], the body, for the safety filter
 DELAY_END = 13  # [s] the robot is held while t < DELAY_END (batch only; -inf = never)
 ROBOT_COLUMNS = 14
+
+# Rows of the static obstacles (``obstacles[:, j]``): a capsule, the segment from (X, Y) to
+# (END_X, END_Y) (a post when both ends coincide) inflated by BODY; Eq. (27) acts within
+# INFLUENCE of the segment. An array of only the first four rows holds posts.
+OBSTACLE_X = 0  # [m] world frame
+OBSTACLE_Y = 1
+INFLUENCE = 2  # [m] influence radius of Eq. (27), around the segment
+BODY = 3  # [m] body radius (half a wall's thickness), for the safety filter
+END_X = 4  # [m] the segment's far end
+END_Y = 5
+OBSTACLE_ROWS = 6
 
 #: Robots x peers per step from which :func:`advance_batch` spreads robots over threads.
 PARALLEL_MIN_WORK = 4096
@@ -372,6 +387,22 @@ def _add_body(
 
 
 @njit(inline="always", error_model="numpy")
+def obstacle_offset(obstacles: FloatArray, j: int, px: float, py: float) -> tuple[float, float]:
+    """(dx, dy) [m] from (px, py) to the closest point of obstacle ``j``'s core: its centre,
+    or, with rows ``END_X``/``END_Y``, the closest point of the segment from (x, y) to the
+    end (a wall; a zero-length segment is a post)."""
+    ax, ay = obstacles[0, j], obstacles[1, j]
+    if obstacles.shape[0] <= END_Y:
+        return ax - px, ay - py
+    ex, ey = obstacles[END_X, j] - ax, obstacles[END_Y, j] - ay
+    length_sq = ex * ex + ey * ey
+    t = 0.0
+    if length_sq > 0.0:
+        t = min(max(((px - ax) * ex + (py - ay) * ey) / length_sq, 0.0), 1.0)
+    return ax + t * ex - px, ay + t * ey - py
+
+
+@njit(inline="always", error_model="numpy")
 def _satisfies(cons: FloatArray, n: int, u: float, w: float) -> bool:
     for k in range(n):  # noqa: SIM110 (a loop numba compiles)
         if cons[k, 0] * u + cons[k, 1] * w > cons[k, 2] + _FEASIBLE_TOL:
@@ -445,7 +476,7 @@ def safety_filter(
         n, hold = _add_body(cons, n, dx, dy, c, s, gap, own_spread + shapes[1, j], half, reach)
         stop |= hold
     for j in range(obstacles.shape[1]):
-        dx, dy = obstacles[0, j] - px, obstacles[1, j] - py
+        dx, dy = obstacle_offset(obstacles, j, px, py)
         gap = math.sqrt(dx * dx + dy * dy) - own - obstacles[3, j]
         n, hold = _add_body(cons, n, dx, dy, c, s, gap, own_spread, rate, reach)
         stop |= hold
@@ -532,7 +563,7 @@ def robot_step(
                 repulsion += repulsion_term(c * dx + s * dy, k_avoid, min_x_oa)  # Eq. (26)
                 avoiding = True
         for j in range(obstacles.shape[1]):
-            dx, dy = obstacles[0, j] - x, obstacles[1, j] - y
+            dx, dy = obstacle_offset(obstacles, j, x, y)
             if dx * dx + dy * dy < obstacles[2, j] * obstacles[2, j]:
                 repulsion += repulsion_term(c * dx + s * dy, k_avoid, min_x_oa)
                 avoiding = True

@@ -140,6 +140,7 @@ from typing import Annotated, Literal, TypeVar
 import msgspec
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
+from fleet.core.geometry import segment_distance
 from fleet.core.params import Avoidance, Gains, RobotProfile, Tolerance
 from fleet.core.types import Law
 
@@ -710,15 +711,21 @@ DEFAULT_OBSTACLE_BODY_M = 0.1
 
 
 class Obstacle(BaseModel):
-    """A static circular obstacle: centre (x, y) [m], influence radius ``radius`` [m] of
-    Eq. (27) (Section 6) and ``body`` radius [m], the solid part no robot's body may come
+    """A static obstacle: a post at (x, y) [m], or with ``end`` a wall segment from (x, y)
+    to ``end`` [m]; influence radius ``radius`` [m] of Eq. (27) (Section 6) around it and
+    ``body`` radius [m] (a wall's half thickness), the solid part no robot's body may come
     within ``contact_margin_m`` of (the safety filter, :mod:`fleet.core.step`).
 
-    Compatibility rule: ``body`` is an additive field (``v`` stays 1). A payload without it
-    gets :data:`DEFAULT_OBSTACLE_BODY_M` (a post), capped at the influence radius; an older
-    robot ignores it and sees the paper's point obstacle. ``extra="forbid"`` is kept for
-    the API's input, so the obstacle *set* on the wire ignores unknown fields of the set
-    only.
+    Compatibility rules (``v`` stays 1):
+
+    * ``body`` is additive. A payload without it gets :data:`DEFAULT_OBSTACLE_BODY_M` (a
+      post), capped at the influence radius; an older robot ignores it and sees the paper's
+      point obstacle.
+    * ``end`` is additive. A payload without it is a post, as before. A robot of a release
+      before walls forbids the unknown field, so it **drops the whole set** (counted as
+      malformed) and keeps the obstacles it had: upgrade the robots before adding walls.
+    * ``extra="forbid"`` is kept for the API's input, so the obstacle *set* on the wire
+      ignores unknown fields of the set only.
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -727,6 +734,7 @@ class Obstacle(BaseModel):
     y: FiniteFloat
     radius: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 1.0
     body: Annotated[float, Field(ge=0, allow_inf_nan=False)] | None = None
+    end: tuple[FiniteFloat, FiniteFloat] | None = None
 
     @model_validator(mode="after")
     def _body_within_influence(self) -> Obstacle:
@@ -740,6 +748,15 @@ class Obstacle(BaseModel):
     def body_radius(self) -> float:
         """The body radius [m]: ``body``, or the default for a payload without one."""
         return min(DEFAULT_OBSTACLE_BODY_M, self.radius) if self.body is None else self.body
+
+    @property
+    def far_end(self) -> tuple[float, float]:
+        """The segment's far end [m]: ``end``, or the centre for a post."""
+        return (self.x, self.y) if self.end is None else (float(self.end[0]), float(self.end[1]))
+
+    def distance(self, x: float, y: float) -> float:
+        """Distance [m] from (x, y) to the post's centre or the wall's segment."""
+        return segment_distance(x, y, (self.x, self.y), self.far_end)
 
 
 class ObstacleSet(_Message):

@@ -155,7 +155,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             period_s=settings.replan_period_s,
         )
         site = settings.site  # the site map's obstacles are the initial ones (PUT replaces)
-        self._obstacles: list[Obstacle] = [] if site is None else list(site.obstacles)
+        self._obstacles: list[Obstacle] = [] if site is None else site.static_obstacles()
         self._desk = ControlDesk()  # what the operator asked (pause, e-stop), held to
         self._keys_in_flight: dict[str, threading.Event] = {}  # idempotency keys being stored
         self._obstacles_version = 0  # rises with every set_obstacles

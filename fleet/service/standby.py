@@ -313,7 +313,7 @@ class FailoverService:
         service = self.leading
         site = self.settings.site
         if service is None:
-            return [] if site is None else list(site.obstacles)
+            return [] if site is None else site.static_obstacles()
         return service.obstacles()
 
     def set_obstacles(self, obstacles: list[Obstacle]) -> None:

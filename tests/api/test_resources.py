@@ -32,12 +32,17 @@ async def test_unknown_robot_is_404(client: httpx.AsyncClient, robot_id: str) ->
 
 async def test_obstacles_put_then_get(client: httpx.AsyncClient) -> None:
     assert (await client.get("/obstacles")).json() == []
-    body = [{"x": 1, "y": 2, "radius": 0.5, "body": 0.3}, {"x": -3, "y": 0}]
+    body = [
+        {"x": 1, "y": 2, "radius": 0.5, "body": 0.3},
+        {"x": -3, "y": 0},
+        {"x": -3, "y": 3, "end": [3, 3], "radius": 0.3, "body": 0.05},  # a wall segment
+    ]
     r = await client.put("/obstacles", json=body)
     assert r.status_code == 200
     expected = [
-        {"x": 1.0, "y": 2.0, "radius": 0.5, "body": 0.3},
-        {"x": -3.0, "y": 0.0, "radius": 1.0, "body": 0.1},  # the documented default body
+        {"x": 1.0, "y": 2.0, "radius": 0.5, "body": 0.3, "end": None},
+        {"x": -3.0, "y": 0.0, "radius": 1.0, "body": 0.1, "end": None},  # the default body
+        {"x": -3.0, "y": 3.0, "radius": 0.3, "body": 0.05, "end": [3.0, 3.0]},
     ]
     assert r.json() == expected
     assert (await client.get("/obstacles")).json() == expected
@@ -53,6 +58,9 @@ async def test_obstacles_put_then_get(client: httpx.AsyncClient) -> None:
         ('[{"x": 0, "y": 0, "radius": Infinity}]', "0.radius"),
         ('[{"x": 0, "y": 0, "body": -0.1}]', "0.body"),
         ('[{"x": 0, "y": 0, "radius": 0.5, "body": 0.6}]', "body"),
+        ('[{"x": 0, "y": 0, "end": [0, 30]}]', "0.end"),
+        ('[{"x": 0, "y": 0, "end": [0, NaN]}]', "0.end.1"),
+        ('[{"x": 0, "y": 0, "end": [1]}]', "0.end"),
         ('{"x": 0, "y": 0}', ""),
     ],
 )

@@ -70,7 +70,12 @@ async def test_goals_in_keep_out_zones_are_409_with_the_zone_named(
 
 async def test_the_site_sets_the_yard_and_the_initial_obstacles(client: httpx.AsyncClient) -> None:
     obstacles = (await client.get("/obstacles")).json()
-    assert {(o["x"], o["y"]) for o in obstacles} == {(-5, 3), (5, 3), (-5, -3), (5, -3)}
+    posts = [o for o in obstacles if o["end"] is None]
+    assert {(o["x"], o["y"]) for o in posts} == {(-5, 3), (5, 3), (-5, -3), (5, -3)}
+    walls = [(o["x"], o["y"], *o["end"]) for o in obstacles if o["end"] is not None]
+    assert len(walls) == 5 and (-11.5, 7.5, 11.5, 7.5) in walls  # the outer wall's edges
+    at_wall = await client.post("/tasks", json={"goal": {"x": 0.0, "y": 7.3}})
+    assert at_wall.status_code == 409 and "wall segment" in at_wall.json()["detail"]
     assert (await client.get("/config")).json()["yard"] == [-12.0, 12.0, -8.0, 8.0]
     outside = await client.post("/tasks", json={"goal": {"x": 0.0, "y": 9.0}})
     assert outside.status_code == 409  # goal rejected, with the reason

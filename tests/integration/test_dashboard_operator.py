@@ -116,12 +116,13 @@ def test_pause_and_resume_one_robot_from_its_row_and_the_whole_fleet(
     assert console.errors == []
 
 
-def test_bays_and_keep_out_zones_are_drawn_with_their_state(
+def test_bays_keep_out_zones_and_walls_are_drawn_with_their_state(
     page: tuple[Page, Console], fleet: Fleet
 ) -> None:
     browser_page, console = page
     browser_page.wait_for_function(
-        "window.__parkfleet.drawn.bays === 17 && window.__parkfleet.drawn.zones === 3"
+        "window.__parkfleet.drawn.bays === 17 && window.__parkfleet.drawn.zones === 3 "
+        "&& window.__parkfleet.drawn.walls === 5"
     )
     canvas = browser_page.locator("#map")
     before = canvas.screenshot()

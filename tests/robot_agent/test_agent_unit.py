@@ -155,8 +155,8 @@ def test_world_feed_decodes_samples_and_rejects_ids_not_matching_the_key() -> No
     assert feed.last_heard > float("-inf")  # a valid message is link evidence
     obstacles = ObstacleSet.model_validate({"obstacles": [{"x": 1, "y": 2, "radius": 0.5}]})
     feed._on_obstacles(FakeSample(keys.obstacles, Payload(encode(obstacles))))
-    centres, radii = world.obstacles()
-    assert np.array_equal(centres, [[1.0, 2.0]]) and np.array_equal(radii, [[0.5, 0.1]])
+    # The compiled step's rows: x, y, influence, body, end x, end y (a post ends where it is).
+    assert np.array_equal(world.obstacles(), [[1.0], [2.0], [0.5], [0.1], [1.0], [2.0]])
 
 
 def test_callback_guard_counts_exceptions() -> None:

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
-from fleet.core.simulate import BatchProblem, SimResult, batch_filter, simulate
+from fleet.core.simulate import BatchProblem, SimResult, batch_filter, obstacle_columns, simulate
 from fleet.core.types import BoolArray, FloatArray
 from fleet.core.wire import Obstacle
 
@@ -157,7 +157,6 @@ def _padding(m: int) -> Rows:
 
 def problem_of(rows: Rows, world: World, peers: bool = True) -> BatchProblem:
     """The batch problem of ``rows`` (tolerances as arrays: the problem's own columns)."""
-    obstacles = world.obstacles
     avoid = world.avoidance
     problem = BatchProblem.build(
         rows.start,
@@ -165,9 +164,7 @@ def problem_of(rows: Rows, world: World, peers: bool = True) -> BatchProblem:
         rows.gains,
         rows.cw,
         profile=world.profile,
-        obstacles=[(o.x, o.y) for o in obstacles],
-        obstacle_radius=[o.radius for o in obstacles],
-        obstacle_body=[o.body_radius for o in obstacles],
+        **obstacle_columns(world.obstacles),
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius if peers else 0.0,
         min_x_oa=avoid.min_x_oa,

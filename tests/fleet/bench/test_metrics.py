@@ -10,6 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fleet.bench.metrics import DEADLOCK_WINDOW_S, RunMetrics, RunResult
+from fleet.core.wire import Obstacle
 from fleet.io.trace import TraceChunk
 
 MODES = ("idle", "driving", "avoiding", "arrived", "holding", "waiting")
@@ -21,7 +22,7 @@ def _run(
     poses: np.ndarray,
     modes: np.ndarray | None = None,
     goals: list[tuple[float, float, float]] | None = None,
-    obstacles: list[tuple[float, float, float]] | None = None,
+    obstacles: list[Obstacle] | None = None,
     chunk: int = 1000,
 ) -> RunResult:
     ticks, n = poses.shape[:2]
@@ -120,7 +121,7 @@ def test_arrival_makespan_path_ratio_and_obstacle_hits() -> None:
         np.stack([a, b], axis=1),
         modes,
         goals=[(3.0, 0.0, 0.0), (np.nan, np.nan, np.nan)],
-        obstacles=[(1.5, 0.3, 0.15), (9.0, 9.0, 0.1)],
+        obstacles=[Obstacle(x=1.5, y=0.3, radius=1, body=0.15), Obstacle(x=9, y=9, body=0.1)],
     )
     assert r.success_count() == 1 and r.arrivals[0] == pytest.approx(290 * DT)
     assert r.makespan(1, 99.0) == pytest.approx(290 * DT)

@@ -11,6 +11,7 @@ from matplotlib.image import imread
 from fleet.bench.metrics import RunMetrics, RunResult
 from fleet.bench.plots import plot_run
 from fleet.bench.scenarios import case_iii_crossing
+from fleet.core.wire import Obstacle
 from fleet.io.trace import TraceChunk
 
 MODES = ("idle", "driving", "arrived")
@@ -21,7 +22,7 @@ def _result(meet: bool) -> RunResult:
     a = np.column_stack([-2 + 4 * s, 0 * s, 0 * s])
     b = np.column_stack([0 * s, (-2 if meet else -3) + 4 * s, 0 * s + math.pi / 2])
     poses = np.stack([a, b], axis=1)
-    m = RunMetrics([0.2, 0.2], poses[-1], [(0.0, 3.0, 0.2)], MODES)
+    m = RunMetrics([0.2, 0.2], poses[-1], [Obstacle(x=0.0, y=3.0, body=0.2)], MODES)
     m.add(TraceChunk(np.arange(200) * 0.02, poses, np.ones((200, 2), dtype=np.uint8)))
     return m.result()
 

@@ -212,8 +212,16 @@ def test_mismatched_lengths_are_rejected() -> None:
     wheel_limits,
     st.sampled_from([0.05, 1.0, 4.0]),
     st.floats(0.5, 3.0),
-    st.lists(
-        st.tuples(st.floats(-4, 4), st.floats(-4, 4), st.floats(0.3, 2.0), st.floats(0.0, 0.3)),
+    st.lists(  # posts and walls: (x, y, influence, body, end x, end y)
+        st.tuples(
+            st.floats(-4, 4),
+            st.floats(-4, 4),
+            st.floats(0.3, 2.0),
+            st.floats(0.0, 0.3),
+            st.floats(-4, 4),
+            st.floats(-4, 4),
+            st.booleans(),
+        ).map(lambda o: o[:4] + (o[:2] if o[6] else o[4:6])),
         max_size=2,
     ),
     st.lists(st.sampled_from([0.0, 0.1, 0.5]), min_size=5, max_size=5),
@@ -226,12 +234,12 @@ def test_batch_with_peers_obstacles_and_delays_equals_the_reference_fleet_loop(
     max_wheel_speed: float,
     k_avoid: float,
     peer_radius: float,
-    obstacles: list[tuple[float, float, float, float]],
+    obstacles: list[tuple[float, ...]],
     delays: list[float],
     safety: reference.Safety | None,
 ) -> None:
     """Whole runs of robots that repel each other (Eq. 27), keep clear through the safety
-    filter, avoid static obstacles and start late agree with the plain-Python fleet loop
+    filter, avoid static posts and walls and start late agree with the plain-Python fleet loop
     bit for bit."""
     starts, goals, gains, laws = fleet
     n = len(starts)
@@ -240,7 +248,8 @@ def test_batch_with_peers_obstacles_and_delays_equals_the_reference_fleet_loop(
     problem = BatchProblem.build(
         starts, goals, gains, laws, tol, profile,
         obstacles=[o[:2] for o in obstacles], obstacle_radius=[o[2] for o in obstacles],
-        obstacle_body=[min(o[3], o[2]) for o in obstacles], k_avoid=k_avoid,
+        obstacle_body=[min(o[3], o[2]) for o in obstacles],
+        obstacle_end=[o[4:6] for o in obstacles], k_avoid=k_avoid,
         peer_radius=peer_radius, min_x_oa=0.05, start_delay=delays[:n],
         safety=step.SAFETY_OFF if safety is None else step.Safety(
             safety.margin, safety.projection, safety.rate, safety.spread
@@ -252,7 +261,8 @@ def test_batch_with_peers_obstacles_and_delays_equals_the_reference_fleet_loop(
     )
     runs = reference.simulate_loop(
         starts, goals, gains, laws, avoidance=avoidance,
-        obstacles=[(x, y, r, min(b, r)) for x, y, r, b in obstacles], start_delay=delays[:n],
+        obstacles=[(x, y, r, min(b, r), ex, ey) for x, y, r, b, ex, ey in obstacles],
+        start_delay=delays[:n],
         tol_position=0.1, tol_heading=0.1, dt=0.02, max_time=2.0,
         limit=_wheel_limit(max_wheel_speed), safety=safety,
     )  # fmt: skip

@@ -1,7 +1,7 @@
 """The safety filter's guarantee (docs/safety.md): on the model with command latency, no
-step brings two bodies, or a body and an obstacle's body, closer than the margin -- for
-random scenes, laws, goals, wheel limits and latencies; and the compiled filter is the
-reference's, number for number."""
+step brings two bodies, or a body and an obstacle's body (a post or a wall), closer than the
+margin -- for random scenes, laws, goals, wheel limits and latencies; and the compiled
+filter is the reference's, number for number."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ pose = st.tuples(coordinate, coordinate, heading)
 
 
 def _clear_of_each_other(
-    poses: list[tuple[float, float, float]], obstacles: list[tuple[float, float, float, float]]
+    poses: list[tuple[float, float, float]], obstacles: list[ref.ObstacleRow]
 ) -> bool:
     """The start keeps every projected disc clear (the filter's invariant holds at t = 0)."""
     points = [(x + PROJECTION * math.cos(t), y + PROJECTION * math.sin(t)) for x, y, t in poses]
@@ -33,8 +33,9 @@ def _clear_of_each_other(
         for b in points[i + 1 :]:
             if math.dist(a, b) < 2 * (RADIUS + PROJECTION) + MARGIN + 1e-6:
                 return False
-        for ox, oy, _influence, body in obstacles:
-            if math.dist(a, (ox, oy)) < RADIUS + PROJECTION + body + MARGIN + 1e-6:
+        for obstacle in obstacles:
+            distance = math.hypot(*ref.obstacle_offset(obstacle, *a))
+            if distance < RADIUS + PROJECTION + obstacle[3] + MARGIN + 1e-6:
                 return False
     return True
 
@@ -44,9 +45,10 @@ def scenes(draw: st.DrawFn) -> dict[str, object]:
     n = draw(st.integers(2, 4))
     starts = draw(st.lists(pose, min_size=n, max_size=n))
     goals = draw(st.lists(pose, min_size=n, max_size=n))
-    obstacles = draw(
-        st.lists(st.tuples(coordinate, coordinate, st.just(0.6), st.floats(0.0, 0.3)), max_size=2)
-    )
+    # Posts and walls (segments up to 2.8 m long, thin to thick).
+    post = st.tuples(coordinate, coordinate, st.just(0.6), st.floats(0.0, 0.3))
+    wall = st.tuples(post, coordinate, coordinate).map(lambda w: (*w[0], w[1], w[2]))
+    obstacles = draw(st.lists(st.one_of(post, wall), max_size=3))
     from hypothesis import assume
 
     assume(_clear_of_each_other(starts, obstacles))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 from hypothesis import given
@@ -10,7 +11,7 @@ from hypothesis import strategies as st
 from pydantic import ValidationError
 
 from fleet.core.goals import validate_goal
-from fleet.core.site import Bay, KeepOutZone, Rect, Site, Yard
+from fleet.core.site import Bay, KeepOutZone, Rect, Site, Wall, Yard
 from fleet.core.tasks import GoalRejected
 from fleet.core.wire import Obstacle, Pose
 
@@ -79,8 +80,9 @@ def test_problems_name_bays_too_close_in_obstacles_or_near_zones() -> None:
               bay("edge", 2.1, 1)],
     )  # fmt: skip
     problems = [(p.loc, str(p)) for p in site.problems(robot_radius=0.2, peer_radius=1.0)]
-    pillar = "bay pillar lies inside the influence zone of the obstacle at (-5, -5) "
-    assert (("bays", 3, "pose"), pillar + "(distance 0.50 m, radius 1 m)") in problems
+    pillar = "bay pillar lies within 1 m of the obstacle at (-5, -5) (distance 0.50 m; "
+    pillar += "influence radius 1 m, body 0.1 m plus a robot's 0.2 m)"
+    assert (("bays", 3, "pose"), pillar) in problems
     assert (("bays", 4, "pose"), "bay edge is within 0.2 m of keep-out zone sq") in problems
     assert any(
         loc == ("bays", 2, "pose") and "near1 and near2 are 0.71 m apart" in m
@@ -105,3 +107,62 @@ def test_goals_inside_or_too_near_a_keep_out_zone_are_rejected_with_the_reason()
     with pytest.raises(GoalRejected, match=r"0\.10 m from keep-out zone sq: a parked robot"):
         check(2.1, 1.0)
     check(2.3, 1.0)  # clear of the zone by more than the robot's radius
+
+
+# -- walls -------------------------------------------------------------------------------------
+def test_a_wall_is_one_segment_obstacle_per_edge_closed_or_open() -> None:
+    square = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)]
+    closed = Wall(points=square, closed=True, body=0.1)
+    assert [(o.x, o.y, o.far_end) for o in closed.segments()] == [
+        (0.0, 0.0, (2.0, 0.0)), (2.0, 0.0, (2.0, 2.0)), (2.0, 2.0, (0.0, 2.0)),
+        (0.0, 2.0, (0.0, 0.0)),
+    ]  # fmt: skip
+    assert all(o.body_radius == 0.1 for o in closed.segments())
+    assert len(Wall(points=square).segments()) == 3
+    site = Site(yard=YARD, obstacles=[Obstacle(x=5, y=5)], walls=[closed])
+    assert len(site.static_obstacles()) == 5 and site.static_obstacles()[0].end is None
+
+
+@given(coords, coords)
+def test_the_distance_to_a_wall_segment_is_to_its_closest_point(x: float, y: float) -> None:
+    wall = Obstacle(x=0.0, y=0.0, end=(2.0, 0.0), radius=0.3, body=0.1)
+    along = min(max(x, 0.0), 2.0)
+    assert wall.distance(x, y) == pytest.approx(math.hypot(x - along, y), abs=1e-12)
+    assert Obstacle(x=1.0, y=1.0).distance(x, y) == pytest.approx(math.hypot(x - 1, y - 1))
+
+
+@pytest.mark.parametrize(
+    ("wall", "message"),
+    [
+        ({"points": [(0, 0), (2, 2), (2, 0), (0, 2)], "closed": True}, "crosses itself (edge 0"),
+        ({"points": [(0, 0), (2, 0), (1, 0)]}, "crosses itself (edge 0, from point 0, and edge 1"),
+        ({"points": [(0, 0), (0, 0), (1, 1)]}, "point 1 repeats point 0"),
+        (
+            {"points": [(0, 0), (1, 1)], "closed": True},
+            "a closed wall (a polygon) needs at least 3",
+        ),
+        ({"points": [(0, 0), (1, 1)], "body": -0.1}, "greater than or equal to 0"),
+        ({"points": [(0, 0), (1, 1)], "body": 0.5, "radius": 0.3}, "exceeds the influence radius"),
+        ({"points": [(0, 0), (float("nan"), 1)]}, "finite number"),
+        ({"points": [(0, 0)]}, "at least 2 items"),
+    ],
+)
+def test_bad_walls_are_refused_naming_the_problem(wall: dict[str, object], message: str) -> None:
+    with pytest.raises(ValidationError, match=re.escape(message)):
+        Wall.model_validate(wall)
+
+
+def test_a_simple_concave_polygon_is_a_valid_wall() -> None:
+    ell = [(0, 0), (3, 0), (3, 1), (1, 1), (1, 3), (0, 3)]
+    assert len(Wall(points=ell, closed=True).segments()) == 6
+
+
+def test_goals_on_or_near_a_wall_are_rejected_and_bays_there_are_problems() -> None:
+    wall = Wall(points=[(-5.0, 3.0), (5.0, 3.0)], body=0.1)
+    segments = wall.segments()
+    validate_goal(Pose(x=0.0, y=2.0), YARD.as_tuple(), segments, [], 1.0, margin=0.2)  # 0.9 m clear
+    with pytest.raises(GoalRejected, match=r"wall segment 0 from \(-5.00, 3.00\) to \(5.00"):
+        validate_goal(Pose(x=4.0, y=3.3), YARD.as_tuple(), segments, [], 1.0, margin=0.2)
+    site = Site(yard=YARD, walls=[wall], bays=[bay("far", 0, 0), bay("near", 5.2, 3.2)])
+    (problem,) = site.problems(robot_radius=0.2, peer_radius=1.0)
+    assert problem.loc == ("bays", 1, "pose") and "the wall from (-5, 3) to (5, 3)" in str(problem)

@@ -26,8 +26,13 @@ body_st = st.builds(
     reference.Body, coord, coord, angle, st.floats(0.05, 0.4), st.sampled_from([0.0, 0.05, 0.5])
 )
 peers_st = st.lists(body_st, max_size=6)
+#: Posts (both ends the same) and wall segments: (x, y, influence, body, end x, end y).
 obstacles_st = st.lists(
-    st.floats(0.2, 3.0).flatmap(lambda r: st.tuples(coord, coord, st.just(r), st.floats(0.0, r))),
+    st.floats(0.2, 3.0).flatmap(
+        lambda r: st.tuples(coord, coord, st.just(r), st.floats(0.0, r)).flatmap(
+            lambda o: st.one_of(st.just(o + o[:2]), st.tuples(coord, coord).map(lambda e: o + e))
+        )
+    ),
     max_size=3,
 )
 safety_st = st.sampled_from(
@@ -64,7 +69,7 @@ class Situation:
     limit: float  # [rad/s]
     avoidance: reference.Avoidance
     peers: list[reference.Body]
-    obstacles: list[tuple[float, float, float, float]]
+    obstacles: list[reference.ObstacleRow]
     safety: reference.Safety | None = None
 
     def compiled(self, limit: float | None = None) -> step.StepResult:
@@ -79,7 +84,7 @@ class Situation:
             _params(self.goal, self.gains, self.law, wheel_limit, self.avoidance.radius),
             peers=bodies[:, :3].T.copy(),
             shapes=bodies[:, 3:].T.copy(),
-            obstacles=np.array(self.obstacles, dtype=np.float64).reshape(-1, 4).T.copy(),
+            obstacles=np.array(self.obstacles, dtype=np.float64).reshape(-1, 6).T.copy(),
             k_avoid=self.avoidance.k_avoid,
             peer_radius=self.avoidance.peer_radius,
             min_x_oa=self.avoidance.min_x_oa,

@@ -204,3 +204,16 @@ def test_obstacle_body_defaults_for_older_payloads_and_is_bounded() -> None:
         b'{"v": 1, "kind": "obstacles", "obstacles": [{"x": 0, "y": 0, "radius": 0.5, "body": 1}]}',
     )
     assert not isinstance(too_big, ObstacleSet)
+
+
+def test_a_wall_segment_travels_in_the_obstacle_set_and_a_post_stays_a_post() -> None:
+    from fleet.core.wire import Obstacle, ObstacleSet, encode, parse
+
+    wall = Obstacle(x=0, y=0, end=(3, 0), radius=0.3, body=0.05)
+    back = parse(ObstacleSet, encode(ObstacleSet(obstacles=[wall, Obstacle(x=1, y=1)])))
+    assert isinstance(back, ObstacleSet)
+    assert back.obstacles[0].far_end == (3.0, 0.0) and back.obstacles[0].distance(1.5, 0.4) == 0.4
+    assert back.obstacles[1].end is None and back.obstacles[1].far_end == (1.0, 1.0)
+    for bad in (b'[1, "nan"]', b"[1]", b'"east"'):
+        payload = b'{"v": 1, "kind": "obstacles", "obstacles": [{"x": 0, "y": 0, "end": %s}]}'
+        assert not isinstance(parse(ObstacleSet, payload % bad), ObstacleSet), bad

@@ -118,3 +118,14 @@ def test_settings_refuse_two_different_yards_and_missing_files(tmp_path: Path) -
     big.write_bytes(b"#" * (5 * 1024 * 1024))
     with pytest.raises(SiteFileError, match="larger than"):
         load_site(big)
+
+
+def test_a_wall_that_crosses_itself_names_its_line_and_field() -> None:
+    walls = GOOD + (
+        '\n[[walls]]\nname = "north"\npoints = [[-9.0, 9.0], [9.0, 9.0]]\n'
+        '\n[[walls]]\nname = "bow"\nclosed = true\npoints = [[0, 0], [2, 2], [2, 0], [0, 2]]\n'
+    )
+    ((line, message),) = problems(walls)
+    assert line == 32 and message.startswith("walls[1]: Value error, points: the wall crosses")
+    good = parse_site(walls.replace("[2, 2], [2, 0]", "[2, 0], [2, 2]"), Path("site.toml"))
+    assert [w.name for w in good.walls] == ["north", "bow"] and len(good.static_obstacles()) == 7

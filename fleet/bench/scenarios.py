@@ -34,7 +34,8 @@ Built-in families (:func:`full_suite`, :func:`quick_suite`):
   others drive; fleet-assigned.
 * ``carpark-12`` (and ``carpark-12-stream-sS``) -- two rows of bays along the walls of a
   car park built of posts, robots queued outside entering through a 2.4 m gate;
-  fleet-assigned.
+  fleet-assigned. ``carpark-walls-12``: the same car park with walls (segments with a
+  body) instead of posts.
 * ``case-III`` -- the paper's comparative case III with two obstacles at (+-0.8, 0) (the
   paper gives only the figure), Table 8 gains; ``case-III-4`` -- four robots crossing the
   same pair of obstacles.
@@ -282,15 +283,18 @@ def _wall(x0: float, y0: float, x1: float, y1: float, pitch: float) -> list[tupl
     ]
 
 
-def car_park(seed: int | None = None, mean_gap_s: float = 4.0) -> Scenario:
+def car_park(
+    seed: int | None = None, mean_gap_s: float = 4.0, *, walls: bool = False
+) -> Scenario:
     """Twelve robots queued outside a walled car park park in its two rows of bays.
 
-    The park spans x in [-6, 8], y in [-4.5, 4.5] m; its walls are posts (body 0.25 m,
-    influence 0.6 m, 0.6 m apart: no robot fits between two) with a gate |y| < 1.2 m in the
-    west wall (1.9 m between the posts' bodies). Bays: six
-    per row, 1.4 m apart, 1.2 m from the north and south walls, nose to the wall. The
-    robots wait in two columns west of the gate, facing it. With ``seed`` the tasks arrive
-    as a Poisson stream (mean gap ``mean_gap_s`` [s]), else all at once.
+    The park spans x in [-6, 8], y in [-4.5, 4.5] m with a gate |y| < 1.2 m in the west
+    wall. Its walls are posts (body 0.25 m, influence 0.6 m, 0.6 m apart: no robot fits
+    between two; 1.9 m of gate between the posts' bodies) or, with ``walls``, wall segments
+    (``carpark-walls-12``: body 0.1 m, 2.2 m of gate). Bays: six per row, 1.4 m apart, 1.2 m
+    from the north and south walls, nose to the wall. The robots wait in two columns west
+    of the gate, facing it. With ``seed`` the tasks arrive as a Poisson stream (mean gap
+    ``mean_gap_s`` [s]), else all at once.
     """
     pitch, body, zone = 0.6, 0.25, 0.6
     posts = [
@@ -301,6 +305,11 @@ def car_park(seed: int | None = None, mean_gap_s: float = 4.0) -> Scenario:
         *_wall(-6.0, -4.5 + pitch, -6.0, -1.2, pitch),
     ]
     obstacles = [ObstacleSpec(x=x, y=y, radius=zone, body=body) for x, y in posts]
+    outline: list[Wall] = []
+    if walls:
+        obstacles = []
+        corners = [(-6.0, 1.2), (-6.0, 4.5), (8.0, 4.5), (8.0, -4.5), (-6.0, -4.5), (-6.0, -1.2)]
+        outline = [Wall(name="outer", points=corners, body=0.1)]
     bays = [(-2.2 + 1.4 * k, side * 3.3, side * math.pi / 2) for side in (1, -1) for k in range(6)]
     queue = [(x, 0.75 + 1.5 * row, 0.0) for row in range(-3, 3) for x in (-7.8, -9.3)]
     n = len(bays)
@@ -313,14 +322,16 @@ def car_park(seed: int | None = None, mean_gap_s: float = 4.0) -> Scenario:
         RobotSpec(start=s, goal=g, arrival_s=t)
         for s, g, t in zip(queue, bays, arrivals, strict=True)
     ]
-    name = "carpark-12" if seed is None else f"carpark-12-stream-s{seed}"
+    base = "carpark-walls-12" if walls else "carpark-12"
+    name = base if seed is None else f"{base}-stream-s{seed}"
     return Scenario(
         name=name,
         named=False,
         robots=robots,
         obstacles=obstacles,
+        walls=outline,
         time_limit_s=180.0,
-        family=None if seed is None else "carpark-12-stream",
+        family=None if seed is None else f"{base}-stream",
         seed=seed,
     )
 
@@ -381,6 +392,7 @@ def full_suite() -> list[Scenario]:
         *(stream(20, s) for s in STREAM_SEEDS),
         car_park(),
         car_park(seed=1),
+        car_park(walls=True),
         case_iii(),
         case_iii_crossing(),
     ]

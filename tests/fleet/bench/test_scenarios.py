@@ -84,6 +84,31 @@ def test_the_car_park_has_walls_a_gate_and_two_rows_of_bays() -> None:
     assert car_park(seed=1).robots[-1].arrival_s > 0
 
 
+def test_the_walled_car_park_has_the_same_bays_behind_wall_segments() -> None:
+    posts, walled = car_park(), car_park(walls=True)
+    assert walled.name == "carpark-walls-12" and not walled.obstacles
+    assert walled.goals == posts.goals and walled.starts == posts.starts
+    segments = walled.static_obstacles()
+    assert len(segments) == 5 and all(o.end is not None for o in segments)
+    west = [o for o in segments if o.x == -6.0 and o.far_end[0] == -6.0]
+    assert sorted((o.y, o.far_end[1]) for o in west) == [(-4.5, -1.2), (1.2, 4.5)]  # the gate
+    assert "carpark-walls-12" in {s.name for s in full_suite()}
+
+
+def test_walls_travel_in_scenario_files_and_a_goal_in_one_is_refused(tmp_path: Path) -> None:
+    data = json.loads(ISSUE_SHAPE) | {
+        "walls": [{"points": [[-5, 2], [5, 2], [5, 3]], "body": 0.1}]
+    }
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(data))
+    (s,) = load_scenarios(path)
+    assert [o.far_end for o in s.static_obstacles()[1:]] == [(5.0, 2.0), (5.0, 3.0)]
+    data["robots"][0]["goal"] = [3, 2.1, 0]
+    path.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match=r"robot 0 \(b1\): goal .* wall segment 1"):
+        load_scenarios(path)
+
+
 def test_case_iii_alone_and_with_four_robots() -> None:
     alone, four = case_iii(), case_iii_crossing()
     assert alone.starts == [(0.0, 2.0, 0.0)] and alone.goals == [(0.0, -2.0, 0.0)]

@@ -111,6 +111,7 @@ class OfflineFleet:
             safety=safety or SafetyConfig(),
             safety_separation_m=separation,
             control_rate_hz=1.0 / dt,
+            yard=scenario.bounds,
         )
         self.profile = self.settings.profile
         self.dt = dt
@@ -483,8 +484,8 @@ def mirrored(scenario: Scenario) -> Scenario:
 
 def yard(n: int, seed: int) -> Scenario:
     """``n`` robots and ``n`` unnamed goals at random in a square yard of one robot per
-    10 m^2, within the service's 20 m x 20 m yard (10 robots: 10 m x 10 m; 50 robots:
-    19 m x 19 m, one per 7.2 m^2): the fleet bench's random yards."""
+    10 m^2 (10 robots: 10 m x 10 m; 200 robots: 44.7 m x 44.7 m, the service's yard
+    widened to fit): the fleet bench's random yards."""
     return random_yard(n, seed)
 
 

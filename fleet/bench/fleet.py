@@ -364,6 +364,7 @@ def run_fleet_policy(
         "fleet_name": fleet_name,
         "task_timeout_s": _SERVICE_TIMEOUT_S,
         "data_dir": workdir / fleet_name,  # a fresh task store per run
+        "yard": scenario.bounds,
     }
     if policy == "none":  # no repulsion, no filter, 1 µm to keep: the planner holds no one
         update |= {

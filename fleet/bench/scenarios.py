@@ -16,7 +16,9 @@ is the influence radius of Eq. 27, as in the API); ``walls`` (as in a site file:
 a segment with a body); ``law_gains`` (``{"ccw": {"kx", "ky",
 "ktheta"}, "cw": {...}}``); ``tolerance`` (``{"position", "heading"}``, default 0.1 m /
 0.1 rad); ``time_limit_s`` (default 120: the run stops this long after the last arrival);
-``family`` and ``seed`` (group seeds of one family in the summary). Built-in scenarios
+``family`` and ``seed`` (group seeds of one family in the summary); ``yard``
+(``[xmin, xmax, ymin, ymax]``, the service's yard for the run; default 20 m x 20 m around
+the origin). Built-in scenarios
 of 30 robots or more get 180 s. A file holds one
 scenario or a list. Goals are checked as the fleet service checks them (inside the yard,
 outside every influence zone, more than the peer radius apart), so a bad file fails early
@@ -118,6 +120,13 @@ class Scenario(BaseModel):
     time_limit_s: Annotated[float, Field(gt=0.0, le=3600.0)] = 120.0
     family: str | None = None
     seed: int | None = None
+    #: (xmin, xmax, ymin, ymax) [m] of the yard the service runs with; None: :data:`YARD`.
+    yard: tuple[Finite, Finite, Finite, Finite] | None = None
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """The scenario's yard (xmin, xmax, ymin, ymax) [m]: the service's ``yard``."""
+        return YARD if self.yard is None else self.yard
 
     @model_validator(mode="after")
     def _goals_are_valid(self) -> Scenario:
@@ -130,7 +139,7 @@ class Scenario(BaseModel):
         for k, r in enumerate(self.robots):
             goal = Pose(x=r.goal[0], y=r.goal[1], theta=r.goal[2])
             try:
-                validate_goal(goal, YARD, obstacles, taken, peer_radius)
+                validate_goal(goal, self.bounds, obstacles, taken, peer_radius)
             except GoalRejected as exc:
                 raise ValueError(f"robot {k} ({ids[k]}): {exc}") from None
             taken.append(Occupied(goal.x, goal.y, f"the goal of robot {k} ({ids[k]})"))
@@ -239,9 +248,15 @@ def _spaced_points(
 
 
 def random_yard(n: int, seed: int, spacing: float = 1.5, half: float | None = None) -> Scenario:
-    """``n`` random starts and goals (seeded) in a square yard of half-side ``half`` [m]
-    (default: :data:`YARD_DENSITY`, at most 9.5 m), points ``spacing`` apart; fleet-assigned."""
-    half = min(math.sqrt(n / YARD_DENSITY) / 2, 9.5) if half is None else half
+    """``n`` random starts and goals (seeded) in a square of half-side ``half`` [m]
+    (default: :data:`YARD_DENSITY`), points ``spacing`` apart; fleet-assigned. A square
+    wider than the service's yard less 0.5 m (more than 36 robots) comes with a yard of its
+    own, 0.5 m beyond it."""
+    half = math.sqrt(n / YARD_DENSITY) / 2 if half is None else half
+    own_yard = None
+    if half > YARD[1] - 0.5:
+        edge = round(half + 0.5, 3)
+        own_yard = (-edge, edge, -edge, edge)
     rng = np.random.default_rng(seed)
     points = _spaced_points(rng, 2 * n, half, half, spacing)
     heads = rng.uniform(-math.pi, math.pi, size=2 * n)
@@ -254,6 +269,7 @@ def random_yard(n: int, seed: int, spacing: float = 1.5, half: float | None = No
         family=f"yard-{n}",
         seed=seed,
         time_limit_s=_limit(n),
+        yard=own_yard,
     )
 
 
@@ -271,7 +287,12 @@ def stream(n: int, seed: int, mean_gap_s: float = STREAM_GAP_S) -> Scenario:
         r.model_copy(update={"arrival_s": t}) for r, t in zip(yard.robots, arrivals, strict=True)
     ]
     return Scenario(
-        name=f"stream-{n}-s{seed}", named=False, robots=robots, family=f"stream-{n}", seed=seed
+        name=f"stream-{n}-s{seed}",
+        named=False,
+        robots=robots,
+        family=f"stream-{n}",
+        seed=seed,
+        yard=yard.yard,
     )
 
 
@@ -283,9 +304,7 @@ def _wall(x0: float, y0: float, x1: float, y1: float, pitch: float) -> list[tupl
     ]
 
 
-def car_park(
-    seed: int | None = None, mean_gap_s: float = 4.0, *, walls: bool = False
-) -> Scenario:
+def car_park(seed: int | None = None, mean_gap_s: float = 4.0, *, walls: bool = False) -> Scenario:
     """Twelve robots queued outside a walled car park park in its two rows of bays.
 
     The park spans x in [-6, 8], y in [-4.5, 4.5] m with a gate |y| < 1.2 m in the west

@@ -76,3 +76,14 @@ def test_a_decision_names_its_robot_and_law_in_what_the_robot_is_told() -> None:
     fleet.step(1.0)
     assert fleet.state(robot).mode in ("driving", "avoiding", "arrived")
     assert fleet.tasks[task.task_id].status is TaskStatus.DRIVING
+
+
+def test_a_yard_beyond_the_service_s_runs_with_its_own_bounds() -> None:
+    """200 robots at one per 10 m^2 do not fit the default 20 m yard: the scenario brings
+    its yard and the offline fleet's settings (the service's) take it."""
+    from fleet.bench.closed_loop import yard
+
+    big = yard(200, 1)
+    fleet = OfflineFleet(big)
+    assert fleet.settings.yard == big.bounds and big.bounds[1] > 22.0
+    assert fleet.submit_arrived() == 200

@@ -58,7 +58,16 @@ def test_random_yards_are_seeded_spaced_and_dense_enough() -> None:
     assert min(math.dist(p, q) for p, q in itertools.combinations(points, 2)) >= 1.5
     half = max(max(abs(x), abs(y)) for x, y in points)
     assert 20 / (2 * half) ** 2 >= 0.09  # about one robot per 10 m^2
-    assert all(max(abs(g[0]), abs(g[1])) <= 9.5 for g in random_yard(40, 1).goals)
+    assert a.yard is None and a.bounds == (-10.0, 10.0, -10.0, 10.0)  # the service's yard
+    for n in (40, 200):  # beyond the service's yard: the density holds in a yard of its own
+        big = random_yard(n, 1)
+        assert big.yard is not None
+        xmin, xmax, ymin, ymax = big.bounds
+        assert n / ((xmax - xmin - 1.0) * (ymax - ymin - 1.0)) == pytest.approx(0.1, rel=1e-3)
+        inside = [xmin + 0.5 <= x <= xmax - 0.5 and ymin + 0.5 <= y <= ymax - 0.5
+                  for x, y, _ in big.starts + big.goals]  # fmt: skip
+        assert all(inside)
+    assert stream(40, 1).yard == random_yard(40, 1).yard
 
 
 def test_a_stream_brings_tasks_while_others_drive() -> None:
@@ -96,9 +105,7 @@ def test_the_walled_car_park_has_the_same_bays_behind_wall_segments() -> None:
 
 
 def test_walls_travel_in_scenario_files_and_a_goal_in_one_is_refused(tmp_path: Path) -> None:
-    data = json.loads(ISSUE_SHAPE) | {
-        "walls": [{"points": [[-5, 2], [5, 2], [5, 3]], "body": 0.1}]
-    }
+    data = json.loads(ISSUE_SHAPE) | {"walls": [{"points": [[-5, 2], [5, 2], [5, 3]], "body": 0.1}]}
     path = tmp_path / "s.json"
     path.write_text(json.dumps(data))
     (s,) = load_scenarios(path)

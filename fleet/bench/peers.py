@@ -197,7 +197,9 @@ def _navground_obstacles(
 ) -> tuple[list[Any], list[tuple[Any, Obstacle]]]:
     """The scenario's posts as navground discs, and each wall segment as its outline: the
     two sides (line segments ``body`` to either side) and a disc at each end -- the same
-    capsule the fleet's filter keeps clear of (navground's lines have no thickness)."""
+    capsule the fleet's filter keeps clear of (navground's lines have no thickness). A
+    wall is also a chain of discs of its body, ``body`` apart along it: navground's HRVO
+    reads discs only (with the lines alone it drives through walls)."""
     discs: list[Any] = []  # navground.core.Disc
     lines: list[tuple[Any, Obstacle]] = []  # navground.core.LineSegment
     for o in scenario.static_obstacles():
@@ -207,7 +209,11 @@ def _navground_obstacles(
         discs.append(core.Disc((ax, ay), body))
         if length == 0.0:
             continue
-        discs.append(core.Disc((bx, by), body))
+        steps = math.ceil(length / body)
+        discs.extend(
+            core.Disc((ax + (bx - ax) * k / steps, ay + (by - ay) * k / steps), body)
+            for k in range(1, steps + 1)
+        )
         nx, ny = -(by - ay) / length * body, (bx - ax) / length * body
         for side in (1.0, -1.0):
             segment = core.LineSegment(

@@ -128,3 +128,24 @@ def test_the_assignment_is_optimal_per_arrival_group(n: int, seed: int, staggere
     placed = goals_by_robot(scenario, owner)
     for task, robot in enumerate(owner):
         assert tuple(placed[robot]) == goals[task]
+
+
+@pytest.mark.parametrize("behaviour", ["orca", "hrvo", "hl", "socialforce"])
+def test_a_wall_between_start_and_goal_is_not_driven_through(behaviour: str) -> None:
+    """Every peer sees a wall (navground's HRVO reads only discs: the wall's disc chain);
+    none of them crosses it, whether it finds the way round or not."""
+    from fleet.core.site import Wall
+
+    scenario = Scenario(
+        name="wall",
+        robots=[RobotSpec(start=(-3, 0, 0), goal=(3, 0, 0))],
+        walls=[Wall(points=[(0.0, -1.5), (0.0, 1.5)], body=0.1)],
+        time_limit_s=40.0,
+    )
+    ticks = _ticks(scenario, behaviour)
+    metrics = RunMetrics([0.2], np.array(scenario.goals), scenario.static_obstacles(), MODES)
+    metrics.add(ticks)
+    assert metrics.result().obstacle_hits == 0
+    xy = ticks.poses[:, 0, :2]
+    crossed = np.nonzero(xy[:, 0] > 0.0)[0]
+    assert crossed.size == 0 or (np.abs(xy[crossed[0], 1]) > 1.5).all()  # round the end

@@ -975,7 +975,7 @@ window.__parkfleet = {
   },
   bays: () => state.bays.map((b) => ({ ...b })),
   faults: () => allFaults(),
-  /** What the map drew last frame: keep-out zones and bays. */
+  /** What the map drew last frame: keep-out zones, bays and wall segments. */
   get drawn() {
     return { ...map.drawn };
   },

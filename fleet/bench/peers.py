@@ -256,6 +256,9 @@ def run_peer(scenario: Scenario, run: PeerRun) -> Iterator[TraceChunk]:
     robots = run.robots.build(starts, profile, run.seed, run.dt)
     clock, drives, link = robots.clock, robots.drives, robots.link
     discs, lines = _navground_obstacles(scenario, core)
+    # Where the discs are and how far each may be to be seen (one array op per robot-tick).
+    disc_xy = np.array([d.position for d in discs], dtype=np.float64).reshape(-1, 2)
+    disc_reach = np.array([VIEW_RANGE_M + d.radius for d in discs], dtype=np.float64)
     kinematics = core.kinematics.TwoWheelsDifferentialDriveKinematics(
         max_speed=profile.wheel_radius * profile.max_wheel_speed,
         wheel_axis=2.0 * profile.half_axle,
@@ -326,9 +329,8 @@ def run_peer(scenario: Scenario, run: PeerRun) -> Iterator[TraceChunk]:
                     for p in known[r].values()
                     if math.hypot(p.x - x, p.y - y) <= VIEW_RANGE_M
                 ]
-                env.static_obstacles = [
-                    d for d in discs if math.dist(d.position, (x, y)) <= VIEW_RANGE_M + d.radius
-                ]
+                seen = np.hypot(disc_xy[:, 0] - x, disc_xy[:, 1] - y) <= disc_reach
+                env.static_obstacles = [discs[k] for k in np.flatnonzero(seen)]
                 env.line_obstacles = [
                     line for line, near in lines if near.distance(x, y) <= VIEW_RANGE_M
                 ]

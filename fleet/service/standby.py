@@ -173,9 +173,9 @@ class FailoverService:
             listeners = list(self._listeners)
         self._unsubscribe = [service.add_listener(fn) for fn in listeners]
         service.start()
-        with self._lock:
-            self._leader = service
         self.takeovers += 1
+        with self._lock:
+            self._leader = service  # from now on failover_status says leader
         _log.info("%s leads (term %d): %d tasks recovered", self.name, term,
                   service.counters.get("tasks_recovered", 0))  # fmt: skip
 
@@ -224,9 +224,11 @@ class FailoverService:
             return self._leader
 
     def failover_status(self) -> FailoverStatus:
-        """Role and term as last seen (no database round trip: ``/healthz`` is async)."""
+        """Role and term as last seen (no database round trip: ``/healthz`` is async). A
+        process elected but still building its service (the ledger from the store) says
+        standby until the service leads: a leader then serves writes and its counters."""
         lead = self.leadership
-        if lead.role is Role.LEADER:
+        if lead.role is Role.LEADER and self.leading is not None:
             return FailoverStatus(Role.LEADER, lead.term, self.address, self.name)
         return FailoverStatus(Role.STANDBY, lead.seen_term, lead.seen_leader, self.name)
 

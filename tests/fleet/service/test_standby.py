@@ -105,3 +105,39 @@ def test_the_leader_stamps_its_term_and_the_successor_takes_over_the_task(
     )
     assert {m.term for m in successor.assignments} == {2}
     assert standby.service.counters["tasks_recovered"] == 1
+
+
+class GatedNode(Node):
+    """A node whose take-over waits at its bus until ``gate`` is set (``building`` is set
+    then): the time a real take-over spends rebuilding the ledger from the store."""
+
+    def __init__(self, dsn: str, name: str) -> None:
+        self.gate = threading.Event()
+        self.building = threading.Event()
+        super().__init__(dsn, name)
+
+    def _bus(self) -> MemoryBus:
+        self.building.set()
+        self.gate.wait()
+        return super()._bus()
+
+
+def test_an_elected_process_says_leader_only_once_its_service_leads(postgres_dsn: str) -> None:
+    # /healthz said "leader" from the election on, before the service existed: a client
+    # that waited for the role then read counters the service had yet to count
+    # (tasks_recovered) and had its writes refused by the leader itself.
+    node = GatedNode(postgres_dsn, "a")
+    node.service.start()
+    try:
+        wait_for(node.building.is_set, 30, "the take-over under way")
+        assert node.service.leadership.role is Role.LEADER  # elected ...
+        assert node.service.failover_status().role is Role.STANDBY  # ... not yet leading
+        with pytest.raises(NotLeader):
+            node.service.submit(TaskRequest(goal=Pose(x=1.0, y=1.0)))
+        node.gate.set()
+        wait_for(lambda: node.service.failover_status().role is Role.LEADER, 30, "leading")
+        assert node.service.counters["tasks_recovered"] == 0
+        assert node.service.submit(TaskRequest(goal=Pose(x=1.0, y=1.0))).id
+    finally:
+        node.gate.set()
+        node.close()

@@ -10,10 +10,12 @@ from collections.abc import Iterator
 import pytest
 from support import wait_for
 
+from fleet.core.planner import Plan, PlanningSnapshot, plan
 from fleet.core.tasks import FleetEvent, TaskEvent, TaskRequest
 from fleet.core.wire import ControlAction, ParkAssignment, Pose, RobotMode, RobotState
 from fleet.io.settings import Settings
 from fleet.service.bus import MemoryBus
+from fleet.service.planner_worker import PlanFunction
 from fleet.service.roles import NotLeader, Role
 from fleet.service.standby import FailoverService
 from fleet.service.store_postgres import PostgresTaskStore
@@ -22,14 +24,14 @@ from fleet.service.store_postgres import PostgresTaskStore
 class Node:
     """One FailoverService with its own store and the buses it was given, newest last."""
 
-    def __init__(self, dsn: str, name: str) -> None:
+    def __init__(self, dsn: str, name: str, planner: PlanFunction | None = None) -> None:
         self.store = PostgresTaskStore(dsn)
         self.buses: list[MemoryBus] = []
         self.events: list[FleetEvent] = []
         self.lock = threading.Lock()
         self.service = FailoverService(
             Settings(leader_lease_s=2.0, leader_poll_s=0.02), self.store, self._bus,
-            name=name, address=f"http://{name}",
+            name=name, address=f"http://{name}", planner=planner,
         )  # fmt: skip
         self.service.add_listener(self._event)
 
@@ -140,4 +142,26 @@ def test_an_elected_process_says_leader_only_once_its_service_leads(postgres_dsn
         assert node.service.submit(TaskRequest(goal=Pose(x=1.0, y=1.0))).id
     finally:
         node.gate.set()
+        node.close()
+
+
+def test_the_leader_plans_with_the_plan_function_it_was_given(postgres_dsn: str) -> None:
+    # open_failover gives it the planner's own process when Settings.planner_process is on
+    planned: list[int] = []
+
+    def counting(snapshot: PlanningSnapshot) -> Plan:
+        planned.append(len(snapshot.robots))
+        return plan(snapshot)
+
+    node = Node(postgres_dsn, "a", counting)
+    node.service.start()
+    try:
+        wait_for(lambda: node.service.failover_status().role is Role.LEADER, 30, "leading")
+        bus = node.buses[-1]
+        bus.robot_alive("r1")
+        bus.deliver_state(RobotState(robot_id="r1", seq=1, stamp=0.0, pose=Pose(x=0.0, y=0.0)))
+        node.service.submit(TaskRequest(goal=Pose(x=3.0, y=0.0)))
+        wait_for(lambda: any(isinstance(m, ParkAssignment) for m in bus.assignments), 60, "plan")
+        assert 1 in planned
+    finally:
         node.close()

@@ -4,8 +4,9 @@
 planner worker's thread calls it with the snapshot, it runs the pure planner
 (:func:`fleet.core.planner.plan`) in one worker process and returns the plan. Waiting on the
 pipe releases the GIL, so request threads, the tick and the Zenoh callbacks run on while it
-plans. :func:`fleet.service.host.open_fleet` opens it when ``Settings.planner_process`` is on
-(off by default: the planner runs on the worker thread).
+plans. :func:`fleet.service.host.open_fleet` and :func:`fleet.service.standby.open_failover`
+open it when ``Settings.planner_process`` is on (the default; off: the planner runs on the
+worker thread).
 
 * The worker is started by multiprocessing ``spawn`` (a fresh interpreter, never a bare
   fork: a forked child of a process with an open Zenoh session hangs) and warmed up at once

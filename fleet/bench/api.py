@@ -9,8 +9,8 @@ distinct goals 1.5 m apart (the yard is widened to 200 m x 200 m so thousands fi
 each request from send to the 201.
 Client, server and robots share this machine, so their CPU is part of the numbers; the
 CPU of each (1.0 = one core) is reported. ``--robots 0`` gives the idle-server figure.
-``planners``: where the server plans -- ``thread`` (the default of ``parkfleet serve``) or
-``process`` (``Settings.planner_process``: fleet/service/planner_process.py); both: one
+``planners``: where the server plans -- ``thread`` or ``process`` (the default of
+``parkfleet serve``: ``Settings.planner_process``, fleet/service/planner_process.py); both: one
 server each, one after the other in the same run, so their figures compare.
 """
 

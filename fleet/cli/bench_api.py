@@ -28,8 +28,8 @@ def register(commands: Any, bench: Any) -> None:
         "--planner",
         choices=("thread", "process", "both"),
         default="thread",
-        help="where the server plans: on a thread (serve's default), in its own process "
-        "(planner_process), or both, one server after the other (default thread)",
+        help="where the server plans: on a thread, in its own process (planner_process, "
+        "serve's default), or both, one server after the other (default thread)",
     )
     b.set_defaults(func=run)
 

@@ -298,8 +298,9 @@ class Settings(RobotSettings):
     # when two robots (one moving) come closer than safety_separation_m + this margin [m].
     replan_period_s: Annotated[float, Field(gt=0)] = 2.0
     #: Plan in a process of its own (fleet/service/planner_process.py), so planning never
-    #: holds the GIL the API's requests and the robots' messages need; off: on a thread.
-    planner_process: bool = False
+    #: holds the GIL the API's requests and the robots' messages need (the default); off:
+    #: on the planner worker's thread.
+    planner_process: bool = True
     replan_corridor_m: Annotated[float, Field(gt=0)] = 0.3
     replan_separation_margin_m: Annotated[float, Field(ge=0)] = 0.2
     # Retention: a robot lost this long [s] is forgotten (an operator may remove it sooner,

@@ -4,7 +4,7 @@
 runs the real service (:mod:`fleet.bench.fleet`, :mod:`fleet.bench.zenoh`) open the fleet
 here, so they run the same thing in the same order:
 
-0. the planner's own process (``Settings.planner_process``, off by default:
+0. the planner's own process (``Settings.planner_process``, on by default:
    :mod:`fleet.service.planner_process`), spawned first (multiprocessing ``spawn``, a fresh
    interpreter: safe beside an open Zenoh session, which a fork is not);
 1. the Zenoh session in ``router`` mode (the router the robots connect to), unless one is

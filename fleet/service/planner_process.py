@@ -4,12 +4,19 @@
 planner worker's thread calls it with the snapshot, it runs the pure planner
 (:func:`fleet.core.planner.plan`) in one worker process and returns the plan. Waiting on the
 pipe releases the GIL, so request threads, the tick and the Zenoh callbacks run on while it
-plans. :func:`fleet.service.host.open_fleet` opens it when ``Settings.planner_process`` is on
-(off by default: the planner runs on the worker thread).
+plans. :func:`fleet.service.host.open_fleet` and :func:`fleet.service.standby.open_failover`
+open it when ``Settings.planner_process`` is on (the default; off: the planner runs on the
+worker thread).
 
 * The worker is started by multiprocessing ``spawn`` (a fresh interpreter, never a bare
   fork: a forked child of a process with an open Zenoh session hangs) and warmed up at once
   (imports, the compiled step from numba's cache), so the first plan does not pay for it.
+* The worker ends when the process that opened it ends, even SIGKILLed (no clean-up runs
+  then): a thread of the worker waits on the spawn's parent sentinel (a pipe whose write
+  end only the parent holds) and exits the worker when it reads EOF. Without it the worker
+  would live on as an orphan forever: it waits for work on its call queue, whose write end
+  it holds itself (a pickled ``multiprocessing.Queue`` carries both ends), so it never reads
+  EOF there -- and it would keep the dead service's stdout and stderr open.
 * A worker that dies (killed, out of memory) is restarted and the plan tried once more in
   the new one; every restart is counted (``planner_restarts``) and logged. A second crash in
   a row raises :class:`PlannerCrashed` (the planner worker counts it as a planner error and
@@ -22,6 +29,8 @@ from __future__ import annotations
 
 import logging
 import multiprocessing
+import multiprocessing.connection
+import os
 import threading
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -35,6 +44,21 @@ _log = logging.getLogger(__name__)
 
 class PlannerCrashed(RuntimeError):
     """The planner's process died twice in a row on one snapshot."""
+
+
+def _exit_with_parent() -> None:
+    """The worker's initializer: a daemon thread that ends the worker as soon as its parent
+    (the service's process) is gone, however it went (module docstring)."""
+    parent = multiprocessing.parent_process()
+    if parent is None:  # not a multiprocessing child: nothing to watch
+        return
+    sentinel = parent.sentinel
+
+    def watch() -> None:
+        multiprocessing.connection.wait([sentinel])
+        os._exit(1)  # no clean-up to run: the parent that needs the plans is gone
+
+    threading.Thread(target=watch, name="planner-parent-watch", daemon=True).start()
 
 
 def _warm_up() -> None:
@@ -69,7 +93,9 @@ class PlannerProcess:
         self._pool = self._start()
 
     def _start(self) -> ProcessPoolExecutor:
-        pool = ProcessPoolExecutor(max_workers=1, mp_context=self._context)
+        pool = ProcessPoolExecutor(
+            max_workers=1, mp_context=self._context, initializer=_exit_with_parent
+        )
         try:
             pool.submit(_warm_up).result()
         except BaseException:

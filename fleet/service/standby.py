@@ -34,6 +34,7 @@ from typing import Any
 import psycopg
 import zenoh
 
+from fleet.core.planner import plan
 from fleet.core.tasks import (
     FleetEvent,
     RobotNotFound,
@@ -63,6 +64,8 @@ from fleet.service.bus import FleetBus, FleetSink
 from fleet.service.control_desk import ControlState
 from fleet.service.fleet_service import FleetService
 from fleet.service.leadership import LeaderRecord, Leadership, read_leader
+from fleet.service.planner_process import PlannerProcess
+from fleet.service.planner_worker import PlanFunction
 from fleet.service.roles import FailoverStatus, NotLeader, Role
 from fleet.service.stats import PlannerStats
 from fleet.service.store_postgres import TASKS_CHANNEL, PostgresTaskStore, connect
@@ -120,9 +123,13 @@ class FailoverService:
         *,
         name: str,
         address: str,
+        planner: PlanFunction | None = None,
     ) -> None:
         self.settings = settings
         self.store = store
+        #: How every term's service plans (None: the planner on its worker thread); a
+        #: :class:`~fleet.service.planner_process.PlannerProcess` outlives the terms.
+        self._plan = planner
         self.name = name
         self.address = address
         self._make_bus = make_bus
@@ -168,14 +175,14 @@ class FailoverService:
             term,
             lambda: self.leadership.role is Role.LEADER and self.leadership.term == term,
         )
-        service = FleetService(self.settings, bus, self.store)
+        service = FleetService(self.settings, bus, self.store, planner=self._plan)
         with self._lock:
             listeners = list(self._listeners)
         self._unsubscribe = [service.add_listener(fn) for fn in listeners]
         service.start()
-        with self._lock:
-            self._leader = service
         self.takeovers += 1
+        with self._lock:
+            self._leader = service  # from now on failover_status says leader
         _log.info("%s leads (term %d): %d tasks recovered", self.name, term,
                   service.counters.get("tasks_recovered", 0))  # fmt: skip
 
@@ -224,9 +231,11 @@ class FailoverService:
             return self._leader
 
     def failover_status(self) -> FailoverStatus:
-        """Role and term as last seen (no database round trip: ``/healthz`` is async)."""
+        """Role and term as last seen (no database round trip: ``/healthz`` is async). A
+        process elected but still building its service (the ledger from the store) says
+        standby until the service leads: a leader then serves writes and its counters."""
         lead = self.leadership
-        if lead.role is Role.LEADER:
+        if lead.role is Role.LEADER and self.leading is not None:
             return FailoverStatus(Role.LEADER, lead.term, self.address, self.name)
         return FailoverStatus(Role.STANDBY, lead.seen_term, lead.seen_leader, self.name)
 
@@ -374,12 +383,17 @@ class RunningFailover:
 @contextmanager
 def open_failover(settings: Settings) -> Iterator[RunningFailover]:
     """Like :func:`fleet.service.host.open_fleet` for a PostgreSQL ``settings.store``: the
-    router session, the store, the :class:`FailoverService` (a Zenoh bus per term it leads)
+    planner's own process (``settings.planner_process``, spawned first), the router
+    session, the store, the :class:`FailoverService` (a Zenoh bus per term it leads)
     and the heap trimmer; closed in reverse. The service is named ``<host>:<pid>``; it gives
     ``settings.advertise_url`` (else its API address) as its address when it leads."""
     if settings.store is None:
         raise ValueError("open_failover needs a postgresql:// store")
     with ExitStack() as stack:
+        planner: PlannerProcess | None = None
+        if settings.planner_process:
+            planner = PlannerProcess(plan)
+            stack.callback(planner.close)  # after the last term's service stopped
         session = open_session(settings, "router")
         stack.callback(session.close)
         locators = listening_locators(session)
@@ -392,6 +406,7 @@ def open_failover(settings: Settings) -> Iterator[RunningFailover]:
             lambda: ZenohFleetBus(session, keys),
             name=f"{socket.gethostname()}:{os.getpid()}",
             address=settings.advertise_url or f"http://{settings.api_host}:{settings.api_port}",
+            planner=planner,
         )
         stack.callback(service.close)
         service.start()

@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
+import sys
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
+from support import is_alive, read_line, wait_for
 
+import fleet
 from fleet.bench.closed_loop import OfflineFleet
 from fleet.bench.scenarios import swap
 from fleet.core.planner import PlanningSnapshot, plan
@@ -95,3 +100,44 @@ def test_a_service_planning_in_the_process_counts_its_restarts() -> None:
         fleet.service.close()
         process.close()
     assert not _alive(pid)
+
+
+#: A process that opens a planner process, says its worker's id and waits for stdin to end.
+_HOLDER = """
+import sys
+from fleet.core.planner import plan
+from fleet.service.planner_process import PlannerProcess
+planner = PlannerProcess(plan)
+print(planner.pid, flush=True)
+sys.stdin.read()
+"""
+
+
+def test_the_planner_process_ends_when_the_process_that_opened_it_is_sigkilled() -> None:
+    # A SIGKILLed service runs no clean-up: its planner worker must notice on its own. It
+    # holds the write end of its own call queue (a pickled multiprocessing Queue carries
+    # both ends), so it never reads EOF there; left alone it lived on as an orphan forever,
+    # holding the dead service's stdout (a test reading that pipe to EOF hung).
+    root = str(Path(fleet.__file__).resolve().parents[1])
+    holder = subprocess.Popen(
+        [sys.executable, "-c", _HOLDER],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        env={**os.environ, "PYTHONPATH": root},
+    )
+    worker = 0
+    try:
+        worker = int(read_line(holder, 120))
+        assert is_alive(worker)
+        holder.kill()
+        holder.wait()
+        wait_for(lambda: not is_alive(worker), 60, "the orphaned planner worker to end")
+    finally:
+        if holder.poll() is None:
+            holder.kill()
+            holder.wait()
+        if worker and is_alive(worker):
+            os.kill(worker, signal.SIGKILL)
+        for pipe in (holder.stdin, holder.stdout):
+            if pipe is not None:
+                pipe.close()

@@ -251,9 +251,10 @@ class Site(_Strict):
         robots parked closer would push each other away by Eq. (27)).
         """
         out: list[SiteError] = []
+        static = self.static_obstacles()
         for i, bay in enumerate(self.bays):
             x, y = bay.pose.x, bay.pose.y
-            for obstacle in self.static_obstacles():
+            for obstacle in static:
                 d = obstacle.distance(x, y)
                 reach = max(obstacle.radius, obstacle.body_radius + robot_radius)
                 if d <= reach:

@@ -307,10 +307,10 @@ def test_late_joiner_gets_obstacles_by_query_and_follows_updates(
             30, "the obstacle queryable, seen from the robot's session",
         )  # fmt: skip
         with SimFleet(fleet_session, client_settings, [Spawn("r1", 0, 0, 0)]) as fleet:
-            wait_for(lambda: fleet.world.obstacles()[0].shape == (1, 2), 10, "queried obstacles")
+            wait_for(lambda: fleet.world.obstacles().shape[1] == 1, 10, "queried obstacles")
             update = ObstacleSet(obstacles=[Obstacle(x=5, y=5), Obstacle(x=-5, y=5)])
             service.put(KEYS.obstacles, encode(update), congestion_control=BLOCK)
-            wait_for(lambda: fleet.world.obstacles()[0].shape == (2, 2), 10, "obstacle update")
+            wait_for(lambda: fleet.world.obstacles().shape[1] == 2, 10, "obstacle update")
     finally:
         queryable.undeclare()
 

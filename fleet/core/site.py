@@ -157,9 +157,8 @@ class Wall(_Strict):
         if self.closed and len(self.points) < 3:
             raise ValueError("points: a closed wall (a polygon) needs at least 3 points")
         n = len(self.points)
-        edges = n if self.closed else n - 1
-        for i in range(edges):
-            if self.points[i] == self.points[(i + 1) % n]:
+        for i, (a, b) in enumerate(self.edges()):
+            if a == b:
                 raise ValueError(f"points: point {(i + 1) % n} repeats point {i} (an empty edge)")
         crossing = first_self_crossing(self.points, self.closed)
         if crossing is not None:
@@ -170,13 +169,17 @@ class Wall(_Strict):
             )
         return self
 
+    def edges(self) -> list[tuple[Point, Point]]:
+        """The wall's edges in order, each (from, to); closed: the last back to the first."""
+        n = len(self.points)
+        count = n if self.closed else n - 1
+        return [(self.points[i], self.points[(i + 1) % n]) for i in range(count)]
+
     def segments(self) -> list[Obstacle]:
         """The wall as obstacles: one segment per edge."""
-        n = len(self.points)
-        edges = n if self.closed else n - 1
-        ends = [(self.points[i], self.points[(i + 1) % n]) for i in range(edges)]
         return [
-            Obstacle(x=a[0], y=a[1], end=b, radius=self.radius, body=self.body) for a, b in ends
+            Obstacle(x=a[0], y=a[1], end=b, radius=self.radius, body=self.body)
+            for a, b in self.edges()
         ]
 
 

@@ -44,13 +44,14 @@ Importing this module compiles the step (or loads it from numba's cache): never 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
 import numpy as np
 
 from fleet.core import step
 from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
+from fleet.core.route import route_table
 from fleet.core.types import FloatArray
 from fleet.core.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
 
@@ -64,13 +65,32 @@ class AgentTaskStatus(StrEnum):
     CANCELLED = "cancelled"
 
 
+def route_of(assignment: ParkAssignment) -> FloatArray:
+    """The assignment's route table of :mod:`fleet.core.step` (its via-points, then its
+    goal with its law): the table the planner's batch runs for it."""
+    via = [(w.x, w.y, w.theta, 1.0 if w.law == "cw" else 0.0) for w in assignment.route]
+    return route_table(np.array(via), assignment.goal.as_tuple(), assignment.law == "cw")
+
+
 @dataclass(frozen=True)
 class AgentTask:
-    """The robot's current (or last) assignment and how far it got."""
+    """The robot's current (or last) assignment and how far it got: ``leg`` is the entry
+    of its route table (:func:`route_of`) it aims at (the goal when it has no route)."""
 
     assignment: ParkAssignment
     status: AgentTaskStatus = AgentTaskStatus.ACTIVE
     applied_at: float = 0.0  # [s, agent clock] when this revision was applied
+    route: FloatArray = field(default_factory=lambda: np.zeros((step.ROUTE_ROWS, 0)))
+    leg: int = 0
+
+    def __post_init__(self) -> None:
+        if self.route.shape[1] == 0:  # built once per assignment, not per tick
+            object.__setattr__(self, "route", route_of(self.assignment))
+
+    @classmethod
+    def of(cls, assignment: ParkAssignment, applied_at: float) -> AgentTask:
+        """A task running ``assignment`` from its route's first via-point."""
+        return cls(assignment, applied_at=applied_at)
 
     @property
     def task_id(self) -> str:
@@ -95,9 +115,9 @@ def apply_assignment(
         if task is not None and task.task_id == message.task_id:
             if message.revision <= task.assignment.revision:
                 return task  # at-least-once delivery: a repeat or a stale revision is ignored
-            # re-planned: new law, delay or hold, same status
-            return replace(task, assignment=message, applied_at=now)
-        return AgentTask(message, applied_at=now)
+            # re-planned: new law, route, delay or hold, same status
+            return AgentTask(message, task.status, applied_at=now)
+        return AgentTask.of(message, now)
     if task is not None and task.task_id == message.task_id:
         return replace(task, status=AgentTaskStatus.CANCELLED)
     return task
@@ -155,17 +175,20 @@ def filter_of(safety: SafetyConfig | None, speed: float = 0.0) -> step.Safety:
     return step.Safety(*safety.filter_terms(safety.own_spread(speed)))
 
 
-def _step_params(assignment: ParkAssignment, profile: RobotProfile, limit: float) -> FloatArray:
-    """The robot's parameter row of :mod:`fleet.core.step` (1, ``ROBOT_COLUMNS``)."""
-    goal, gains, tol = assignment.goal, assignment.gains, assignment.tolerance
+def _step_params(task: AgentTask, profile: RobotProfile, limit: float) -> FloatArray:
+    """The robot's parameter row of :mod:`fleet.core.step` (1, ``ROBOT_COLUMNS``), aiming at
+    route entry ``task.leg``."""
+    assignment = task.assignment
+    gains, tol = assignment.gains, assignment.tolerance
+    aim = task.route[:, task.leg]
 
     def column(value: float) -> FloatArray:
         return np.array([value])
 
     return step.robot_params(
-        np.array([goal.as_tuple()]),
+        aim[None, step.VIA_X : step.VIA_HEADING + 1],
         np.array([gains.as_tuple()]),
-        column(1.0 if assignment.law == "cw" else 0.0),
+        column(aim[step.VIA_CW]),
         column(tol.position),
         column(tol.heading),
         column(profile.wheel_radius),
@@ -245,10 +268,14 @@ def decide(
     if a.max_wheel_speed is not None:
         limit = min(limit, a.max_wheel_speed)  # never above the robot's own limit
     hold = task.waiting(now)
+    last = task.route.shape[1] - 1
+    leg = step.next_leg(pose[0], pose[1], task.route, task.leg, last, a.pass_m * a.pass_m)
+    if leg != task.leg:
+        task = replace(task, leg=leg)
     postures, shapes = peers
     result = step.step_robot(
         (pose[0], pose[1], pose[2]),
-        _step_params(a, profile, limit),
+        _step_params(task, profile, limit),
         hold=hold,
         peers=np.ascontiguousarray(postures, dtype=np.float64),
         shapes=np.ascontiguousarray(shapes, dtype=np.float64),

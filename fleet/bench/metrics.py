@@ -45,11 +45,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from fleet.core.types import BoolArray, FloatArray
+from fleet.core.types import BoolArray, FloatArray, IntArray
 from fleet.core.wire import Obstacle
 from fleet.io.trace import NO_MODE, ModeArray, TraceChunk
-
-IntArray = npt.NDArray[np.int64]
 
 #: Tolerance [m] of the contact test (float32 rounding of the peers' positions).
 COLLISION_SLACK_M = 1e-4

@@ -33,12 +33,17 @@ from fleet.core.params import (
     SafetyConfig,
     Tolerance,
 )
+from fleet.core.route import route_table
 from fleet.core.step import (
     DISTANCE,
     EFFORT,
     OBSTACLE_ROWS,
     RECORD_COLUMNS,
+    ROUTE_ROWS,
     SAFETY_OFF,
+    VIA_CW,
+    VIA_HEADING,
+    VIA_X,
     Interaction,
     Safety,
     Schedule,
@@ -46,12 +51,14 @@ from fleet.core.step import (
     lower_min_separation,
     robot_params,
 )
-from fleet.core.types import BoolArray, FloatArray, Law
+from fleet.core.types import BoolArray, FloatArray, IntArray, Law
 from fleet.core.wire import Obstacle
 
 PAPER_DT = 0.01
 #: Tolerance [s] on the end of a start delay (as ``robot_agent.logic.DELAY_EPS``).
 DELAY_EPS = 1e-6
+#: [m] default pass-through radius of a route's via-points.
+DEFAULT_PASS_RADIUS = 0.5
 #: Recorded rows per compiled call when recording (bounds the buffers to rows x N x 8 floats).
 RECORD_CHUNK_ROWS = 256
 
@@ -121,18 +128,34 @@ class BatchProblem:
     body_radius: FloatArray | None = None
     #: The safety filter (:class:`fleet.core.step.Safety`); off: the paper's model.
     safety: Safety = SAFETY_OFF
+    #: (``ROUTE_ROWS``, M) every robot's route table (its via-points, then its goal;
+    #: :mod:`fleet.core.step`), robot i's in columns ``route_first[i] .. route_last[i]``
+    #: (-1: no route, the robot aims at its goal). None: no robot has a route.
+    route: FloatArray | None = None
+    route_first: IntArray | None = None
+    route_last: IntArray | None = None
+    #: (N,) [m] pass-through radius of each robot's via-points.
+    pass_radius: FloatArray | None = None
 
     @property
     def size(self) -> int:
         return int(self.start.shape[0])
 
     def params(self) -> FloatArray:
-        """Parameter rows of :mod:`fleet.core.step` (N, ``ROBOT_COLUMNS``)."""
+        """Parameter rows of :mod:`fleet.core.step` (N, ``ROBOT_COLUMNS``): a robot with a
+        route aims at its first entry."""
         n = self.size
+        aim = self.goal.copy()
+        cw = self.cw.astype(np.float64)
+        if self.route is not None and self.route_first is not None:
+            routed = self.route_first >= 0
+            first = self.route_first[routed]
+            aim[routed] = self.route[VIA_X : VIA_HEADING + 1, first].T
+            cw[routed] = self.route[VIA_CW, first]
         return robot_params(
-            self.goal,
+            aim,
             self.gains,
-            self.cw.astype(np.float64),
+            cw,
             self.tol_position,
             self.tol_heading,
             self.wheel_radius,
@@ -140,7 +163,15 @@ class BatchProblem:
             self.max_wheel_speed,
             np.zeros(n) if self.body_radius is None else self.body_radius,
             None if self.start_delay is None else self.start_delay - DELAY_EPS,
+            None if self.route_last is None else self.route_last.astype(np.float64),
+            0.0 if self.pass_radius is None else self.pass_radius,
         )
+
+    def legs(self) -> npt.NDArray[np.int64]:
+        """(N,) the route entry each robot aims at first (-1: no route)."""
+        if self.route_first is None:
+            return np.full(self.size, -1, dtype=np.int64)
+        return self.route_first.astype(np.int64)
 
     @classmethod
     def build(
@@ -160,8 +191,17 @@ class BatchProblem:
         obstacle_body: npt.ArrayLike = 0.0,
         safety: Safety = SAFETY_OFF,
         obstacle_end: npt.ArrayLike | None = None,
+        routes: Sequence[npt.ArrayLike | None] | None = None,
+        pass_radius: npt.ArrayLike = DEFAULT_PASS_RADIUS,
     ) -> BatchProblem:
-        """Broadcast per-robot inputs (scalars, models or arrays) to an N-robot problem."""
+        """Broadcast per-robot inputs (scalars, models or arrays) to an N-robot problem.
+
+        ``routes[i]``: robot i's via-points as rows (x [m], y [m], heading [rad], cw) in
+        the world frame (:func:`fleet.core.route.via_postures`), its goal left out (it is
+        appended with the robot's law); None or no rows: straight to the goal.
+        ``pass_radius`` [m]: the via-points' pass-through radius, at least the position
+        tolerance.
+        """
         start_arr = np.atleast_2d(np.asarray(start, dtype=np.float64))
         n = start_arr.shape[0]
         goal_arr = np.broadcast_to(np.atleast_2d(np.asarray(goal, dtype=np.float64)), (n, 3))
@@ -186,12 +226,18 @@ class BatchProblem:
         ends = None if obstacle_end is None else np.asarray(obstacle_end, np.float64).reshape(-1, 2)
         if ends is not None and ends.shape != obs.shape:
             raise ValueError(f"obstacle_end must have shape {obs.shape}, got {ends.shape}")
+        law_cw = np.broadcast_to(is_cw(law), (n,)).copy()
+        tol_position = _column([t.position for t in tols], n, "tol_position")
+        passing = _column(pass_radius, n, "pass_radius")
+        table = _route_table(routes, goal_arr, law_cw, n)
+        if table is not None and (passing < tol_position).any():
+            raise ValueError("pass_radius must be at least the position tolerance")
         return cls(
             start=start_arr.copy(),
             goal=goal_arr.copy(),
             gains=gains_arr,
-            cw=np.broadcast_to(is_cw(law), (n,)).copy(),
-            tol_position=_column([t.position for t in tols], n, "tol_position"),
+            cw=law_cw,
+            tol_position=tol_position,
             tol_heading=_column([t.heading for t in tols], n, "tol_heading"),
             wheel_radius=_column([p.wheel_radius for p in profs], n, "wheel_radius"),
             half_axle=_column([p.half_axle for p in profs], n, "half_axle"),
@@ -206,7 +252,40 @@ class BatchProblem:
             start_delay=None if start_delay is None else _column(start_delay, n, "start_delay"),
             body_radius=_column([p.radius for p in profs], n, "body_radius"),
             safety=safety,
+            route=None if table is None else table[0],
+            route_first=None if table is None else table[1],
+            route_last=None if table is None else table[2],
+            pass_radius=passing,
         )
+
+
+def _route_table(
+    routes: Sequence[npt.ArrayLike | None] | None, goal: FloatArray, cw: BoolArray, n: int
+) -> tuple[FloatArray, IntArray, IntArray] | None:
+    """The batch's route table and each robot's first and last column (-1: no route), or
+    None when no robot has a via-point."""
+    if routes is None:
+        return None
+    if len(routes) != n:
+        raise ValueError(f"routes must have one entry per robot ({n}), got {len(routes)}")
+    columns: list[FloatArray] = []
+    first = np.full(n, -1, dtype=np.int64)
+    last = np.full(n, -1, dtype=np.int64)
+    used = 0
+    for i, via in enumerate(routes):
+        rows = np.zeros((0, ROUTE_ROWS)) if via is None else np.asarray(via, dtype=np.float64)
+        rows = rows.reshape(-1, ROUTE_ROWS)
+        if rows.shape[0] == 0:
+            continue
+        if not np.isfinite(rows).all():
+            raise ValueError(f"route {i} must be finite")
+        table = route_table(rows, (goal[i, 0], goal[i, 1], goal[i, 2]), bool(cw[i]))
+        columns.append(table)
+        first[i], last[i] = used, used + table.shape[1] - 1
+        used += table.shape[1]
+    if not columns:
+        return None
+    return np.ascontiguousarray(np.hstack(columns)), first, last
 
 
 @dataclass(frozen=True)
@@ -283,6 +362,8 @@ def simulate(
     blocks = n // g
     pose = np.array(problem.start.T, order="C")  # a copy: the problem stays as built
     params = problem.params()
+    route = problem.route
+    leg = problem.legs()
     done_step = np.full(n, -1, dtype=np.int64)
     metrics = np.zeros((2, n))
     obstacles = np.zeros((OBSTACLE_ROWS, 0))
@@ -313,7 +394,7 @@ def simulate(
             buffer = np.empty((rows, n, RECORD_COLUMNS))
         taken = advance_batch(
             pose, params, done_step, metrics, obstacles, interaction,
-            Schedule(dt, step, steps, record_every), buffer, min_pair_sq,
+            Schedule(dt, step, steps, record_every), buffer, min_pair_sq, route, leg,
         )  # fmt: skip
         if buffer is not None:  # rows after the last robot was done are not part of the run
             recorded.append(buffer[: _recorded_steps(step, step + taken, record_every)])

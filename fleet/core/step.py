@@ -30,6 +30,13 @@ One step of one robot (:func:`robot_step`), in this order:
 Step 5 is on only when K_avoid > 0; step 7 whenever the filter is on (the paper's model
 runs without it).
 
+**Routes.** A robot may follow a route: a table of postures (its via-points, then its goal)
+that it aims at in turn. Before each step, on the pre-step position, it passes every
+via-point it is within the pass-through radius of (:func:`next_leg`; the agent calls it
+before its tick's step, the batch before each step) and aims at the next entry with that
+entry's law; the stop rule then applies to the goal only (the radius is at least the
+position tolerance).
+
 **The safety filter** (a discrete-time control barrier function on the unicycle, the
 Robotarium's barrier certificates with the projected point). The point p = c + l e(theta)
 ahead of the axle centre c moves, in one Euler step, by dt (u e + l omega e_perp) plus a
@@ -107,7 +114,18 @@ HALF_AXLE = 10  # b of Eq. (2) [m]
 MAX_WHEEL_SPEED = 11  # [rad/s], inf = unlimited
 BODY_RADIUS = 12  # [m], the body, for the safety filter
 DELAY_END = 13  # [s] the robot is held while t < DELAY_END (batch only; -inf = never)
-ROBOT_COLUMNS = 14
+ROUTE_LAST = 14  # column of the robot's goal in the route table (batch only; -1: no route)
+PASS_SQ = 15  # squared pass-through radius [m^2] of the route's via-points
+ROBOT_COLUMNS = 16
+
+# Rows of a route table (``route[:, k]``): the postures a robot aims at in turn, its via-points
+# then its goal (world frame). A robot aims at entry k until its centre comes within the
+# pass-through radius of it (:func:`next_leg`); the last entry is its goal (the stop rule).
+VIA_X = 0  # [m]
+VIA_Y = 1
+VIA_HEADING = 2  # [rad], wrapped by (11.a)
+VIA_CW = 3  # 1.0: clockwise law (20) on the leg to this entry; 0.0: (17)
+ROUTE_ROWS = 4
 
 # Rows of the static obstacles (``obstacles[:, j]``): a capsule, the segment from (X, Y) to
 # (END_X, END_Y) (a post when both ends coincide) inflated by BODY; Eq. (27) acts within
@@ -313,6 +331,35 @@ def _euler(
 ) -> tuple[float, float, float]:
     """Forward Euler on Eq. (3) with c, s = cos, sin of the pre-step heading ``theta``."""
     return x + c * u * dt, y + s * u * dt, theta + omega * dt
+
+
+# -- routes (scalar, compiled) ---------------------------------------------------------------
+@njit(inline="always", error_model="numpy")
+def _next_leg(x: float, y: float, route: FloatArray, leg: int, last: int, pass_sq: float) -> int:
+    """:func:`next_leg`, inlined into the batch."""
+    while leg < last:
+        dx, dy = route[VIA_X, leg] - x, route[VIA_Y, leg] - y
+        if dx * dx + dy * dy >= pass_sq:
+            break
+        leg += 1
+    return leg
+
+
+@njit("int64(float64, float64, float64[:, ::1], int64, int64, float64)", cache=True)
+def next_leg(x: float, y: float, route: FloatArray, leg: int, last: int, pass_sq: float) -> int:
+    """The route entry a robot at (x, y) [m] aims at, from entry ``leg`` on: every via-point
+    before ``last`` (the goal) whose squared distance from (x, y) is below ``pass_sq``
+    [m^2] is passed. The agent calls it before each tick's step, the batch before each
+    step: a robot passes its via-points without stopping and stops only at its goal (the
+    pass-through radius is at least the position tolerance)."""
+    return _next_leg(x, y, route, leg, last, pass_sq)
+
+
+@njit(inline="always", error_model="numpy")
+def _aim(params: FloatArray, i: int, route: FloatArray, leg: int) -> None:
+    """Robot i's goal columns set to route entry ``leg``."""
+    params[i, GOAL_X], params[i, GOAL_Y] = route[VIA_X, leg], route[VIA_Y, leg]
+    params[i, GOAL_HEADING], params[i, CW] = route[VIA_HEADING, leg], route[VIA_CW, leg]
 
 
 # -- the safety filter (scalar, compiled) ----------------------------------------------------
@@ -678,10 +725,14 @@ def robot_params(
     max_wheel_speed: FloatArray,
     body_radius: FloatArray,
     delay_end: FloatArray | None = None,
+    route_last: FloatArray | None = None,
+    pass_radius: FloatArray | float = 0.0,
 ) -> FloatArray:
     """Parameter rows (N, ``ROBOT_COLUMNS``) from per-robot columns (N,) and goal/gains (N, 3).
 
     ``delay_end`` [s]: the batch holds robot i while t < delay_end[i] (None: never).
+    ``route_last``: the column of robot i's goal in the batch's route table (None or -1: no
+    route); ``pass_radius`` [m] its via-points' pass-through radius.
     """
     n = goal.shape[0]
     params = np.empty((n, ROBOT_COLUMNS))
@@ -697,6 +748,8 @@ def robot_params(
     params[:, MAX_WHEEL_SPEED] = max_wheel_speed
     params[:, BODY_RADIUS] = body_radius
     params[:, DELAY_END] = -np.inf if delay_end is None else delay_end
+    params[:, ROUTE_LAST] = -1.0 if route_last is None else route_last
+    params[:, PASS_SQ] = np.square(pass_radius)
     return params
 
 
@@ -763,15 +816,24 @@ def _advance_robot(
     dt: float,
     record: FloatArray,
     row: int,
+    route: FloatArray,
+    leg: np.ndarray,
 ) -> int:
     """Robot i's step ``step`` (time ``t`` = step dt [s]) from ``current`` into
     ``following`` (both (3, N)), with peers ``peer_lo .. peer_hi - 1``; returns 1 if the
-    stop rule fired. ``row`` >= 0 records the step in that row of ``record``."""
+    stop rule fired. ``row`` >= 0 records the step in that row of ``record``. A robot with
+    a route (``leg[i]`` >= 0, its entry in ``route``) first passes the via-points it is
+    within the pass-through radius of (:func:`next_leg`)."""
     x, y, theta = current[0, i], current[1, i], current[2, i]
     moving = done_step[i] < 0
     if not moving and row < 0:  # done: stands still (still a peer of the others)
         following[0, i], following[1, i], following[2, i] = x, y, theta
         return 0
+    if moving and leg[i] >= 0:
+        passed = _next_leg(x, y, route, leg[i], int(params[i, ROUTE_LAST]), params[i, PASS_SQ])
+        if passed != leg[i]:
+            leg[i] = passed
+            _aim(params, i, route, passed)
     hold = t < params[i, DELAY_END]
     r = robot_step(
         x, y, theta, params, i, hold, current, shapes, peer_lo, peer_hi, i, obstacles,
@@ -829,6 +891,8 @@ def advance_chunk(
     schedule: Schedule,
     record: FloatArray,
     min_pair_sq: FloatArray,
+    route: FloatArray,
+    leg: np.ndarray,
 ) -> int:
     """Robots ``lo .. hi - 1`` for up to ``max_steps`` steps from step ``first_step``;
     returns the steps taken until all of them were done (see :func:`advance_batch`).
@@ -868,7 +932,7 @@ def advance_chunk(
                 remaining -= _advance_robot(
                     i, step, t, current, following, params, done_step, metrics, obstacles,
                     shapes, base, peer_hi, k_avoid, peer_radius, min_x_oa, safety, dt,
-                    record, row,
+                    record, row, route, leg,
                 )  # fmt: skip
         current, following = following, current
         ran += 1
@@ -883,7 +947,20 @@ def _advance_chunks_in_parallel(chunk: int, n: int, *args: Any) -> int:
     """:func:`advance_chunk` on consecutive chunks of ``chunk`` of the ``n`` robots, spread
     over the threads (``args``: its arguments after ``lo, hi``); returns the most steps any
     chunk took."""
-    pose, spare, params, done_step, metrics, obstacles, interaction, schedule, record, pairs = args
+    (
+        pose,
+        spare,
+        params,
+        done_step,
+        metrics,
+        obstacles,
+        interaction,
+        schedule,
+        record,
+        pairs,
+        route,
+        leg,
+    ) = args
     # The threads get scalars and arrays only (parfors take no named tuples).
     group, k_avoid, peer_radius, min_x_oa, safety = interaction
     margin, ahead, rate, spread = safety  # scalars: parfors take no tuples
@@ -895,7 +972,7 @@ def _advance_chunks_in_parallel(chunk: int, n: int, *args: Any) -> int:
             c * chunk, min(n, (c + 1) * chunk), pose, spare, params, done_step, metrics,
             obstacles,
             Interaction(group, k_avoid, peer_radius, min_x_oa, (margin, ahead, rate, spread)),
-            Schedule(dt, first_step, max_steps, record_every), record, pairs,
+            Schedule(dt, first_step, max_steps, record_every), record, pairs, route, leg,
         )  # fmt: skip
     most = 0
     for c in range(chunks):
@@ -913,6 +990,8 @@ def advance_batch(
     schedule: Schedule,
     record: FloatArray | None = None,
     min_pair_sq: FloatArray | None = None,
+    route: FloatArray | None = None,
+    leg: npt.NDArray[np.int64] | None = None,
 ) -> int:
     """Advance N robots as ``schedule`` says, stopping when every robot is done; returns the
     steps taken (until the last one was done).
@@ -923,6 +1002,8 @@ def advance_batch(
     still) and ``metrics`` (``EFFORT``, ``DISTANCE``) accumulate. ``record`` (rows, N,
     ``RECORD_COLUMNS``) takes every step k with k % record_every == 0 of this call, in
     order; ``min_pair_sq`` (blocks, group, group) the smallest pre-step squared separations.
+    ``route`` (``ROUTE_ROWS``, M) holds every robot's route table and ``leg`` (N,) the
+    entry each robot aims at (-1: no route; updated in place, with its goal columns).
 
     Robots are simulated in independent chunks (whole blocks when they interact or
     separations are tracked), each through all its steps; large batches spread the chunks
@@ -931,13 +1012,15 @@ def advance_batch(
     n = pose.shape[1]
     record = np.zeros((0, n, RECORD_COLUMNS)) if record is None else record
     min_pair_sq = np.zeros((0, 0, 0)) if min_pair_sq is None else min_pair_sq
+    route = np.zeros((ROUTE_ROWS, 0)) if route is None else route
+    leg = np.full(n, -1, dtype=np.int64) if leg is None else leg
     group = interaction.group
     peers = interacting(group, interaction.k_avoid, interaction.peer_radius, interaction.safety[0])
     unit = group if peers or min_pair_sq.shape[0] > 0 else 1
     chunk = unit * max(1, CHUNK_ROBOTS // unit)
     spare = np.empty_like(pose)
     args = (pose, spare, params, done_step, metrics, obstacles, interaction, schedule, record,
-            min_pair_sq)  # fmt: skip
+            min_pair_sq, route, leg)  # fmt: skip
     if n > chunk and n * (group if peers else 1) >= PARALLEL_MIN_WORK and _threads["usable"]:
         try:
             return int(_advance_chunks_in_parallel(chunk, n, *args))

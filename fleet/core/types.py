@@ -13,6 +13,7 @@ import numpy.typing as npt
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
+IntArray = npt.NDArray[np.int64]
 
 #: Law names on every interface: ``ccw`` = Eq. (17) (omega >= 0), ``cw`` = Eq. (20) (omega <= 0).
 Law = Literal["ccw", "cw"]
@@ -23,4 +24,4 @@ Posture = tuple[float, float, float]
 #: Controller gains (kx [1/s], ky, ktheta) of laws (17)/(20).
 GainTriple = tuple[float, float, float]
 
-__all__ = ["LAWS", "BoolArray", "FloatArray", "GainTriple", "Law", "Posture"]
+__all__ = ["LAWS", "BoolArray", "FloatArray", "GainTriple", "IntArray", "Law", "Posture"]

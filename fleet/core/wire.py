@@ -78,6 +78,9 @@ Protocol between the fleet service and a robot agent:
   still for that long of its own time, ``mode=waiting``, then drives (a planned wait for a
   peer to pass). ``hold``: the robot stands still, ``mode=waiting``, until a higher revision
   releases it (the fleet found no safe option yet).
+* ``route`` (via-points, each with its law) and ``pass_m``: the robot passes the via-points
+  in order without stopping, then parks at ``goal`` (:class:`ParkAssignment` has the
+  rule and its compatibility).
 * ``CancelAssignment`` for the current task stops the robot: ``mode=holding``, task id kept.
 * With no assignment the robot stands still in ``mode=idle`` with ``task_id=None``.
 
@@ -556,12 +559,36 @@ class RobotDescription(_Message):
         )
 
 
+#: Most via-points of one assignment's route.
+MAX_ROUTE_POINTS = 64
+#: [m] default pass-through radius of a route's via-points.
+DEFAULT_PASS_M = 0.5
+
+
+class Waypoint(Pose):
+    """A via-point of a route: the posture the robot aims at (x, y [m], theta [rad], world
+    frame: the heading of the leg that arrives there) and the law of that leg."""
+
+    law: Law
+
+
 class ParkAssignment(_Message):
     """Fleet -> robot: park at ``goal`` with ``law``; re-sent until acknowledged.
 
     ``revision``: the fleet re-planned this task; a higher revision of the current
     ``task_id`` replaces its law/gains, a repeat of the same or a lower revision is ignored
     (see the module docstring).
+
+    ``route``: via-points the robot passes, in order, before the goal: it aims at each with
+    that via-point's law and passes it when its centre comes within ``pass_m`` [m]
+    (:func:`fleet.core.step.next_leg`); ``pass_m`` is at least the position tolerance. A
+    revision's route replaces the route, taken from its first via-point again (the fleet
+    plans it from where the robot is). Compatibility rule (``v`` stays 1): both fields are
+    additive; without them the robot drives straight to its goal, as before. A robot of an
+    older release ignores them and drives straight to its goal: its safety filter still
+    keeps it off the walls, but it stops at a wall the route goes around, and the planner's
+    prediction (which follows the route) is wrong for it. Upgrade the robots before giving
+    a site walls that robots must drive around.
     """
 
     kind: Literal["park"] = "park"
@@ -580,6 +607,19 @@ class ParkAssignment(_Message):
     hold: bool = False
     #: Leadership term of the sending service (0: no election); see the module docstring.
     term: Annotated[int, Field(ge=0)] = 0
+    route: Annotated[list[Waypoint], Field(max_length=MAX_ROUTE_POINTS)] = Field(
+        default_factory=list
+    )
+    pass_m: Annotated[float, Field(gt=0, le=10.0, allow_inf_nan=False)] = DEFAULT_PASS_M
+
+    @model_validator(mode="after")
+    def _passes_beyond_tolerance(self) -> ParkAssignment:
+        if self.route and self.pass_m < self.tolerance.position:
+            raise ValueError(
+                f"pass_m ({self.pass_m} m) must be at least the position tolerance "
+                f"({self.tolerance.position} m): a robot would stop at a via-point"
+            )
+        return self
 
 
 class CancelAssignment(_Message):

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from fleet.core.planner.rollout import Outcome, Rows
-from fleet.core.planner.scene import NEW, Candidate, Fleet, IntArray
-from fleet.core.types import BoolArray, FloatArray
+from fleet.core.planner.scene import NEW, Candidate, Fleet
+from fleet.core.types import BoolArray, FloatArray, IntArray
 
 #: Below this shortfall [m] a pair counts as keeping its distance (rounding).
 _EPS = 1e-9

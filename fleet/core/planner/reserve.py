@@ -26,8 +26,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from fleet.core.planner.scene import UNDER_WAY, Candidate, Fleet, IntArray
-from fleet.core.types import BoolArray, FloatArray
+from fleet.core.planner.scene import UNDER_WAY, Candidate, Fleet
+from fleet.core.types import BoolArray, FloatArray, IntArray
 
 
 def _options(solo: FloatArray, laws: IntArray, shifts: IntArray, length: int) -> FloatArray:

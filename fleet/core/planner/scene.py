@@ -27,7 +27,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
@@ -41,9 +40,7 @@ from fleet.core.planner.rollout import (
     roll_out,
 )
 from fleet.core.tasks import RobotStatus, TaskStatus
-from fleet.core.types import LAWS, BoolArray, FloatArray, Law
-
-IntArray = npt.NDArray[np.int64]
+from fleet.core.types import LAWS, BoolArray, FloatArray, IntArray, Law
 
 #: [m] beyond the separation: a solo path this near another mover's goal is blocked once
 #: that mover parks there (see ``Fleet.blocks``).

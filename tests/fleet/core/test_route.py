@@ -1,0 +1,142 @@
+"""Routes: via-points passed without stopping, the same in the agent's tick and the batch."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import support
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from pydantic import ValidationError
+
+from fleet.core.params import RobotProfile, SafetyConfig
+from fleet.core.route import via_postures
+from fleet.core.simulate import BatchProblem, batch_filter, obstacle_columns, simulate
+from fleet.core.types import Law, Posture
+from fleet.core.wire import Obstacle, ParkAssignment, Waypoint, parse_assignment
+from robot_agent.logic import AgentTask, apply_assignment, decide, obstacle_arrays
+
+PROFILE = RobotProfile(wheel_radius=0.05, half_axle=0.15, max_wheel_speed=10.0, radius=0.2)
+DT = 0.02
+#: A wall across the straight line from START to GOAL.
+WALL = Obstacle(x=0.0, y=-1.5, end=(0.0, 1.5), radius=0.3, body=0.05)
+START: Posture = (-3.0, 0.0, 0.0)
+GOAL: Posture = (3.0, 0.0, 0.0)
+#: Around the wall's lower end, then the pre-bay point in front of the goal.
+AROUND = [(-0.8, -2.0), (0.8, -2.0), (2.0, 0.0)]
+
+
+def assignment(points: list[tuple[float, float]], law: Law = "cw") -> ParkAssignment:
+    route = [
+        Waypoint(x=x, y=y, theta=h, law="cw" if cw else "ccw")
+        for x, y, h, cw in via_postures(START, points)
+    ]
+    return support.park(goal=GOAL, law=law, route=route, pass_m=0.5)
+
+
+def agent_run(a: ParkAssignment, steps: int) -> tuple[list[Posture], bool]:
+    """The agent's ticks on a perfect drive (the Euler step of the compiled step)."""
+    task: AgentTask | None = apply_assignment(None, a)
+    pose, poses, obstacles = START, [START], obstacle_arrays([WALL])
+    no_peers = (np.zeros((3, 0)), np.zeros((2, 0)))
+    for _ in range(steps):
+        r = decide(
+            pose, 0.0, task, no_peers, obstacles, PROFILE, a.avoidance, 1.0,
+            safety=SafetyConfig(), period=DT,
+        )  # fmt: skip
+        task = r.task
+        x, y, theta = pose
+        pose = (
+            x + math.cos(theta) * r.u * DT,
+            y + math.sin(theta) * r.u * DT,
+            theta + r.omega * DT,
+        )
+        poses.append(pose)
+        if r.mode == "arrived":
+            return poses, True
+    return poses, False
+
+
+def batch_run(a: ParkAssignment, steps: int) -> tuple[np.ndarray, bool]:
+    via = [(w.x, w.y, w.theta, 1.0 if w.law == "cw" else 0.0) for w in a.route]
+    problem = BatchProblem.build(
+        [START], [GOAL], a.gains, a.law, a.tolerance, PROFILE, **obstacle_columns([WALL]),
+        k_avoid=a.avoidance.k_avoid, min_x_oa=a.avoidance.min_x_oa,
+        safety=batch_filter(SafetyConfig()), routes=[via], pass_radius=a.pass_m,
+    )  # fmt: skip
+    result = simulate(problem, dt=DT, max_time=steps * DT, record=True)
+    assert result.trajectory is not None
+    return result.trajectory.poses[:, 0, :], bool(result.done[0])
+
+
+@pytest.mark.parametrize("law", ["cw", "ccw"])
+def test_the_agent_follows_its_route_exactly_as_the_planner_predicts(law: Law) -> None:
+    a = assignment(AROUND, law)
+    poses, arrived = agent_run(a, 6000)
+    predicted, done = batch_run(a, 6000)
+    assert arrived and done
+    assert np.array_equal(np.array(poses), predicted)  # bit for bit
+
+
+def test_a_wall_stops_a_robot_without_a_route_and_a_route_takes_it_around() -> None:
+    straight, arrived = agent_run(support.park(goal=GOAL, law="cw"), 3000)
+    assert not arrived
+    assert straight[-1][0] < 0.0  # stopped on its side of the wall
+    around, arrived = agent_run(assignment(AROUND), 6000)
+    assert arrived
+    clearance = min(WALL.distance(x, y) for x, y, _ in around) - WALL.body_radius
+    assert clearance >= PROFILE.radius  # never touched the wall
+    # Passed every via-point on the way, without stopping (it never stood still).
+    for vx, vy in AROUND:
+        assert min(math.hypot(x - vx, y - vy) for x, y, _ in around) < 0.5
+    steps = np.diff(np.array(around)[:-1, :2], axis=0)
+    assert (np.hypot(steps[:, 0], steps[:, 1]) > 0).all()
+
+
+def test_a_revision_replaces_the_route_from_its_first_via_point() -> None:
+    a = assignment(AROUND)
+    task = apply_assignment(None, a)
+    assert task is not None
+    no_peers = (np.zeros((3, 0)), np.zeros((2, 0)))
+    near_first = (-0.8, -1.8, 0.0)
+    r = decide(near_first, 0.0, task, no_peers, obstacle_arrays([]), PROFILE, a.avoidance, 1.0)
+    assert r.task is not None and r.task.leg == 1  # passed the first via-point
+    revised = a.model_copy(update={"revision": 1})
+    again = apply_assignment(r.task, revised)
+    assert again is not None and again.leg == 0 and again.assignment.revision == 1
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.floats(-20, 20), st.floats(-20, 20)), min_size=1, max_size=6, unique=True
+    ),
+    st.floats(-math.pi, math.pi),
+)
+def test_via_postures_face_along_each_leg_and_turn_the_way_the_route_turns(
+    points: list[tuple[float, float]], facing: float
+) -> None:
+    start = (0.0, 0.0, facing)
+    rows = via_postures(start, points)
+    previous = (0.0, 0.0)
+    heading_before = facing
+    for (x, y), (vx, vy, heading, cw) in zip(points, rows, strict=True):
+        assert (vx, vy) == (x, y)
+        leg = (x - previous[0], y - previous[1])
+        if math.hypot(*leg) > 1e-9:
+            assert math.cos(heading) * leg[0] + math.sin(heading) * leg[1] == pytest.approx(
+                math.hypot(*leg)
+            )
+        turn = math.remainder(heading - heading_before, 2 * math.pi)
+        assert cw == (1.0 if turn < 0 else 0.0)
+        previous, heading_before = (x, y), heading
+
+
+def test_an_assignment_without_a_route_is_the_one_of_before_and_pass_m_is_checked() -> None:
+    old = support.park(goal=GOAL)
+    parsed = parse_assignment(old.model_dump_json(exclude={"route", "pass_m"}).encode())
+    assert isinstance(parsed, ParkAssignment) and parsed.route == []
+    with pytest.raises(ValidationError, match="pass_m"):
+        support.park(goal=GOAL, route=[Waypoint(x=0, y=0, law="cw")], pass_m=0.05)

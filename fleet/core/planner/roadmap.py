@@ -1,0 +1,332 @@
+"""A route graph over the free space of a site (pure): where a robot can drive around walls.
+
+World frame, metres, headings in radians counter-clockwise from east. A robot is a disc; its
+*centre* must stay ``clearance_m`` from every obstacle's solid body (a capsule: the segment
+of :class:`~fleet.core.wire.Obstacle` with radius ``body_radius``). The forbidden region is
+the union of those capsules grown by ``clearance_m``.
+
+:class:`Roadmap` is a visibility graph (shapely for the geometry, networkx for the graph):
+
+- nodes: the convex corners of the outline of the capsules grown a little further
+  (``clearance_m`` + a margin of ``max(0.05, 5 % of clearance_m)``), with as few chords per
+  arc as keep each chord outside the forbidden region (a post of 0.5 m: 8 nodes), simplified.
+  A gap narrower than twice the margin (beyond the clearance) has no nodes of its own;
+- edges: node pairs whose straight segment keeps the clearance from every body (checked
+  exactly against the capsules with an STRtree), weighted by their length [m]. Only edges
+  tangent to the outline at both nodes are kept (the reduced visibility graph: a shortest
+  path never uses the others), which prunes most pairs before any geometry is checked.
+
+Robots start and park close to obstacles, so the segments leaving the start and reaching the
+goal (or the pre-bay point) need, from every body, only the clearance that end point itself
+has: ``min(clearance_m, its distance to the nearest body - 0.01)``, never below 0 (a segment
+joining two such points: the smaller). Every other segment keeps ``clearance_m``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import networkx as nx
+import numpy as np
+import numpy.typing as npt
+import shapely
+
+from fleet.core.types import BoolArray, FloatArray
+from fleet.core.wire import Obstacle
+
+Point = tuple[float, float]
+GeometryArray = npt.NDArray[np.object_]
+
+MAX_NODES = 3000  # beyond this the graph's O(n^2) pairs take seconds to build
+END_SLACK_M = 0.01  # an end point's reduced clearance stays this far inside what it has
+_START, _TARGET = -1, -2  # placeholder nodes of every query (see Roadmap.graph)
+_TANGENT_TOL = 1e-12
+_POINT_M = 1e-9  # a segment shorter than this [m] is a point
+_SAG = 0.85  # an arc's chords cut at most this share of the margin into it
+_SIMPLIFY_M = 1e-4  # the grown outline's simplification tolerance [m]
+_PAIRS_PER_BLOCK = 1 << 20  # node pairs screened at once (memory bound)
+
+
+def _margin(clearance_m: float) -> float:
+    """How much further out than the clearance the nodes lie [m]."""
+    return max(0.05, 0.05 * clearance_m)
+
+
+def _geometries(obstacles: Sequence[Obstacle]) -> GeometryArray:
+    """Each obstacle's segment (a point for a post) as a shapely geometry."""
+    out = np.empty(len(obstacles), dtype=object)
+    for k, o in enumerate(obstacles):
+        end = o.far_end
+        out[k] = (
+            shapely.Point(o.x, o.y)
+            if math.dist(end, (o.x, o.y)) < _POINT_M
+            else shapely.LineString([(o.x, o.y), end])
+        )
+    return out
+
+
+def _segments(a: FloatArray, b: FloatArray) -> GeometryArray:
+    """Line strings from rows of ``a`` (M, 2) to rows of ``b`` (M, 2); a point where they
+    nearly coincide (GEOS divides by a line's length)."""
+    out = np.asarray(shapely.linestrings(np.stack([a, b], axis=1)), dtype=object)
+    same = np.hypot(*(b - a).T) < _POINT_M
+    if same.any():
+        out[same] = shapely.points(a[same])
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Roadmap:
+    """The visibility graph of one obstacle set and clearance; build with :meth:`build`.
+
+    ``nodes`` (N, 2) [m] are the graph's node positions (node ``i`` of ``graph``);
+    ``graph`` also holds two placeholder nodes joined to every node and to each other,
+    the start and the target of a query: :meth:`route` weighs their edges per query (and
+    hides the rest), so the graph is never modified after :meth:`build`.
+    ``forbidden`` is the region no robot centre may enter (for drawing).
+    """
+
+    obstacles: tuple[Obstacle, ...]
+    clearance_m: float
+    nodes: FloatArray
+    graph: Any = field(repr=False)  # networkx.Graph (no stubs)
+    forbidden: Any = field(repr=False)  # shapely geometry (no stubs)
+    _bodies: FloatArray = field(repr=False)
+    _shapes: GeometryArray = field(repr=False)
+    _tree: Any = field(repr=False)  # shapely.STRtree over _shapes, or None
+    _before: FloatArray = field(repr=False)  # each node's neighbours on its outline ring
+    _after: FloatArray = field(repr=False)
+
+    @classmethod
+    def build(
+        cls, obstacles: Sequence[Obstacle], clearance_m: float, *, max_nodes: int = MAX_NODES
+    ) -> Roadmap:
+        """The roadmap for ``obstacles`` and a centre clearance ``clearance_m`` [m] (robot
+        radius + safety margin + slack). Raises ValueError for a negative or non-finite
+        clearance, or when the graph would have more than ``max_nodes`` nodes."""
+        if not (math.isfinite(clearance_m) and clearance_m >= 0.0):
+            raise ValueError(f"clearance_m must be finite and >= 0, not {clearance_m}")
+        obstacles = tuple(obstacles)
+        shapes = _geometries(obstacles)
+        bodies = np.array([o.body_radius for o in obstacles], dtype=np.float64)
+        tree = shapely.STRtree(shapes) if len(obstacles) else None
+        forbidden = shapely.union_all(shapely.buffer(shapes, bodies + clearance_m))
+        empty = np.empty((0, 2), dtype=np.float64)
+        probe = cls(
+            obstacles, clearance_m, empty, None, forbidden, bodies, shapes, tree, empty, empty
+        )
+
+        xy, before, after = _outline_corners(shapes, bodies + clearance_m, _margin(clearance_m))
+        keep = ~probe._blocked(shapely.points(xy), bodies + clearance_m)
+        xy, before, after = xy[keep], before[keep], after[keep]
+        if len(xy) > max_nodes:
+            raise ValueError(
+                f"the roadmap would have {len(xy)} nodes, more than {max_nodes}: too many "
+                f"or too large obstacles ({len(obstacles)}) for a route graph"
+            )
+        for array in (xy, before, after):
+            array.setflags(write=False)
+
+        graph = nx.Graph()
+        graph.add_nodes_from(range(len(xy)))
+        i, j = _tangent_pairs(xy, before, after)
+        if len(i):
+            open_ = ~probe._blocked(_segments(xy[i], xy[j]), bodies + clearance_m)
+            i, j = i[open_], j[open_]
+            lengths = np.hypot(*(xy[j] - xy[i]).T)
+            graph.add_weighted_edges_from(
+                zip(i.tolist(), j.tolist(), lengths.tolist(), strict=True), weight="length"
+            )
+        for end in (_START, _TARGET):
+            graph.add_edges_from((end, n) for n in range(len(xy)))
+        graph.add_edge(_START, _TARGET)
+        return cls(
+            obstacles, clearance_m, xy, graph, forbidden, bodies, shapes, tree, before, after
+        )
+
+    def free(self, a: Point, b: Point) -> bool:
+        """Whether the segment from ``a`` to ``b`` [m] keeps ``clearance_m`` from every
+        body (strictly farther)."""
+        return not self._segment_blocked(a, b, self._bodies + self.clearance_m)
+
+    def end_clearance(self, point: Point) -> float:
+        """The clearance [m] a segment ending at ``point`` [m] must keep from every body:
+        ``min(clearance_m, point's distance to the nearest body - 0.01)``, never below 0."""
+        if self._tree is None:
+            return self.clearance_m
+        own = float(np.min(shapely.distance(shapely.Point(point), self._shapes) - self._bodies))
+        return max(0.0, min(self.clearance_m, own - END_SLACK_M))
+
+    def route(
+        self, start: Point, goal: tuple[float, float, float], approach_m: float
+    ) -> tuple[Point, ...] | None:
+        """Via-points [m] for a robot at ``start`` (x, y) to park at ``goal`` (x, y,
+        heading [rad]); the last leg is the posture controller's, from the pre-bay point
+        ``goal - approach_m * (cos h, sin h)`` [m].
+
+        ``()``: the straight segment start -> goal is free. Otherwise the shortest path
+        start -> ... -> pre-bay point, without the start, with the pre-bay point last; when
+        the pre-bay point is not free (or not reachable, or its leg to the goal is not free),
+        the shortest path to the goal without the start and the goal. None: no path.
+        """
+        values = (*start, *goal, approach_m)
+        if not all(math.isfinite(v) for v in values) or approach_m < 0.0:
+            raise ValueError(f"route needs finite points and approach_m >= 0, not {values}")
+        s = (float(start[0]), float(start[1]))
+        g = (float(goal[0]), float(goal[1]))
+        need_s, need_g = self._end_need(s), self._end_need(g)
+        if not self._segment_blocked(s, g, np.minimum(need_s, need_g)):
+            return ()
+        if approach_m > 0.0:
+            h = float(goal[2])
+            p = (g[0] - approach_m * math.cos(h), g[1] - approach_m * math.sin(h))
+            need_p = self._end_need(p)
+            inside = self.end_clearance(p) <= 0.0  # within END_SLACK_M of a body, or in one
+            if not inside and not self._segment_blocked(p, g, np.minimum(need_p, need_g)):
+                via = self._shortest(s, need_s, p, need_p)
+                if via is not None:
+                    return (*via, p)
+        return self._shortest(s, need_s, g, need_g)
+
+    # -- internals -------------------------------------------------------------------------
+
+    def _blocked(self, geometries: GeometryArray, need: FloatArray) -> BoolArray:
+        """Which ``geometries`` come within ``need[k]`` [m] (or closer) of obstacle ``k``'s
+        segment, for any ``k``."""
+        out = np.zeros(len(geometries), dtype=bool)
+        if self._tree is None or len(geometries) == 0:
+            return out
+        reach = float(need.max())
+        gi, ok = self._tree.query(geometries, predicate="dwithin", distance=reach)
+        if not np.all(need == reach):  # the query used the largest need: check each pair
+            near = shapely.distance(geometries[gi], self._shapes[ok]) <= need[ok]
+            gi = gi[near]
+        out[gi] = True
+        return out
+
+    def _segment_blocked(self, a: Point, b: Point, need: FloatArray) -> bool:
+        line = _segments(np.array([a], dtype=np.float64), np.array([b], dtype=np.float64))
+        return bool(self._blocked(line, need)[0])
+
+    def _end_need(self, point: Point) -> FloatArray:
+        """How far [m] from each obstacle's segment a segment ending at ``point`` must
+        stay: body + the point's own clearance (:meth:`end_clearance`)."""
+        return np.asarray(self._bodies + self.end_clearance(point), dtype=np.float64)
+
+    def _visible(self, point: Point, need: FloatArray) -> tuple[list[int], list[float]]:
+        """The nodes whose segment from ``point`` is free under ``need`` and tangent to
+        the outline at the node (a shortest path uses no other), and the lengths [m]."""
+        origin = np.array(point, dtype=np.float64)
+        d = self.nodes - origin
+        ids = np.flatnonzero(_one_side(d, self.nodes, self._before, self._after))
+        if len(ids) == 0:
+            return [], []
+        starts = np.broadcast_to(origin, (len(ids), 2))
+        ids = ids[~self._blocked(_segments(starts, self.nodes[ids]), need)]
+        return ids.tolist(), np.hypot(*d[ids].T).tolist()
+
+    def _shortest(
+        self, s: Point, need_s: FloatArray, t: Point, need_t: FloatArray
+    ) -> tuple[Point, ...] | None:
+        """The nodes [m] of the shortest path from ``s`` to ``t`` (both excluded), or None."""
+        from_s = dict(zip(*self._visible(s, need_s), strict=True))
+        to_t = dict(zip(*self._visible(t, need_t), strict=True))
+        direct = (
+            None if self._segment_blocked(s, t, np.minimum(need_s, need_t)) else math.dist(s, t)
+        )
+
+        def weight(u: int, v: int, data: dict[str, float]) -> float | None:
+            if u >= 0 and v >= 0:
+                return data["length"]
+            if u > v:
+                u, v = v, u
+            if u == _TARGET:
+                return direct if v == _START else to_t.get(v)
+            return from_s.get(v)  # u == _START, v a node
+
+        if direct is None and (not from_s or not to_t):
+            return None
+        try:
+            _, path = nx.bidirectional_dijkstra(self.graph, _START, _TARGET, weight=weight)
+        except nx.NetworkXNoPath:
+            return None
+        return tuple((float(self.nodes[n, 0]), float(self.nodes[n, 1])) for n in path[1:-1])
+
+
+def _outline_corners(
+    shapes: GeometryArray, reach: FloatArray, margin: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The convex corners (N, 2) [m] of the outline of the capsules ``reach + margin``
+    around ``shapes``, with each corner's neighbours on its ring (before, after: N, 2).
+
+    Each capsule's arcs get as few vertices as keep its chords more than
+    ``(1 - _SAG) * margin`` outside the capsule ``reach`` (a post of 0.5 m: 8), and the
+    union is simplified (collinear and near-duplicate vertices dropped)."""
+    empty = np.empty((0, 2), dtype=np.float64)
+    if len(shapes) == 0:
+        return empty, empty, empty
+    grown_by = reach + margin
+    # a quarter circle in q chords sags grown_by * (1 - cos(pi / (4 q))); keep that <= _SAG * m
+    quarter = np.pi / (4.0 * np.arccos(1.0 - np.minimum(_SAG * margin / grown_by, 1.0)))
+    quad_segs = np.maximum(np.ceil(quarter - 1e-9), 2).astype(int)
+    parts = [
+        shapely.buffer(shapes[quad_segs == q], grown_by[quad_segs == q], quad_segs=int(q))
+        for q in np.unique(quad_segs)
+    ]
+    grown = shapely.union_all(np.concatenate(parts))
+    outline = shapely.orient_polygons(  # exteriors counter-clockwise, holes clockwise
+        shapely.simplify(grown, _SIMPLIFY_M, preserve_topology=True)
+    )
+    corners, befores, afters = [], [], []
+    for polygon in shapely.get_parts(outline):
+        for ring in (polygon.exterior, *polygon.interiors):
+            xy = shapely.get_coordinates(ring)[:-1]
+            if len(xy) < 3:
+                continue
+            before, after = np.roll(xy, 1, axis=0), np.roll(xy, -1, axis=0)
+            u, w = xy - before, after - xy
+            convex = u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0] > _TANGENT_TOL  # body on the left
+            corners.append(xy[convex])
+            befores.append(before[convex])
+            afters.append(after[convex])
+    if not corners:
+        return empty, empty, empty
+    return np.concatenate(corners), np.concatenate(befores), np.concatenate(afters)
+
+
+def _tangent_pairs(
+    xy: FloatArray, before: FloatArray, after: FloatArray
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """The node pairs (i < j) whose line is tangent to the outline at both nodes: each
+    node's two ring neighbours lie on one side of it (or on it)."""
+    n = len(xy)
+    block = max(1, _PAIRS_PER_BLOCK // max(n, 1))
+    found_i, found_j = [], []
+    for first in range(0, n, block):
+        rows = np.arange(first, min(n, first + block))
+        d = xy[None, :, :] - xy[rows, None, :]  # (B, N, 2), from node i to node j
+
+        ok = _one_side(d, xy[rows, None], before[rows, None], after[rows, None])
+        ok &= _one_side(d, xy[None], before[None], after[None])
+        ok &= np.arange(n)[None, :] > rows[:, None]
+        bi, j = np.nonzero(ok)
+        found_i.append(rows[bi])
+        found_j.append(j)
+    if not found_i:
+        none = np.empty(0, dtype=np.intp)
+        return none, none
+    return np.concatenate(found_i), np.concatenate(found_j)
+
+
+def _one_side(d: FloatArray, at: FloatArray, nb1: FloatArray, nb2: FloatArray) -> BoolArray:
+    """Whether the neighbours ``nb1`` and ``nb2`` of the nodes ``at`` lie on one side of
+    (or on) the lines through ``at`` along ``d`` (all broadcast, last axis x, y)."""
+    s1 = d[..., 0] * (nb1 - at)[..., 1] - d[..., 1] * (nb1 - at)[..., 0]
+    s2 = d[..., 0] * (nb2 - at)[..., 1] - d[..., 1] * (nb2 - at)[..., 0]
+    opposite = ((s1 > _TANGENT_TOL) & (s2 < -_TANGENT_TOL)) | (
+        (s1 < -_TANGENT_TOL) & (s2 > _TANGENT_TOL)
+    )
+    return np.asarray(~opposite)

@@ -1,0 +1,250 @@
+"""The route graph: routes keep the clearance, go around walls, through the gate, or fail.
+
+Clearances are checked independently of shapely, with :mod:`fleet.core.geometry`.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from pathlib import Path
+
+import pytest
+from hypothesis import assume, event, given, settings
+from hypothesis import strategies as st
+
+from fleet.core.geometry import segment_distance, segments_cross
+from fleet.core.planner.roadmap import END_SLACK_M, Roadmap
+from fleet.core.site import Wall
+from fleet.core.wire import Obstacle
+from fleet.io.site_file import load_site
+
+CARPARK = Path(__file__).resolve().parents[4] / "fleet" / "io" / "sites" / "carpark.toml"
+CLEARANCE = 0.35  # [m] robot radius 0.2 + safety margin 0.1 + slack 0.05
+Pt = tuple[float, float]
+
+
+def wall(a: Pt, b: Pt, body: float = 0.1) -> Obstacle:
+    return Obstacle(x=a[0], y=a[1], end=b, body=body, radius=max(body, 1.0))
+
+
+def post(x: float, y: float, body: float = 0.1) -> Obstacle:
+    return Obstacle(x=x, y=y, body=body, radius=max(body, 1.0))
+
+
+def seg_distance(a: Pt, b: Pt, o: Obstacle) -> float:
+    """Distance [m] between the segment a-b and the obstacle's segment."""
+    c, d = (o.x, o.y), o.far_end
+    if segments_cross(a, b, c, d):
+        return 0.0
+    return min(
+        segment_distance(*a, c, d),
+        segment_distance(*b, c, d),
+        segment_distance(*c, a, b),
+        segment_distance(*d, a, b),
+    )
+
+
+def own_clearance(point: Pt, obstacles: list[Obstacle], clearance: float) -> float:
+    """The specified clearance of an end edge at ``point`` [m]."""
+    nearest = min((o.distance(*point) - o.body_radius for o in obstacles), default=math.inf)
+    return max(0.0, min(clearance, nearest - END_SLACK_M))
+
+
+def pre_bay(goal: tuple[float, float, float], approach: float) -> Pt:
+    return (goal[0] - approach * math.cos(goal[2]), goal[1] - approach * math.sin(goal[2]))
+
+
+def legs(
+    start: Pt, goal: tuple[float, float, float], approach: float, route: tuple[Pt, ...]
+) -> list[tuple[Pt, Pt, list[Pt]]]:
+    """Every leg a robot drives (its via-points, then the posture leg to the goal), each with
+    the end points whose own clearance it may use."""
+    g = (goal[0], goal[1])
+    if not route:
+        return [(start, g, [start, g])]
+    p = pre_bay(goal, approach)
+    to_p = approach > 0 and math.dist(route[-1], p) < 1e-9
+    points = [start, *route]
+    out = []
+    for k, (a, b) in enumerate(itertools.pairwise(points)):
+        ends = ([a] if k == 0 else []) + ([b] if to_p and k == len(points) - 2 else [])
+        out.append((a, b, ends))
+    out.append((route[-1], g, [g, route[-1]] if to_p else [g]))
+    return out
+
+
+def assert_keeps_clearance(
+    obstacles: list[Obstacle],
+    clearance: float,
+    start: Pt,
+    goal: tuple[float, float, float],
+    approach: float,
+    route: tuple[Pt, ...],
+) -> None:
+    for a, b, ends in legs(start, goal, approach, route):
+        need = min([clearance] + [own_clearance(e, obstacles, clearance) for e in ends])
+        for o in obstacles:
+            gap = seg_distance(a, b, o) - o.body_radius
+            assert gap >= need - 1e-9, (a, b, o, gap, need)
+
+
+def length(start: Pt, route: tuple[Pt, ...], end: Pt) -> float:
+    points = [start, *route, end]
+    return sum(math.dist(a, b) for a, b in itertools.pairwise(points))
+
+
+coord = st.floats(-5.0, 5.0)
+posts = st.lists(st.builds(post, coord, coord, st.floats(0.0, 0.4)), max_size=10)
+walls = st.lists(
+    st.builds(wall, st.tuples(coord, coord), st.tuples(coord, coord), st.floats(0.05, 0.2)),
+    max_size=6,
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    posts,
+    walls,
+    st.floats(0.1, 0.5),
+    st.tuples(st.floats(-6.0, -1.0), st.floats(-6.0, 6.0)),  # start and goal on either side
+    st.tuples(st.floats(1.0, 6.0), st.floats(-6.0, 6.0), st.floats(-math.pi, math.pi)),
+    st.floats(0.0, 1.5),
+)
+def test_every_leg_of_a_route_keeps_the_clearance(
+    post_list: list[Obstacle],
+    wall_list: list[Obstacle],
+    clearance: float,
+    start: Pt,
+    goal: tuple[float, float, float],
+    approach: float,
+) -> None:
+    obstacles = post_list + wall_list
+    for point in (start, goal[:2]):  # start and goal anywhere outside the bodies
+        assume(all(o.distance(*point) > o.body_radius + 0.02 for o in obstacles))
+    roadmap = Roadmap.build(obstacles, clearance)
+    route = roadmap.route(start, goal, approach)
+    assert route == Roadmap.build(obstacles, clearance).route(start, goal, approach)
+    for node in roadmap.nodes:  # every node is in free space
+        assert all(o.distance(*node) - o.body_radius > clearance for o in obstacles)
+    event("no route" if route is None else "straight" if not route else "via-points")
+    if route is None:
+        return
+    assert_keeps_clearance(obstacles, clearance, start, goal, approach, route)
+    if roadmap.free(start, goal[:2]):
+        assert route == ()
+
+
+@settings(max_examples=40, deadline=None)
+@given(posts, walls, st.tuples(coord, coord), st.tuples(coord, coord))
+def test_free_agrees_with_the_distances(
+    post_list: list[Obstacle], wall_list: list[Obstacle], a: Pt, b: Pt
+) -> None:
+    obstacles = post_list + wall_list
+    gaps = [seg_distance(a, b, o) - o.body_radius for o in obstacles]
+    assume(all(abs(g - CLEARANCE) > 1e-6 for g in gaps))
+    assert Roadmap.build(obstacles, CLEARANCE).free(a, b) == all(g > CLEARANCE for g in gaps)
+
+
+# A wall across the straight line from START to the goal, its top end much nearer.
+WALL = wall((0.0, -4.0), (0.0, 1.0))
+START, GOAL, APPROACH = (-3.0, 0.0), (3.0, 0.0, 0.0), 1.0
+
+
+def test_a_wall_in_the_way_is_driven_around_its_near_end() -> None:
+    roadmap = Roadmap.build([WALL], CLEARANCE)
+    route = roadmap.route(START, GOAL, APPROACH)
+    assert route, "the wall blocks the straight line"
+    assert route[-1] == pytest.approx(pre_bay(GOAL, APPROACH))
+    assert_keeps_clearance([WALL], CLEARANCE, START, GOAL, APPROACH, route)
+    # It crosses x = 0 above the top end, with the clearance: at least there, at most a bit on.
+    top = 1.0 + WALL.body_radius + CLEARANCE
+    p = pre_bay(GOAL, APPROACH)
+    lower = math.dist(START, (0.0, top)) + math.dist((0.0, top), p)
+    upper = math.dist(START, (0.0, top + 0.25)) + math.dist((0.0, top + 0.25), p)
+    bottom = -4.0 - WALL.body_radius - CLEARANCE  # the way round the far end
+    assert lower - 1e-9 <= length(START, route, p) <= upper
+    assert upper < math.dist(START, (0.0, bottom)) + math.dist((0.0, bottom), p)
+    assert max(y for _, y in route) >= top
+
+
+def test_without_the_wall_the_route_is_straight() -> None:
+    assert Roadmap.build([], CLEARANCE).route(START, GOAL, APPROACH) == ()
+    aside = wall((0.0, 3.0), (0.0, 8.0))  # the same wall moved out of the way
+    assert Roadmap.build([aside], CLEARANCE).route(START, GOAL, APPROACH) == ()
+
+
+def test_a_goal_inside_a_closed_box_has_no_route() -> None:
+    box = Wall(points=[(-2.0, -2.0), (2.0, -2.0), (2.0, 2.0), (-2.0, 2.0)], closed=True)
+    roadmap = Roadmap.build(box.segments(), CLEARANCE)
+    assert roadmap.route((5.0, 0.0), (0.0, 0.0, 0.0), 1.0) is None
+    assert roadmap.route((0.5, 0.5), (0.0, 0.0, 0.0), 1.0) == ()  # inside to inside
+
+
+def test_a_blocked_pre_bay_point_routes_to_the_goal_itself() -> None:
+    # The pre-bay point (1, 0) lies inside a short wall across the way to the goal.
+    stub = wall((1.0, -0.6), (1.0, 0.6))
+    goal = (2.0, 0.0, 0.0)
+    route = Roadmap.build([stub], CLEARANCE).route(START, goal, 1.0)
+    assert route, "the stub is in the way"
+    assert all(math.dist(v, pre_bay(goal, 1.0)) > 0.5 for v in route)
+    assert_keeps_clearance([stub], CLEARANCE, START, goal, 1.0, route)
+
+
+def test_a_robot_closer_than_the_clearance_to_a_post_still_leaves_and_parks() -> None:
+    # Start 0.25 m from a post's body (less than the clearance): only its own edges may
+    # come that close. The goal is a tight bay between two posts, behind a wall.
+    obstacles = [post(-3.0, 0.35), WALL, post(2.6, 0.0), post(3.4, 0.0)]
+    roadmap = Roadmap.build(obstacles, CLEARANCE)
+    start, goal = (-3.0, 0.0), (3.0, 0.0, math.pi / 2)  # bay 0.3 m from both posts' bodies
+    assert not roadmap.free(start, (-3.0, -1.0))  # with the full clearance it could not
+    route = roadmap.route(start, goal, 1.0)
+    assert route and route[-1] == pytest.approx(pre_bay(goal, 1.0))
+    assert_keeps_clearance(obstacles, CLEARANCE, start, goal, 1.0, route)
+
+
+def test_the_car_park_is_entered_through_the_gate() -> None:
+    site = load_site(CARPARK)
+    obstacles = site.static_obstacles()
+    roadmap = Roadmap.build(obstacles, CLEARANCE)
+    start = (-14.0, 5.0)  # outside the west wall, north of the gate
+    for bay in site.bays:
+        goal = (bay.pose.x, bay.pose.y, bay.pose.theta)
+        route = roadmap.route(start, goal, 1.0)
+        assert route is not None, bay.name
+        if route:  # () when the straight line already passes the gate
+            assert route[-1] == pytest.approx(pre_bay(goal, 1.0)), bay.name
+        assert_keeps_clearance(obstacles, CLEARANCE, start, goal, 1.0, route)
+        # It enters through the gate (x = -11.5, |y| < 2), kept clear of the gate's ends.
+        half = 2.0 - 0.1 - CLEARANCE
+        points = [start, *route] if route else [start, goal[:2]]
+        assert any(
+            segments_cross(a, b, (-11.5, -half), (-11.5, half))
+            for a, b in itertools.pairwise(points)
+        ), bay.name
+
+
+def test_the_car_park_builds_small() -> None:
+    roadmap = Roadmap.build(load_site(CARPARK).static_obstacles(), CLEARANCE)
+    # 4 posts and 5 wall segments: about 8 nodes a post, not a polygon's 64.
+    assert 20 <= len(roadmap.nodes) <= 100
+    assert roadmap.graph.number_of_edges() > len(roadmap.nodes)
+
+
+def test_build_refuses_absurd_sizes() -> None:
+    grid = [post(3.0 * i, 3.0 * j) for i in range(30) for j in range(30)]  # 900 posts
+    with pytest.raises(ValueError, match=r"nodes, more than 3000"):
+        Roadmap.build(grid, CLEARANCE)
+    with pytest.raises(ValueError, match=r"more than 10"):
+        Roadmap.build(grid[:2], CLEARANCE, max_nodes=10)
+    with pytest.raises(ValueError, match="clearance"):
+        Roadmap.build(grid[:2], -1.0)
+    with pytest.raises(ValueError, match="approach"):
+        Roadmap.build(grid[:2], CLEARANCE).route((0.0, 0.0), (1.0, 1.0, 0.0), -1.0)
+
+
+def test_a_point_is_a_segment_too() -> None:
+    roadmap = Roadmap.build([WALL], CLEARANCE)
+    assert not roadmap.free((0.2, 0.0), (0.2, 0.0))  # 0.1 m from the body
+    assert roadmap.free((1.0, 0.0), (1.0, 0.0))
+    assert roadmap.route((1.0, 0.0), (1.0, 0.0, 0.0), 1.0) == ()

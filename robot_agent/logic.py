@@ -51,7 +51,7 @@ import numpy as np
 
 from fleet.core import step
 from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
-from fleet.core.route import route_table
+from fleet.core.route import route_table, via_rows
 from fleet.core.types import FloatArray
 from fleet.core.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
 
@@ -68,8 +68,8 @@ class AgentTaskStatus(StrEnum):
 def route_of(assignment: ParkAssignment) -> FloatArray:
     """The assignment's route table of :mod:`fleet.core.step` (its via-points, then its
     goal with its law): the table the planner's batch runs for it."""
-    via = [(w.x, w.y, w.theta, 1.0 if w.law == "cw" else 0.0) for w in assignment.route]
-    return route_table(np.array(via), assignment.goal.as_tuple(), assignment.law == "cw")
+    goal = assignment.goal.as_tuple()
+    return route_table(via_rows(assignment.route), goal, assignment.law == "cw")
 
 
 @dataclass(frozen=True)

@@ -328,6 +328,7 @@ function goalsToDraw() {
       law: task.law,
       robotId: task.robot_id,
       queued: task.status === "queued",
+      route: task.route ?? [],
     });
   }
   for (const robot of state.robots.values()) {
@@ -782,6 +783,9 @@ function renderDialogFacts() {
     ["created", new Date(task.created_at * 1000).toLocaleString()],
     ["attempts", String(task.attempts)],
   ];
+  if (task.route?.length) {
+    facts.push(["route", task.route.map((p) => `(${p.x.toFixed(1)}, ${p.y.toFixed(1)})`).join(" → ")]);
+  }
   if (task.reason) facts.push(["reason", task.reason]);
   const dl = $("dialog-facts");
   dl.replaceChildren(

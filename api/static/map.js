@@ -71,6 +71,32 @@ function trianglePath(ctx, cx, cy, theta, size) {
  * for ccw (Eq. 17, omega >= 0) and clockwise for cw (Eq. 20, omega <= 0), in the law's
  * colour. World angles phi; canvas angles are -phi because canvas y points down.
  */
+/**
+ * The via-points of `route` a robot at `pose` still has to pass: those after the one it is
+ * nearest to the leg of (the robot reports its pose, not its leg).
+ */
+function remainingVia(route, pose) {
+  if (route.length === 0) return [];
+  let best = 0;
+  let bestDistance = Infinity;
+  let from = route[0];
+  for (let k = 0; k < route.length; k += 1) {
+    // distance from the robot to the leg arriving at via-point k (the first: the point)
+    const to = route[k];
+    const dx = to.x - from.x;
+    const dy = to.y - from.y;
+    const length = dx * dx + dy * dy;
+    const t = length > 0 ? Math.max(0, Math.min(1, ((pose.x - from.x) * dx + (pose.y - from.y) * dy) / length)) : 0;
+    const d = Math.hypot(from.x + t * dx - pose.x, from.y + t * dy - pose.y);
+    if (d < bestDistance) {
+      bestDistance = d;
+      best = k;
+    }
+    from = to;
+  }
+  return route.slice(best);
+}
+
 function drawTurnArrow(ctx, cx, cy, theta, r, law) {
   const ccw = law === "ccw";
   const from = theta + (ccw ? 2.2 : 4.1); // the arc spans the robot's back
@@ -413,21 +439,33 @@ export class YardMap {
   drawGoals(goals, robots) {
     const ctx = this.ctx;
     const byId = new Map(robots.map((r) => [r.id, r]));
+    this.drawn.routes = 0;
     for (const goal of goals) {
       const [gx, gy] = this.toCanvas(goal.x, goal.y);
       const color = lawColor(goal.law);
       const robot = goal.robotId ? byId.get(goal.robotId) : undefined;
       if (robot && robot.status !== "arrived") {
+        // The way the robot was sent: through the via-points of its route, then the goal.
+        const via = remainingVia(goal.route ?? [], robot.display);
         const [rx, ry] = this.toCanvas(robot.display.x, robot.display.y);
         ctx.strokeStyle = color;
-        ctx.globalAlpha = 0.35;
+        ctx.globalAlpha = via.length ? 0.7 : 0.35;
         ctx.setLineDash([2, 4]);
-        ctx.lineWidth = 1;
+        ctx.lineWidth = via.length ? 1.5 : 1;
         ctx.beginPath();
         ctx.moveTo(rx, ry);
+        for (const point of via) ctx.lineTo(...this.toCanvas(point.x, point.y));
         ctx.lineTo(gx, gy);
         ctx.stroke();
+        for (const point of via) {
+          const [vx, vy] = this.toCanvas(point.x, point.y);
+          ctx.beginPath();
+          ctx.arc(vx, vy, 2.5, 0, 2 * Math.PI);
+          ctx.fillStyle = color;
+          ctx.fill();
+        }
         ctx.globalAlpha = 1;
+        if (via.length) this.drawn.routes += 1;
       }
       ctx.setLineDash(goal.queued ? [3, 3] : []);
       ctx.lineWidth = 2;

@@ -19,6 +19,7 @@ import numpy as np
 
 from fleet.core.step import ROUTE_ROWS, VIA_HEADING, wrap_headings
 from fleet.core.types import FloatArray, Posture
+from fleet.core.wire import Waypoint
 
 #: Most via-points of one route (a route is a handful of aisle corners).
 MAX_VIA_POINTS = 64
@@ -47,3 +48,17 @@ def route_table(via: FloatArray, goal: Posture, cw: bool) -> FloatArray:
     entries = np.vstack([rows, [[goal[0], goal[1], goal[2], 1.0 if cw else 0.0]]])
     entries[:, VIA_HEADING] = wrap_headings(np.ascontiguousarray(entries[:, VIA_HEADING]))
     return np.ascontiguousarray(entries.T)
+
+
+def waypoints(via: FloatArray) -> tuple[Waypoint, ...]:
+    """Via-point rows (m, 4) of :func:`via_postures` as the wire's waypoints."""
+    return tuple(
+        Waypoint(x=float(x), y=float(y), theta=float(h), law="cw" if cw else "ccw")
+        for x, y, h, cw in np.asarray(via).reshape(-1, ROUTE_ROWS)
+    )
+
+
+def via_rows(route: Sequence[Waypoint]) -> FloatArray:
+    """The wire's waypoints as via-point rows (m, 4) (x, y, heading, cw)."""
+    rows = [(w.x, w.y, w.theta, 1.0 if w.law == "cw" else 0.0) for w in route]
+    return np.array(rows, dtype=np.float64).reshape(-1, ROUTE_ROWS)

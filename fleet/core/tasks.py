@@ -13,7 +13,15 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from fleet.core.params import Gains, Tolerance
 from fleet.core.types import Law
-from fleet.core.wire import Pose, RobotError, RobotId, RobotMode
+from fleet.core.wire import (
+    DEFAULT_PASS_M,
+    MAX_ROUTE_POINTS,
+    Pose,
+    RobotError,
+    RobotId,
+    RobotMode,
+    Waypoint,
+)
 
 Direction = Literal["auto", "cw", "ccw"]
 
@@ -118,6 +126,12 @@ class Task(BaseModel):
     #: long [s, robot time] before driving, or hold until a later revision (``waiting``).
     start_delay_s: Annotated[float, Field(ge=0.0, allow_inf_nan=False)] = 0.0
     hold: bool = False
+    #: Via-points the robot was sent to pass before the goal, and their pass-through radius
+    #: [m] (``ParkAssignment.route``, ``pass_m``); empty: straight to the goal.
+    route: Annotated[list[Waypoint], Field(max_length=MAX_ROUTE_POINTS)] = Field(
+        default_factory=list
+    )
+    pass_m: Annotated[float, Field(gt=0, allow_inf_nan=False)] = DEFAULT_PASS_M
 
 
 class RobotView(BaseModel):

@@ -172,6 +172,8 @@ def assignment_of(task: Task, avoidance: Avoidance) -> ParkAssignment:
         avoidance=avoidance,
         start_delay_s=task.start_delay_s,
         hold=task.hold,
+        route=task.route,
+        pass_m=task.pass_m,
     )
 
 
@@ -484,6 +486,8 @@ class TaskLedger:
             start_delay_s=decision.start_delay_s,
             hold=decision.hold,
             revision=task.revision + 1,
+            route=list(decision.route),
+            pass_m=decision.pass_m,
         )
         effects: Effects = []
         self._transition(revised, event, effects)
@@ -523,6 +527,8 @@ class TaskLedger:
             start_delay_s=decision.start_delay_s,
             hold=decision.hold,
             attempts=task.attempts + 1,
+            route=list(decision.route),
+            pass_m=decision.pass_m,
         )
         effects: Effects = []
         self._transition(assigned, "assigned", effects)
@@ -596,6 +602,7 @@ class TaskLedger:
             law=None,
             hold=False,
             start_delay_s=0.0,
+            route=[],
             reason=reason,
             revision=task.revision + 1,
         )

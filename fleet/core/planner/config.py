@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from fleet.core.wire import DEFAULT_PASS_M
+
 
 @dataclass(frozen=True)
 class PlannerConfig:
@@ -34,6 +36,11 @@ class PlannerConfig:
 
     Corridors: sampled every ``corridor_period_s``; the service re-plans when a robot is
     farther than ``corridor_radius_m`` from its corridor within ``corridor_slack_s``.
+
+    Routes (:mod:`fleet.core.planner.roadmap`, when the site has static obstacles): a robot
+    whose straight way to its goal is not clear gets via-points around the walls and posts,
+    keeping its body ``contact_margin_m`` + ``route_slack_m`` clear of them, ending
+    ``approach_m`` in front of its goal; it passes each within ``pass_m``.
     """
 
     exhaustive_limit: int = 4
@@ -78,6 +85,9 @@ class PlannerConfig:
     #: solo predictions (clusters, horizons, assignment) use at least this step [s]
     solo_dt: float = 0.05
     max_rows_per_call: int = 1024
+    approach_m: float = 1.0
+    pass_m: float = DEFAULT_PASS_M
+    route_slack_m: float = 0.15
 
     def __post_init__(self) -> None:
         if self.exhaustive_limit < 0 or self.budget < 0 or self.rounds < 0:
@@ -86,6 +96,8 @@ class PlannerConfig:
             raise ValueError("delays_s must be positive")
         if self.sample_period_s <= 0 or self.corridor_period_s <= 0:
             raise ValueError("sample periods must be positive")
+        if self.approach_m < 0 or self.pass_m <= 0 or self.route_slack_m < 0:
+            raise ValueError("approach_m and route_slack_m must be >= 0, pass_m > 0")
 
 
 __all__ = ["PlannerConfig"]

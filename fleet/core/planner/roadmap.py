@@ -24,6 +24,7 @@ joining two such points: the smaller). Every other segment keeps ``clearance_m``
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -330,3 +331,11 @@ def _one_side(d: FloatArray, at: FloatArray, nb1: FloatArray, nb2: FloatArray) -
         (s1 < -_TANGENT_TOL) & (s2 > _TANGENT_TOL)
     )
     return np.asarray(~opposite)
+
+
+@functools.lru_cache(maxsize=8)
+def roadmap_of(obstacles: tuple[Obstacle, ...], clearance_m: float) -> Roadmap:
+    """:meth:`Roadmap.build`, kept for the last few obstacle sets and clearances (a site's
+    obstacles change rarely; the planner and the goal check share it). Read-only: safe to
+    share between threads."""
+    return Roadmap.build(obstacles, clearance_m)

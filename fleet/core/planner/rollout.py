@@ -34,13 +34,16 @@ import numpy as np
 
 from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
 from fleet.core.simulate import BatchProblem, SimResult, batch_filter, obstacle_columns, simulate
+from fleet.core.step import ROUTE_ROWS
 from fleet.core.types import BoolArray, FloatArray
-from fleet.core.wire import Obstacle
+from fleet.core.wire import DEFAULT_PASS_M, Obstacle
 
 #: Padded group sizes (a scene of n rows runs in the smallest bucket >= n).
 _BUCKETS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512)
 #: Where inert padding rows stand [m]: far from any yard, 10 m apart (beyond any influence).
 _PAD_X, _PAD_STEP = 1.0e6, 10.0
+#: The via-point rows of a robot without a route.
+NO_ROUTE = np.zeros((0, ROUTE_ROWS))
 #: Tolerance of a standing row [m], [rad]: it is done at once.
 STANDING_TOLERANCE = (1e-3, 1e-3)
 #: Start delay of a standing row [s]: it never moves. A row done at a call's first step
@@ -58,6 +61,8 @@ class Rows:
     (position [m], heading [rad]); ``delay`` (n,) start delay [s]; ``limits`` (n, 4) each
     robot's own profile (wheel radius [m], half axle [m], max wheel speed [rad/s], body
     radius [m]; :func:`limits_of`), a NaN row (or None for all) = the world's profile.
+    ``route`` (n entries or None for all): each robot's via-points as rows (x, y, heading,
+    cw) (:func:`fleet.core.route.via_postures`), an empty (0, 4) = straight to its goal.
     """
 
     start: FloatArray  # (n, 3)
@@ -67,10 +72,15 @@ class Rows:
     tolerance: FloatArray  # (n, 2)
     delay: FloatArray  # (n,)
     limits: FloatArray | None = None  # (n, 4); None or NaN rows: the world's profile
+    route: tuple[FloatArray, ...] | None = None
 
     @property
     def size(self) -> int:
         return int(self.start.shape[0])
+
+    def routes(self) -> tuple[FloatArray, ...]:
+        """Each robot's via-point rows (m_i, 4) (none: (0, 4))."""
+        return self.route if self.route is not None else (NO_ROUTE,) * self.size
 
     @staticmethod
     def standing(xy: FloatArray) -> Rows:
@@ -96,6 +106,11 @@ class Rows:
             cw=np.concatenate([p.cw for p in parts]),
             tolerance=np.concatenate([p.tolerance for p in parts]),
             delay=np.concatenate([p.delay for p in parts]),
+            route=(
+                None
+                if all(p.route is None for p in parts)
+                else tuple(r for p in parts for r in p.routes())
+            ),
             limits=(
                 None
                 if all(p.limits is None for p in parts)
@@ -140,6 +155,8 @@ class World:
     avoidance: Avoidance
     obstacles: tuple[Obstacle, ...] = ()
     safety: SafetyConfig = field(default_factory=SafetyConfig)
+    #: [m] pass-through radius of the robots' via-points (``ParkAssignment.pass_m``).
+    pass_m: float = DEFAULT_PASS_M
 
 
 def _bucket(n: int) -> int:
@@ -170,6 +187,8 @@ def problem_of(rows: Rows, world: World, peers: bool = True) -> BatchProblem:
         min_x_oa=avoid.min_x_oa,
         start_delay=rows.delay,
         safety=batch_filter(world.safety),
+        routes=None if rows.route is None else list(rows.route),
+        pass_radius=world.pass_m,
     )
     problem = replace(
         problem,

@@ -31,7 +31,9 @@ import numpy as np
 from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
 from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
+from fleet.core.planner.roadmap import roadmap_of
 from fleet.core.planner.rollout import (
+    NO_ROUTE,
     STANDING_DELAY,
     STANDING_TOLERANCE,
     Rows,
@@ -39,6 +41,7 @@ from fleet.core.planner.rollout import (
     limits_of,
     roll_out,
 )
+from fleet.core.route import via_postures
 from fleet.core.tasks import RobotStatus, TaskStatus
 from fleet.core.types import LAWS, BoolArray, FloatArray, IntArray, Law
 
@@ -73,10 +76,26 @@ class Movers:
     keep_delay: FloatArray  # (k,) start delay left when the plan arrives [s]
     keep_hold: BoolArray  # (k,) held now
     limits: FloatArray  # (k, 4) each robot's own profile (``Rows.limits``; NaN: the world's)
+    #: each mover's via-point rows (m_i, 4) (``Rows.route``; (0, 4): straight to its goal)
+    route: tuple[FloatArray, ...] = ()
 
     @property
     def size(self) -> int:
         return len(self.robot_ids)
+
+    def routes(self, idx: IntArray, hold: BoolArray) -> tuple[FloatArray, ...] | None:
+        """``Rows.route`` of movers ``idx`` (None: no mover has one)."""
+        return _standing_still(self.route, idx, hold)
+
+
+def _standing_still(
+    route: Sequence[FloatArray], idx: IntArray, hold: BoolArray
+) -> tuple[FloatArray, ...] | None:
+    """``Rows.route`` of movers ``idx`` of ``route``; one that ``hold`` says stands has no
+    route (None: no mover has one)."""
+    if not route:
+        return None
+    return tuple(NO_ROUTE if h else route[i] for i, h in zip(idx, hold, strict=True))
 
 
 @dataclass(frozen=True)
@@ -213,7 +232,11 @@ def build_fleet(
     allowed = np.array([_allowed(t) for t in tasks], dtype=bool).reshape(k, 2)
     limits = limits_of([r.profile for r in owners])
     standing_xy = np.array([r.pose[:2] for r in standing], dtype=np.float64).reshape(-1, 2)
-    world = World(snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles), snapshot.safety)
+    world = World(
+        snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles), snapshot.safety,
+        config.pass_m,
+    )  # fmt: skip
+    route = _routes(pose0, goal, limits, world, config)
 
     # Lead-in: robots under way go on as they are; new and held robots stand.
     driving = kind == UNDER_WAY
@@ -231,6 +254,7 @@ def build_fleet(
                     tolerance=np.where(still[:, None], STANDING_TOLERANCE, tolerance),
                     delay=np.where(still, STANDING_DELAY, delay_now),
                     limits=limits,
+                    route=_standing_still(route, np.arange(k), still),
                 ),
                 Rows.standing(standing_xy),
             ]
@@ -247,7 +271,7 @@ def build_fleet(
         delay_now = np.maximum(delay_now - lead, 0.0)
 
     solo_time, solo_times, solo_xy = _solo(
-        start, goal, gains, tolerance, allowed, world, snapshot.control_dt, config, limits
+        start, goal, gains, tolerance, allowed, world, snapshot.control_dt, config, limits, route
     )
     fastest = np.where(
         allowed[:, 0] & (~allowed[:, 1] | (solo_time[:, 0] <= solo_time[:, 1])), 0, 1
@@ -266,6 +290,7 @@ def build_fleet(
         keep_delay=delay_now,
         keep_hold=kind == HELD,
         limits=limits,
+        route=route,
     )
     return Fleet(
         movers=movers,
@@ -281,6 +306,31 @@ def build_fleet(
         solo_xy=solo_xy,
         blocks=_blocks(solo_xy, allowed, goal, snapshot.separation_m + BLOCK_MARGIN_M),
     )
+
+
+def _routes(
+    pose: FloatArray, goal: FloatArray, limits: FloatArray, world: World, config: PlannerConfig
+) -> tuple[FloatArray, ...]:
+    """Each mover's via-point rows from ``pose`` (k, 3) to ``goal`` (k, 3) around the static
+    obstacles (:mod:`fleet.core.planner.roadmap`): (0, 4) where the straight way is clear,
+    there are no obstacles, or no route exists (the robot then drives straight and its
+    safety filter stops it at the obstacle; the API refuses such goals)."""
+    k = pose.shape[0]
+    if not world.obstacles or k == 0:
+        return ()
+    radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
+    clearance = float(radii.max()) + world.safety.contact_margin_m + config.route_slack_m
+    roadmap = roadmap_of(world.obstacles, round(clearance, 6))
+    out = []
+    for i in range(k):
+        points = roadmap.route(
+            (float(pose[i, 0]), float(pose[i, 1])),
+            (float(goal[i, 0]), float(goal[i, 1]), float(goal[i, 2])),
+            config.approach_m,
+        )
+        start = (float(pose[i, 0]), float(pose[i, 1]), float(pose[i, 2]))
+        out.append(via_postures(start, points) if points else NO_ROUTE)
+    return tuple(out)
 
 
 def stuck(fleet: Fleet) -> list[int]:
@@ -318,6 +368,7 @@ def _solo(
     dt: float,
     config: PlannerConfig,
     limits: FloatArray | None = None,
+    route: Sequence[FloatArray] = (),
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Each mover alone with each allowed law: arrival times (k, 2) and sampled paths."""
     k = start.shape[0]
@@ -334,6 +385,7 @@ def _solo(
         tolerance=np.repeat(tolerance, 2, axis=0),
         delay=np.zeros(2 * k),
         limits=None if limits is None else np.repeat(limits, 2, axis=0),
+        route=tuple(r for r in route for _ in range(2)) if route else None,
     )
     (result,) = roll_out(
         [rows], world, dt=step, max_time=config.max_horizon_s, peers=False, record_every=every
@@ -362,6 +414,7 @@ def scene_rows(fleet: Fleet, cluster: Cluster, c: Candidate) -> Rows:
         tolerance=np.where(hold, STANDING_TOLERANCE, m.tolerance[idx]),
         delay=np.where(c.hold, STANDING_DELAY, c.delay),
         limits=m.limits[idx],
+        route=m.routes(idx, c.hold),
     )
     still = [fleet.standing_xy[np.asarray(cluster.standing, dtype=np.int64)].reshape(-1, 2)]
     still.append(np.array([p[:2] for p in cluster.phantoms], dtype=np.float64).reshape(-1, 2))

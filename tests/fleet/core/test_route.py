@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from pydantic import ValidationError
 
 from fleet.core.params import RobotProfile, SafetyConfig
-from fleet.core.route import via_postures
+from fleet.core.route import via_postures, via_rows, waypoints
 from fleet.core.simulate import BatchProblem, batch_filter, obstacle_columns, simulate
 from fleet.core.types import Law, Posture
 from fleet.core.wire import Obstacle, ParkAssignment, Waypoint, parse_assignment
@@ -29,10 +29,7 @@ AROUND = [(-0.8, -2.0), (0.8, -2.0), (2.0, 0.0)]
 
 
 def assignment(points: list[tuple[float, float]], law: Law = "cw") -> ParkAssignment:
-    route = [
-        Waypoint(x=x, y=y, theta=h, law="cw" if cw else "ccw")
-        for x, y, h, cw in via_postures(START, points)
-    ]
+    route = list(waypoints(via_postures(START, points)))
     return support.park(goal=GOAL, law=law, route=route, pass_m=0.5)
 
 
@@ -60,7 +57,7 @@ def agent_run(a: ParkAssignment, steps: int) -> tuple[list[Posture], bool]:
 
 
 def batch_run(a: ParkAssignment, steps: int) -> tuple[np.ndarray, bool]:
-    via = [(w.x, w.y, w.theta, 1.0 if w.law == "cw" else 0.0) for w in a.route]
+    via = via_rows(a.route)
     problem = BatchProblem.build(
         [START], [GOAL], a.gains, a.law, a.tolerance, PROFILE, **obstacle_columns([WALL]),
         k_avoid=a.avoidance.k_avoid, min_x_oa=a.avoidance.min_x_oa,

@@ -208,11 +208,11 @@ class PoseOut(BaseModel):
         return cls(x=pose.x, y=pose.y, theta=pose.theta)
 
 
-class WaypointOut(PoseOut):
-    """A via-point of a task's route: where the robot aims (world frame, x, y [m], theta
-    [rad] the heading of the leg arriving there) and the law of that leg."""
+class PointOut(BaseModel):
+    """A point of the world frame [m]."""
 
-    law: Law
+    x: float
+    y: float
 
 
 class TaskOut(BaseModel):
@@ -234,7 +234,7 @@ class TaskOut(BaseModel):
         description="re-plans of the law while under way (0 as first sent); each one is "
         "sent to the robot as a new revision of its assignment"
     )
-    route: list[WaypointOut] = Field(
+    route: list[PointOut] = Field(
         default_factory=list,
         description="via-points the robot was sent to pass, in order, before the goal "
         "(around walls and posts; empty: straight to the goal); each revision replaces it",
@@ -259,7 +259,7 @@ class TaskOut(BaseModel):
             bay=req.bay,
             attempts=task.attempts,
             revision=task.revision,
-            route=[WaypointOut(x=w.x, y=w.y, theta=w.theta, law=w.law) for w in task.route],
+            route=[PointOut(x=x, y=y) for x, y in task.route],
             created_at=task.created_at,
             updated_at=task.updated_at,
         )

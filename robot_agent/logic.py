@@ -51,7 +51,7 @@ import numpy as np
 
 from fleet.core import step
 from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
-from fleet.core.route import route_table, via_rows
+from fleet.core.route import route_table
 from fleet.core.types import FloatArray
 from fleet.core.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
 
@@ -68,8 +68,7 @@ class AgentTaskStatus(StrEnum):
 def route_of(assignment: ParkAssignment) -> FloatArray:
     """The assignment's route table of :mod:`fleet.core.step` (its via-points, then its
     goal with its law): the table the planner's batch runs for it."""
-    goal = assignment.goal.as_tuple()
-    return route_table(via_rows(assignment.route), goal, assignment.law == "cw")
+    return route_table(assignment.route, assignment.goal.as_tuple(), assignment.law == "cw")
 
 
 @dataclass(frozen=True)
@@ -176,25 +175,26 @@ def filter_of(safety: SafetyConfig | None, speed: float = 0.0) -> step.Safety:
 
 
 def _step_params(task: AgentTask, profile: RobotProfile, limit: float) -> FloatArray:
-    """The robot's parameter row of :mod:`fleet.core.step` (1, ``ROBOT_COLUMNS``), aiming at
-    route entry ``task.leg``."""
+    """The robot's parameter row of :mod:`fleet.core.step` (1, ``ROBOT_COLUMNS``), its goal
+    and law yet to be aimed along its route (:func:`fleet.core.step.aim`)."""
     assignment = task.assignment
-    gains, tol = assignment.gains, assignment.tolerance
-    aim = task.route[:, task.leg]
+    goal, gains, tol = assignment.goal, assignment.gains, assignment.tolerance
 
     def column(value: float) -> FloatArray:
         return np.array([value])
 
     return step.robot_params(
-        aim[None, step.VIA_X : step.VIA_HEADING + 1],
+        np.array([goal.as_tuple()]),
         np.array([gains.as_tuple()]),
-        column(aim[step.VIA_CW]),
+        column(1.0 if assignment.law == "cw" else 0.0),
         column(tol.position),
         column(tol.heading),
         column(profile.wheel_radius),
         column(profile.half_axle),
         column(limit),
         column(profile.radius),
+        route_last=column(task.route.shape[1] - 1),
+        pass_radius=assignment.pass_m,
     )
 
 
@@ -268,14 +268,14 @@ def decide(
     if a.max_wheel_speed is not None:
         limit = min(limit, a.max_wheel_speed)  # never above the robot's own limit
     hold = task.waiting(now)
-    last = task.route.shape[1] - 1
-    leg = step.next_leg(pose[0], pose[1], task.route, task.leg, last, a.pass_m * a.pass_m)
+    params = _step_params(task, profile, limit)
+    leg = step.aim(pose[0], pose[1], pose[2], params, task.route, task.leg)
     if leg != task.leg:
         task = replace(task, leg=leg)
     postures, shapes = peers
     result = step.step_robot(
         (pose[0], pose[1], pose[2]),
-        _step_params(task, profile, limit),
+        params,
         hold=hold,
         peers=np.ascontiguousarray(postures, dtype=np.float64),
         shapes=np.ascontiguousarray(shapes, dtype=np.float64),

@@ -39,11 +39,7 @@ from fleet.core.step import (
     EFFORT,
     OBSTACLE_ROWS,
     RECORD_COLUMNS,
-    ROUTE_ROWS,
     SAFETY_OFF,
-    VIA_CW,
-    VIA_HEADING,
-    VIA_X,
     Interaction,
     Safety,
     Schedule,
@@ -142,20 +138,13 @@ class BatchProblem:
         return int(self.start.shape[0])
 
     def params(self) -> FloatArray:
-        """Parameter rows of :mod:`fleet.core.step` (N, ``ROBOT_COLUMNS``): a robot with a
-        route aims at its first entry."""
+        """Parameter rows of :mod:`fleet.core.step` (N, ``ROBOT_COLUMNS``) (a robot with a
+        route aims along it at every step: :func:`fleet.core.step.aim`)."""
         n = self.size
-        aim = self.goal.copy()
-        cw = self.cw.astype(np.float64)
-        if self.route is not None and self.route_first is not None:
-            routed = self.route_first >= 0
-            first = self.route_first[routed]
-            aim[routed] = self.route[VIA_X : VIA_HEADING + 1, first].T
-            cw[routed] = self.route[VIA_CW, first]
         return robot_params(
-            aim,
+            self.goal,
             self.gains,
-            cw,
+            self.cw.astype(np.float64),
             self.tol_position,
             self.tol_heading,
             self.wheel_radius,
@@ -196,9 +185,8 @@ class BatchProblem:
     ) -> BatchProblem:
         """Broadcast per-robot inputs (scalars, models or arrays) to an N-robot problem.
 
-        ``routes[i]``: robot i's via-points as rows (x [m], y [m], heading [rad], cw) in
-        the world frame (:func:`fleet.core.route.via_postures`), its goal left out (it is
-        appended with the robot's law); None or no rows: straight to the goal.
+        ``routes[i]``: robot i's via-points (m_i, 2) [m], world frame, its goal left out
+        (:mod:`fleet.core.route`); None or no rows: straight to the goal.
         ``pass_radius`` [m]: the via-points' pass-through radius, at least the position
         tolerance.
         """
@@ -273,8 +261,8 @@ def _route_table(
     last = np.full(n, -1, dtype=np.int64)
     used = 0
     for i, via in enumerate(routes):
-        rows = np.zeros((0, ROUTE_ROWS)) if via is None else np.asarray(via, dtype=np.float64)
-        rows = rows.reshape(-1, ROUTE_ROWS)
+        rows = np.zeros((0, 2)) if via is None else np.asarray(via, dtype=np.float64)
+        rows = rows.reshape(-1, 2)
         if rows.shape[0] == 0:
             continue
         if not np.isfinite(rows).all():

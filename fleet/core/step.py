@@ -30,12 +30,12 @@ One step of one robot (:func:`robot_step`), in this order:
 Step 5 is on only when K_avoid > 0; step 7 whenever the filter is on (the paper's model
 runs without it).
 
-**Routes.** A robot may follow a route: a table of postures (its via-points, then its goal)
-that it aims at in turn. Before each step, on the pre-step position, it passes every
-via-point it is within the pass-through radius of (:func:`next_leg`; the agent calls it
-before its tick's step, the batch before each step) and aims at the next entry with that
-entry's law; the stop rule then applies to the goal only (the radius is at least the
-position tolerance).
+**Routes.** A robot may follow a route: a table of its via-points, then its goal, that it
+aims at in turn. Before each step, on the pre-step pose, it passes every via-point it is
+within the pass-through radius of and aims at the next entry (:func:`aim`; the agent calls
+it before its tick's step, the batch before each step): a via-point facing it, with the law
+that turns the shorter way; the goal with the task's law. The stop rule then applies to the
+goal only (the radius is at least the position tolerance).
 
 **The safety filter** (a discrete-time control barrier function on the unicycle, the
 Robotarium's barrier certificates with the projected point). The point p = c + l e(theta)
@@ -118,13 +118,13 @@ ROUTE_LAST = 14  # column of the robot's goal in the route table (batch only; -1
 PASS_SQ = 15  # squared pass-through radius [m^2] of the route's via-points
 ROBOT_COLUMNS = 16
 
-# Rows of a route table (``route[:, k]``): the postures a robot aims at in turn, its via-points
+# Rows of a route table (``route[:, k]``): the points a robot aims at in turn, its via-points
 # then its goal (world frame). A robot aims at entry k until its centre comes within the
-# pass-through radius of it (:func:`next_leg`); the last entry is its goal (the stop rule).
+# pass-through radius of it (:func:`aim`); the last entry is its goal (the stop rule).
 VIA_X = 0  # [m]
 VIA_Y = 1
-VIA_HEADING = 2  # [rad], wrapped by (11.a)
-VIA_CW = 3  # 1.0: clockwise law (20) on the leg to this entry; 0.0: (17)
+VIA_HEADING = 2  # [rad] the goal's heading, wrapped by (11.a) (unused at a via-point)
+VIA_CW = 3  # the goal's law: 1.0 clockwise (20), 0.0 (17) (unused at a via-point)
 ROUTE_ROWS = 4
 
 # Rows of the static obstacles (``obstacles[:, j]``): a capsule, the segment from (X, Y) to
@@ -335,31 +335,42 @@ def _euler(
 
 # -- routes (scalar, compiled) ---------------------------------------------------------------
 @njit(inline="always", error_model="numpy")
-def _next_leg(x: float, y: float, route: FloatArray, leg: int, last: int, pass_sq: float) -> int:
-    """:func:`next_leg`, inlined into the batch."""
+def _aim(
+    x: float, y: float, theta: float, params: FloatArray, i: int, route: FloatArray, leg: int,
+    pass_sq: float,
+) -> int:  # fmt: skip
+    """:func:`aim` on row i of ``params``, inlined into the batch."""
+    last = int(params[i, ROUTE_LAST])
     while leg < last:
         dx, dy = route[VIA_X, leg] - x, route[VIA_Y, leg] - y
         if dx * dx + dy * dy >= pass_sq:
             break
         leg += 1
+    params[i, GOAL_X], params[i, GOAL_Y] = route[VIA_X, leg], route[VIA_Y, leg]
+    if leg < last:  # a via-point: face it, turning the shorter way (right: law (20))
+        dx, dy = route[VIA_X, leg] - x, route[VIA_Y, leg] - y
+        params[i, GOAL_HEADING] = wrap_to_2pi(math.atan2(dy, dx))
+        params[i, CW] = 1.0 if math.cos(theta) * dy - math.sin(theta) * dx < 0.0 else 0.0
+    else:
+        params[i, GOAL_HEADING], params[i, CW] = route[VIA_HEADING, leg], route[VIA_CW, leg]
     return leg
 
 
-@njit("int64(float64, float64, float64[:, ::1], int64, int64, float64)", cache=True)
-def next_leg(x: float, y: float, route: FloatArray, leg: int, last: int, pass_sq: float) -> int:
-    """The route entry a robot at (x, y) [m] aims at, from entry ``leg`` on: every via-point
-    before ``last`` (the goal) whose squared distance from (x, y) is below ``pass_sq``
-    [m^2] is passed. The agent calls it before each tick's step, the batch before each
-    step: a robot passes its via-points without stopping and stops only at its goal (the
-    pass-through radius is at least the position tolerance)."""
-    return _next_leg(x, y, route, leg, last, pass_sq)
+@njit("int64(float64, float64, float64, float64[:, ::1], float64[:, ::1], int64)", cache=True)
+def aim(x: float, y: float, theta: float, params: FloatArray, route: FloatArray, leg: int) -> int:
+    """Point robot ``params[0]`` at (x [m], y [m], theta [rad]) along its route table
+    ``route``, from entry ``leg`` on; returns the entry it now aims at.
 
-
-@njit(inline="always", error_model="numpy")
-def _aim(params: FloatArray, i: int, route: FloatArray, leg: int) -> None:
-    """Robot i's goal columns set to route entry ``leg``."""
-    params[i, GOAL_X], params[i, GOAL_Y] = route[VIA_X, leg], route[VIA_Y, leg]
-    params[i, GOAL_HEADING], params[i, CW] = route[VIA_HEADING, leg], route[VIA_CW, leg]
+    It passes every via-point within the pass-through radius (``params[0, PASS_SQ]``) of
+    (x, y). At a via-point it aims at the posture *facing* it (the bearing from the robot)
+    with the law that turns the shorter way ((20) when it lies to the right, y_e < 0): the
+    robot turns towards the via-point and drives on. Both laws command u = kx x_e, so the
+    distance to the via-point never grows (the Lyapunov-like L = (x_e^2 + y_e^2) / 2 of
+    Eq. (10.a), ``fleet.core.switching``) and the robot reaches it. Last comes the goal with
+    the task's law. Writes the goal columns of ``params[0]``; the agent calls it before its
+    tick's step and the batch before each step (the same code: the planner predicts it).
+    """
+    return _aim(x, y, theta, params, 0, route, leg, params[0, PASS_SQ])
 
 
 # -- the safety filter (scalar, compiled) ----------------------------------------------------
@@ -823,17 +834,14 @@ def _advance_robot(
     ``following`` (both (3, N)), with peers ``peer_lo .. peer_hi - 1``; returns 1 if the
     stop rule fired. ``row`` >= 0 records the step in that row of ``record``. A robot with
     a route (``leg[i]`` >= 0, its entry in ``route``) first passes the via-points it is
-    within the pass-through radius of (:func:`next_leg`)."""
+    within the pass-through radius of and aims at the next entry (:func:`aim`)."""
     x, y, theta = current[0, i], current[1, i], current[2, i]
     moving = done_step[i] < 0
     if not moving and row < 0:  # done: stands still (still a peer of the others)
         following[0, i], following[1, i], following[2, i] = x, y, theta
         return 0
     if moving and leg[i] >= 0:
-        passed = _next_leg(x, y, route, leg[i], int(params[i, ROUTE_LAST]), params[i, PASS_SQ])
-        if passed != leg[i]:
-            leg[i] = passed
-            _aim(params, i, route, passed)
+        leg[i] = _aim(x, y, theta, params, i, route, leg[i], params[i, PASS_SQ])
     hold = t < params[i, DELAY_END]
     r = robot_step(
         x, y, theta, params, i, hold, current, shapes, peer_lo, peer_hi, i, obstacles,

@@ -20,7 +20,7 @@ from fleet.core.wire import (
     RobotError,
     RobotId,
     RobotMode,
-    Waypoint,
+    ViaPoint,
 )
 
 Direction = Literal["auto", "cw", "ccw"]
@@ -128,7 +128,7 @@ class Task(BaseModel):
     hold: bool = False
     #: Via-points the robot was sent to pass before the goal, and their pass-through radius
     #: [m] (``ParkAssignment.route``, ``pass_m``); empty: straight to the goal.
-    route: Annotated[list[Waypoint], Field(max_length=MAX_ROUTE_POINTS)] = Field(
+    route: Annotated[list[ViaPoint], Field(max_length=MAX_ROUTE_POINTS)] = Field(
         default_factory=list
     )
     pass_m: Annotated[float, Field(gt=0, allow_inf_nan=False)] = DEFAULT_PASS_M

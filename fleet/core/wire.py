@@ -78,7 +78,7 @@ Protocol between the fleet service and a robot agent:
   still for that long of its own time, ``mode=waiting``, then drives (a planned wait for a
   peer to pass). ``hold``: the robot stands still, ``mode=waiting``, until a higher revision
   releases it (the fleet found no safe option yet).
-* ``route`` (via-points, each with its law) and ``pass_m``: the robot passes the via-points
+* ``route`` (via-points) and ``pass_m``: the robot passes the via-points
   in order without stopping, then parks at ``goal`` (:class:`ParkAssignment` has the
   rule and its compatibility).
 * ``CancelAssignment`` for the current task stops the robot: ``mode=holding``, task id kept.
@@ -565,11 +565,8 @@ MAX_ROUTE_POINTS = 64
 DEFAULT_PASS_M = 0.5
 
 
-class Waypoint(Pose):
-    """A via-point of a route: the posture the robot aims at (x, y [m], theta [rad], world
-    frame: the heading of the leg that arrives there) and the law of that leg."""
-
-    law: Law
+#: A via-point of a route: (x, y) [m], world frame.
+ViaPoint = tuple[FiniteFloat, FiniteFloat]
 
 
 class ParkAssignment(_Message):
@@ -579,9 +576,10 @@ class ParkAssignment(_Message):
     ``task_id`` replaces its law/gains, a repeat of the same or a lower revision is ignored
     (see the module docstring).
 
-    ``route``: via-points the robot passes, in order, before the goal: it aims at each with
-    that via-point's law and passes it when its centre comes within ``pass_m`` [m]
-    (:func:`fleet.core.step.next_leg`); ``pass_m`` is at least the position tolerance. A
+    ``route``: via-points (x, y) [m] the robot passes, in order, before the goal: it aims at
+    each (facing it, turning the shorter way) and passes it when its centre comes within
+    ``pass_m`` [m] (:func:`fleet.core.step.aim`); ``pass_m`` is at least the position
+    tolerance. A
     revision's route replaces the route, taken from its first via-point again (the fleet
     plans it from where the robot is). Compatibility rule (``v`` stays 1): both fields are
     additive; without them the robot drives straight to its goal, as before. A robot of an
@@ -607,7 +605,7 @@ class ParkAssignment(_Message):
     hold: bool = False
     #: Leadership term of the sending service (0: no election); see the module docstring.
     term: Annotated[int, Field(ge=0)] = 0
-    route: Annotated[list[Waypoint], Field(max_length=MAX_ROUTE_POINTS)] = Field(
+    route: Annotated[list[ViaPoint], Field(max_length=MAX_ROUTE_POINTS)] = Field(
         default_factory=list
     )
     pass_m: Annotated[float, Field(gt=0, le=10.0, allow_inf_nan=False)] = DEFAULT_PASS_M

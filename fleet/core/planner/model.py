@@ -43,7 +43,7 @@ from typing import Literal
 from fleet.core.params import Avoidance, Gains, RobotProfile, SafetyConfig, Tolerance
 from fleet.core.tasks import Direction, RobotStatus, TaskStatus
 from fleet.core.types import Law, Posture
-from fleet.core.wire import DEFAULT_PASS_M, Obstacle, Waypoint
+from fleet.core.wire import DEFAULT_PASS_M, Obstacle
 
 Action = Literal["assign", "revise", "keep"]
 
@@ -147,9 +147,9 @@ class TaskDecision:
     predicted_arrival_s: float | None = None
     corridor: tuple[tuple[float, float, float], ...] = ()
     predicted_min_separation_m: float = float("inf")
-    #: via-points to pass before the goal (:class:`fleet.core.wire.Waypoint`; empty: straight
-    #: to it) and their pass-through radius [m] (``ParkAssignment.route`` and ``pass_m``)
-    route: tuple[Waypoint, ...] = ()
+    #: via-points (x, y) [m] to pass before the goal (empty: straight to it) and their
+    #: pass-through radius [m] (``ParkAssignment.route`` and ``pass_m``)
+    route: tuple[tuple[float, float], ...] = ()
     pass_m: float = DEFAULT_PASS_M
 
 

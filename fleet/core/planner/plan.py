@@ -71,7 +71,6 @@ from fleet.core.planner.scene import (
     stuck,
 )
 from fleet.core.planner.search import ClusterSearch
-from fleet.core.route import waypoints
 from fleet.core.types import LAWS, BoolArray, FloatArray
 
 #: [m] added to the peer radius when checking that chosen plans of clusters stay apart.
@@ -350,7 +349,7 @@ def _decisions(
                     else round(float(arrival), 3),
                     corridor=sample_corridor(times, xy, every),
                     predicted_min_separation_m=float(s.best.separation[pos]),
-                    route=waypoints(m.route[i]) if m.route else (),
+                    route=tuple((float(x), float(y)) for x, y in m.route[i]) if m.route else (),
                     pass_m=fleet.world.pass_m,
                 )
             )

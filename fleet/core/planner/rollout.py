@@ -34,7 +34,6 @@ import numpy as np
 
 from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
 from fleet.core.simulate import BatchProblem, SimResult, batch_filter, obstacle_columns, simulate
-from fleet.core.step import ROUTE_ROWS
 from fleet.core.types import BoolArray, FloatArray
 from fleet.core.wire import DEFAULT_PASS_M, Obstacle
 
@@ -43,7 +42,7 @@ _BUCKETS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 51
 #: Where inert padding rows stand [m]: far from any yard, 10 m apart (beyond any influence).
 _PAD_X, _PAD_STEP = 1.0e6, 10.0
 #: The via-point rows of a robot without a route.
-NO_ROUTE = np.zeros((0, ROUTE_ROWS))
+NO_ROUTE = np.zeros((0, 2))
 #: Tolerance of a standing row [m], [rad]: it is done at once.
 STANDING_TOLERANCE = (1e-3, 1e-3)
 #: Start delay of a standing row [s]: it never moves. A row done at a call's first step
@@ -61,8 +60,8 @@ class Rows:
     (position [m], heading [rad]); ``delay`` (n,) start delay [s]; ``limits`` (n, 4) each
     robot's own profile (wheel radius [m], half axle [m], max wheel speed [rad/s], body
     radius [m]; :func:`limits_of`), a NaN row (or None for all) = the world's profile.
-    ``route`` (n entries or None for all): each robot's via-points as rows (x, y, heading,
-    cw) (:func:`fleet.core.route.via_postures`), an empty (0, 4) = straight to its goal.
+    ``route`` (n entries or None for all): each robot's via-points (m_i, 2) [m]
+    (:mod:`fleet.core.route`), an empty (0, 2) = straight to its goal.
     """
 
     start: FloatArray  # (n, 3)
@@ -79,7 +78,7 @@ class Rows:
         return int(self.start.shape[0])
 
     def routes(self) -> tuple[FloatArray, ...]:
-        """Each robot's via-point rows (m_i, 4) (none: (0, 4))."""
+        """Each robot's via-points (m_i, 2) (none: (0, 2))."""
         return self.route if self.route is not None else (NO_ROUTE,) * self.size
 
     @staticmethod

@@ -41,7 +41,6 @@ from fleet.core.planner.rollout import (
     limits_of,
     roll_out,
 )
-from fleet.core.route import via_postures
 from fleet.core.tasks import RobotStatus, TaskStatus
 from fleet.core.types import LAWS, BoolArray, FloatArray, IntArray, Law
 
@@ -76,7 +75,7 @@ class Movers:
     keep_delay: FloatArray  # (k,) start delay left when the plan arrives [s]
     keep_hold: BoolArray  # (k,) held now
     limits: FloatArray  # (k, 4) each robot's own profile (``Rows.limits``; NaN: the world's)
-    #: each mover's via-point rows (m_i, 4) (``Rows.route``; (0, 4): straight to its goal)
+    #: each mover's via-points (m_i, 2) [m] (``Rows.route``; (0, 2): straight to its goal)
     route: tuple[FloatArray, ...] = ()
 
     @property
@@ -311,7 +310,7 @@ def build_fleet(
 def _routes(
     pose: FloatArray, goal: FloatArray, limits: FloatArray, world: World, config: PlannerConfig
 ) -> tuple[FloatArray, ...]:
-    """Each mover's via-point rows from ``pose`` (k, 3) to ``goal`` (k, 3) around the static
+    """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the static
     obstacles (:mod:`fleet.core.planner.roadmap`): (0, 4) where the straight way is clear,
     there are no obstacles, or no route exists (the robot then drives straight and its
     safety filter stops it at the obstacle; the API refuses such goals)."""
@@ -328,8 +327,7 @@ def _routes(
             (float(goal[i, 0]), float(goal[i, 1]), float(goal[i, 2])),
             config.approach_m,
         )
-        start = (float(pose[i, 0]), float(pose[i, 1]), float(pose[i, 2]))
-        out.append(via_postures(start, points) if points else NO_ROUTE)
+        out.append(np.array(points, dtype=np.float64).reshape(-1, 2) if points else NO_ROUTE)
     return tuple(out)
 
 

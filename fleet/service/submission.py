@@ -11,6 +11,8 @@ import uuid
 from collections.abc import Callable
 
 from fleet.core.goals import Occupied, validate_goal
+from fleet.core.planner.config import PlannerConfig
+from fleet.core.planner.roadmap import roadmap_of
 from fleet.core.tasks import (
     BayTaken,
     GoalRejected,
@@ -66,6 +68,7 @@ class Submission(ServiceState):
         if not self._reserve(task, idempotency_key):
             return self.submit(request, idempotency_key)  # lost a race: wait as above
         try:
+            self._check_route(request.goal, request.robot_id)  # after the cheaper checks
             stored = self._store.save_new(task, idempotency_key)
         except BaseException:
             with self._lock:
@@ -84,6 +87,34 @@ class Submission(ServiceState):
         self._settle()
         self._planner.request("task_submitted", burst=True)
         return stored
+
+    def _check_route(self, goal: Pose, robot_id: str | None) -> None:
+        """Refuse (:class:`GoalRejected`) a goal that the site's walls and posts leave no
+        route to (:mod:`fleet.core.planner.roadmap`): from the robot named, or from every
+        robot in service whose pose is known. No check without static obstacles or robots.
+        Runs outside the lock (a route query is milliseconds of geometry)."""
+        with self._lock:
+            obstacles = tuple(self._obstacles)
+            starts = [
+                (rec.robot_id, rec.state.pose, self._profile_of(rec.robot_id).radius)
+                for rec in self._roster.records()
+                if rec.state is not None
+                and rec.in_service
+                and (robot_id is None or rec.robot_id == robot_id)
+            ]
+        if not obstacles or not starts:
+            return
+        config = PlannerConfig()
+        margin = self.settings.safety.contact_margin_m
+        for _, pose, radius in starts:
+            roadmap = roadmap_of(obstacles, config.route_clearance(radius, margin))
+            if roadmap.route((pose.x, pose.y), goal.as_tuple(), config.approach_m) is not None:
+                return
+        whom = f"robot {starts[0][0]}" if robot_id is not None else f"any of {len(starts)} robots"
+        raise GoalRejected(
+            f"no route to goal ({goal.x:.2f}, {goal.y:.2f}) from {whom}: the site's walls and "
+            "posts leave no way there wide enough for the robot"
+        )
 
     def _reserve(self, task: Task, idempotency_key: str | None) -> bool:
         """Validate ``task``'s goal and reserve it (and its key) for the write; False if a

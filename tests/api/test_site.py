@@ -8,12 +8,15 @@ from pathlib import Path
 
 import httpx
 import pytest
+from support import wait_for
 
 from api.app import create_app
+from fleet.core.wire import ParkAssignment
 from fleet.io.settings import Settings, load_settings
 from fleet.service.bus import MemoryBus
 from fleet.service.fleet_service import FleetService
 from fleet.service.store import SqliteTaskStore
+from tests.api.conftest import add_robot
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "fleet" / "io" / "sites" / "carpark.toml"
 
@@ -137,3 +140,56 @@ async def test_without_a_site_bays_are_404_with_the_reason(
     paths = (await client_no_site.get("/openapi.json")).json()["paths"]
     assert "404" in paths["/bays"]["get"]["responses"]
     assert "404" in paths["/site"]["get"]["responses"]
+
+
+#: A site with a wall across the way and a closed room (parkfleet's site file format).
+WALLED = """
+name = "walled"
+[yard]
+xmin = -10.0
+xmax = 10.0
+ymin = -10.0
+ymax = 10.0
+[[walls]]
+name = "across"
+points = [[0.0, -1.5], [0.0, 1.5]]
+[[walls]]
+name = "room"
+points = [[4.0, 4.0], [8.0, 4.0], [8.0, 8.0], [4.0, 8.0]]
+closed = true
+"""
+
+
+async def test_a_goal_no_route_reaches_is_409_and_a_task_shows_its_route(
+    tmp_path: Path,
+) -> None:
+    site = tmp_path / "walled.toml"
+    site.write_text(WALLED)
+    settings = load_settings(site_file=site)
+    store = SqliteTaskStore(tmp_path / "parkfleet.db")
+    bus = MemoryBus()
+    try:
+        with FleetService(settings, bus, store) as fleet:
+            app = create_app(settings, service=fleet, store=store)
+            async with (
+                app.router.lifespan_context(app),
+                httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://t") as c,
+            ):
+                add_robot(bus, "r1", x=-3.0, y=0.0)
+                walled_in = await c.post("/tasks", json={"goal": {"x": 6.0, "y": 6.0}})
+                assert walled_in.status_code == 409, walled_in.text
+                assert walled_in.json()["detail"].startswith("no route to goal (6.00, 6.00)")
+                behind = await c.post("/tasks", json={"goal": {"x": 3.0, "y": 0.0}})
+                assert behind.status_code == 201, behind.text
+                task_id = behind.json()["id"]
+                wait_for(lambda: fleet.task(task_id).status != "queued", 60, "the assignment")
+                shown = (await c.get(f"/tasks/{task_id}")).json()
+                route = [(p["x"], p["y"]) for p in shown["route"]]
+                assert route, "the wall is in the way: the task goes round it"
+                # round one of the wall's ends, keeping clear of it, ending before the goal
+                assert max(abs(y) for _, y in route) > 1.5
+                assert route[-1] == pytest.approx((2.0, 0.0))  # the pre-bay point, 1 m before
+                sent = [m for m in bus.sent("r1") if isinstance(m, ParkAssignment)]
+                assert sent and [tuple(p) for p in sent[-1].route] == route
+    finally:
+        store.close()

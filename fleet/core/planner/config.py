@@ -89,6 +89,11 @@ class PlannerConfig:
     pass_m: float = DEFAULT_PASS_M
     route_slack_m: float = 0.15
 
+    def route_clearance(self, radius: float, contact_margin_m: float) -> float:
+        """[m] how far a route keeps the centre of a robot of body ``radius`` [m] from every
+        static body (rounded: the roadmap cache's key)."""
+        return round(radius + contact_margin_m + self.route_slack_m, 6)
+
     def __post_init__(self) -> None:
         if self.exhaustive_limit < 0 or self.budget < 0 or self.rounds < 0:
             raise ValueError("search bounds must be >= 0")

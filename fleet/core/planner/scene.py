@@ -318,8 +318,8 @@ def _routes(
     if not world.obstacles or k == 0:
         return ()
     radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
-    clearance = float(radii.max()) + world.safety.contact_margin_m + config.route_slack_m
-    roadmap = roadmap_of(world.obstacles, round(clearance, 6))
+    clearance = config.route_clearance(float(radii.max()), world.safety.contact_margin_m)
+    roadmap = roadmap_of(world.obstacles, clearance)
     out = []
     for i in range(k):
         points = roadmap.route(

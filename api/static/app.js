@@ -979,7 +979,7 @@ window.__parkfleet = {
   },
   bays: () => state.bays.map((b) => ({ ...b })),
   faults: () => allFaults(),
-  /** What the map drew last frame: keep-out zones, bays and wall segments. */
+  /** What the map drew last frame: keep-out zones, bays, wall segments and routes. */
   get drawn() {
     return { ...map.drawn };
   },

@@ -286,6 +286,7 @@ def run_peer_policy(
         behaviour=policy,
         profile=s.profile,
         safety_separation_m=s.safety_separation_m,
+        contact_margin_m=s.safety.contact_margin_m,
         dt=1.0 / s.control_rate_hz,
         seed=scenario_seed(scenario) if seed is None else seed,
         robots=options.robots,

@@ -23,7 +23,11 @@ scenario's pose targets and tolerances (``Target.Pose``: these behaviours steer 
 pose) and its time limit. A behaviour's own velocity is the one it last commanded (as
 navground's ``actuate`` keeps it: the robots have no velocity sensor). Tasks arrive at their
 ``arrival_s``; an unnamed scenario's goals go to idle robots by an optimal assignment on
-straight-line distance (scipy's Hungarian method), one arrival group at a time.
+straight-line distance (scipy's Hungarian method), one arrival group at a time. Around
+walls and posts a robot gets the fleet's route (:mod:`fleet.core.planner.roadmap`, the
+fleet's clearance): its via-points as point targets, each passed within the fleet's
+pass-through radius, then the pose target (navground's local behaviours do not find a
+gate on their own).
 
 Ticks come out as :class:`~fleet.io.trace.TraceChunk` of *true* poses -- the same form as a
 ``parkfleet sim`` trace -- so :class:`~fleet.bench.metrics.RunMetrics` measures both alike.
@@ -37,7 +41,7 @@ are float32.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Any, Protocol
@@ -47,7 +51,9 @@ from scipy.optimize import linear_sum_assignment
 
 from fleet.bench.scenarios import Scenario
 from fleet.core.params import RobotProfile
-from fleet.core.types import FloatArray
+from fleet.core.planner.config import PlannerConfig
+from fleet.core.planner.roadmap import roadmap_of
+from fleet.core.types import FloatArray, Posture
 from fleet.core.wire import Obstacle, Pose, RobotMode
 from fleet.io.trace import TraceChunk
 
@@ -76,6 +82,8 @@ class PeerRun:
     behaviour: str
     profile: RobotProfile
     safety_separation_m: float = 0.5
+    #: [m] the fleet's contact margin: the peers' routes keep the fleet's clearance
+    contact_margin_m: float = 0.05
     dt: float = 0.02
     seed: int = 0
     chunk_ticks: int = 500
@@ -223,6 +231,28 @@ def _navground_obstacles(
     return discs, lines
 
 
+Router = Callable[[tuple[float, float], Posture], tuple[tuple[float, float], ...]]
+
+
+def _router(scenario: Scenario, profile: RobotProfile, contact_margin_m: float) -> Router:
+    """The fleet's routes for these robots: the via-points round the scenario's walls and
+    posts from a position to a goal (:mod:`fleet.core.planner.roadmap`, the fleet's
+    clearance), () where the way is straight or there is none."""
+    obstacles = tuple(scenario.static_obstacles())
+    config = PlannerConfig()
+    if not obstacles:
+        return lambda start, goal: ()
+    roadmap = roadmap_of(obstacles, config.route_clearance(profile.radius, contact_margin_m))
+    return lambda start, goal: roadmap.route(start, goal, config.approach_m) or ()
+
+
+def _next_target(
+    core: ModuleType, via: Sequence[tuple[float, float]], goal: Any, pass_m: float
+) -> Any:
+    """The next via-point as a point target (passed within ``pass_m`` [m]), else the goal."""
+    return core.Target.Point(via[0], pass_m) if via else goal
+
+
 def run_peer(scenario: Scenario, run: PeerRun) -> Iterator[TraceChunk]:
     """Run ``scenario`` with a navground behaviour on ``run.robots``; yields its ticks until
     every task is done or the time limit (:attr:`Scenario.end_s`) passes. Raises
@@ -274,6 +304,10 @@ def run_peer(scenario: Scenario, run: PeerRun) -> Iterator[TraceChunk]:
         behaviours.append(behaviour)
 
     n = len(behaviours)
+    route_of = _router(scenario, profile, run.contact_margin_m)
+    via: list[list[tuple[float, float]]] = [[] for _ in range(n)]  # via-points still to pass
+    goals: list[Any] = [None] * n  # each robot's pose target, after its via-points
+    pass_m = PlannerConfig().pass_m
     owner = assign_goals(scenario)
     pending = sorted(range(len(owner)), key=lambda k: scenario.robots[k].arrival_s)
     tasked = np.zeros(n, dtype=bool)
@@ -297,9 +331,12 @@ def run_peer(scenario: Scenario, run: PeerRun) -> Iterator[TraceChunk]:
                 robot = owner[task]
                 if robot < 0:
                     continue  # more tasks than robots: this one is never served
-                behaviours[robot].target = core.Target.Pose(
+                here = drives[robot].read_pose()[0]
+                via[robot] = list(route_of((here.x, here.y), (gx, gy, gtheta)))
+                goals[robot] = core.Target.Pose(
                     core.Pose2((gx, gy), gtheta), tolerance.position, tolerance.heading
                 )
+                behaviours[robot].target = _next_target(core, via[robot], goals[robot], pass_m)
                 tasked[robot], arrived[robot] = True, False
             if link is not None:
                 for receiver, state in link.deliver(now):
@@ -316,6 +353,9 @@ def run_peer(scenario: Scenario, run: PeerRun) -> Iterator[TraceChunk]:
             for r, behaviour in enumerate(behaviours):
                 x, y, theta = measured[r]
                 behaviour.pose = core.Pose2((x, y), theta)
+                while via[r] and behaviour.check_if_target_satisfied():  # passed a via-point
+                    via[r].pop(0)
+                    behaviour.target = _next_target(core, via[r], goals[r], pass_m)
                 if tasked[r] and not arrived[r] and behaviour.check_if_target_satisfied():
                     arrived[r] = True
                 if not tasked[r] or arrived[r]:

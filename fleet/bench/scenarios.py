@@ -38,6 +38,8 @@ Built-in families (:func:`full_suite`, :func:`quick_suite`):
   car park built of posts, robots queued outside entering through a 2.4 m gate;
   fleet-assigned. ``carpark-walls-12``: the same car park with walls (segments with a
   body) instead of posts.
+* ``garage-12`` -- a parking garage with two gates (west and east) and three aisles, bays
+  along its north and south walls; six robots queued outside each gate; fleet-assigned.
 * ``case-III`` -- the paper's comparative case III with two obstacles at (+-0.8, 0) (the
   paper gives only the figure), Table 8 gains; ``case-III-4`` -- four robots crossing the
   same pair of obstacles.
@@ -355,6 +357,41 @@ def car_park(seed: int | None = None, mean_gap_s: float = 4.0, *, walls: bool = 
     )
 
 
+def garage() -> Scenario:
+    """Twelve robots queued outside a parking garage's two gates park along its walls.
+
+    The garage spans x in [-8, 8], y in [-6, 6] m (walls of body 0.1 m) with a gate
+    |y| < 1.2 m in its west and its east wall, and two islands (walls along y = +-2 m for
+    |x| < 4.5 m) that make three aisles: north, middle (gate to gate) and south. Bays: six
+    along the north wall and six along the south wall, 1.4 m apart, 1.2 m from the wall,
+    nose to it. Six robots wait west of the west gate facing east, six east of the east
+    gate facing west; fleet-assigned, all at once.
+    """
+    north = [(-8.0, 1.2), (-8.0, 6.0), (8.0, 6.0), (8.0, 1.2)]
+    south = [(-8.0, -1.2), (-8.0, -6.0), (8.0, -6.0), (8.0, -1.2)]
+    walls = [
+        Wall(name="north", points=north, body=0.1),
+        Wall(name="south", points=south, body=0.1),
+        Wall(name="north-island", points=[(-4.5, 2.0), (4.5, 2.0)], body=0.1),
+        Wall(name="south-island", points=[(-4.5, -2.0), (4.5, -2.0)], body=0.1),
+    ]
+    bays = [(-3.5 + 1.4 * k, side * 4.8, side * math.pi / 2) for side in (1, -1) for k in range(6)]
+    queue = [
+        (side * x, y, 0.0 if side < 0 else math.pi)
+        for side in (-1, 1)
+        for x in (9.3, 10.8)
+        for y in (-1.5, 0.0, 1.5)
+    ]
+    return Scenario(
+        name="garage-12",
+        named=False,
+        robots=[RobotSpec(start=s, goal=g) for s, g in zip(queue, bays, strict=True)],
+        walls=walls,
+        yard=(-12.0, 12.0, -8.0, 8.0),
+        time_limit_s=180.0,
+    )
+
+
 def _case_iii_obstacles() -> list[ObstacleSpec]:
     return [
         ObstacleSpec(x=0.8, y=0.0, radius=1.0, body=0.2),
@@ -404,7 +441,8 @@ STREAM_SEEDS = tuple(range(1, 6))
 
 def full_suite() -> list[Scenario]:
     """Every built-in scenario: swaps in both chiralities, yards x 10 seeds, streams, the car
-    park (at once and as a stream), case III alone and with four robots."""
+    park (at once, as a stream, with walls), the garage, case III alone and with four
+    robots."""
     return [
         *(swap(n, c) for n in SWAP_SIZES for c in ("right", "left")),
         *(random_yard(n, s) for n in YARD_SIZES for s in YARD_SEEDS),
@@ -412,6 +450,7 @@ def full_suite() -> list[Scenario]:
         car_park(),
         car_park(seed=1),
         car_park(walls=True),
+        garage(),
         case_iii(),
         case_iii_crossing(),
     ]

@@ -28,6 +28,7 @@ from typing import Annotated, Self
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from fleet.core.geometry import first_self_crossing, segment_distance
+from fleet.core.params import SafetyConfig
 from fleet.core.wire import Obstacle, Pose
 
 Coordinate = Annotated[float, Field(allow_inf_nan=False)]
@@ -250,8 +251,9 @@ class Site(_Strict):
         """What makes some bays unusable with these radii [m] (empty: none).
 
         A bay must lie outside every obstacle's influence zone, more than ``robot_radius``
-        from every keep-out zone, and more than ``peer_radius`` from every other bay (two
-        robots parked closer would push each other away by Eq. (27)).
+        from every keep-out zone, more than ``peer_radius`` from every other bay (two
+        robots parked closer would push each other away by Eq. (27)), and be reachable on a
+        route from the other bays (:meth:`_unreachable_bays`).
         """
         out: list[SiteError] = []
         static = self.static_obstacles()
@@ -297,7 +299,46 @@ class Site(_Strict):
                             ("bays", j, "pose"),
                         )
                     )
+        out.extend(self._unreachable_bays(robot_radius))
         return out
+
+    def _unreachable_bays(self, robot_radius: float) -> list[SiteError]:
+        """Bays that no route reaches from the site's other bays (its largest group of
+        bays that routes join) for robots of ``robot_radius`` [m] keeping the default
+        contact margin (:mod:`fleet.core.planner.roadmap`). Only sites with walls; skipped
+        on a machine without the route graph's libraries (a robot computer plans nothing)."""
+        if not self.walls or len(self.bays) < 2:
+            return []
+        try:
+            from fleet.core.planner.config import PlannerConfig
+            from fleet.core.planner.roadmap import roadmap_of
+        except ModuleNotFoundError:  # shapely / networkx: the fleet host's packages
+            return []
+        config = PlannerConfig()
+        clearance = config.route_clearance(robot_radius, SafetyConfig().contact_margin_m)
+        roadmap = roadmap_of(tuple(self.static_obstacles()), clearance)
+        groups: list[list[int]] = []
+        for i, bay in enumerate(self.bays):
+            for group in groups:
+                first = self.bays[group[0]].pose
+                goal = bay.pose.as_tuple()
+                if roadmap.route((first.x, first.y), goal, config.approach_m) is not None:
+                    group.append(i)
+                    break
+            else:
+                groups.append([i])
+        main = max(groups, key=len)
+        return [
+            SiteError(
+                f"bay {self.bays[i].name}: no route reaches it from bay "
+                f"{self.bays[main[0]].name} (walls close it off from the other bays for a "
+                f"robot of radius {robot_radius:g} m)",
+                ("bays", i, "pose"),
+            )
+            for group in groups
+            if group is not main
+            for i in group
+        ]
 
 
 def _polygon_area(points: list[Point]) -> float:

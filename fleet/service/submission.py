@@ -12,7 +12,6 @@ from collections.abc import Callable
 
 from fleet.core.goals import Occupied, validate_goal
 from fleet.core.planner.config import PlannerConfig
-from fleet.core.planner.roadmap import roadmap_of
 from fleet.core.tasks import (
     BayTaken,
     GoalRejected,
@@ -104,6 +103,8 @@ class Submission(ServiceState):
             ]
         if not obstacles or not starts:
             return
+        from fleet.core.planner.roadmap import roadmap_of  # the server's packages: first use
+
         config = PlannerConfig()
         margin = self.settings.safety.contact_margin_m
         for _, pose, radius in starts:

@@ -8,6 +8,7 @@ serve the module; every test opens its own page and leaves the fleet released an
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -158,3 +159,41 @@ def test_a_tasks_details_show_its_history(page: tuple[Page, Console], fleet: Fle
     expect(browser_page.locator("#dialog-history-body")).to_contain_text("robot-")
     browser_page.keyboard.press("Escape")
     assert console.errors == []
+
+
+def test_a_task_behind_a_wall_drives_its_route_and_the_map_draws_it(
+    page: tuple[Page, Console], fleet: Fleet
+) -> None:
+    browser_page, console = page
+    site_obstacles = fleet.http.get("/obstacles").json()
+    here = fleet.http.get("/robots/robot-1").json()["pose"]
+    x, y = here["x"], here["y"]
+    task_id = None
+    try:
+        # A wall 1.2 m from robot-1 across its way to a goal 3 m off, in the first direction
+        # where the goal is valid (clear of the other robot, bays and keep-out zones).
+        for dx, dy in ((1.0, 0.0), (-1.0, 0.0), (0.0, -1.0), (0.0, 1.0)):
+            cx, cy = x + 1.2 * dx, y + 1.2 * dy
+            wall = {"x": cx - 1.5 * dy, "y": cy - 1.5 * dx, "end": [cx + 1.5 * dy, cy + 1.5 * dx],
+                    "radius": 0.3, "body": 0.05}  # fmt: skip
+            put = fleet.http.put("/obstacles", json=[*site_obstacles, wall])
+            assert put.status_code == 200, put.text
+            goal = {"x": x + 3.0 * dx, "y": y + 3.0 * dy, "theta": math.atan2(dy, dx)}
+            created = fleet.http.post("/tasks", json={"goal": goal, "robot_id": "robot-1"})
+            if created.status_code == 201:
+                task_id = created.json()["id"]
+                break
+        assert task_id is not None, "no direction with a valid goal"
+        browser_page.wait_for_function("window.__parkfleet.drawn.routes >= 1", timeout=WAIT_MS)
+        route = fleet.http.get(f"/tasks/{task_id}").json()["route"]
+        assert route, "the wall is in the way: the task goes round it"
+        assert max(abs((p["x"] - x) * dy - (p["y"] - y) * dx) for p in route) > 1.5  # an end
+        browser_page.wait_for_function(
+            f"window.__parkfleet.tasks().find(t => t.id === '{task_id}').status === 'succeeded'",
+            timeout=4 * WAIT_MS,
+        )
+        assert console.errors == []
+    finally:
+        if task_id is not None:
+            fleet.http.post(f"/tasks/{task_id}/cancel")
+        fleet.http.put("/obstacles", json=site_obstacles)

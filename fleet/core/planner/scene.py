@@ -31,7 +31,6 @@ import numpy as np
 from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
 from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
-from fleet.core.planner.roadmap import roadmap_of
 from fleet.core.planner.rollout import (
     NO_ROUTE,
     STANDING_DELAY,
@@ -317,6 +316,9 @@ def _routes(
     k = pose.shape[0]
     if not world.obstacles or k == 0:
         return ()
+    # shapely and networkx on first use: the fleet service plans with them, a robot never.
+    from fleet.core.planner.roadmap import roadmap_of
+
     radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
     clearance = config.route_clearance(float(radii.max()), world.safety.contact_margin_m)
     roadmap = roadmap_of(world.obstacles, clearance)

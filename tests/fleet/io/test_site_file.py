@@ -129,3 +129,19 @@ def test_a_wall_that_crosses_itself_names_its_line_and_field() -> None:
     assert line == 32 and message.startswith("walls[1]: Value error, points: the wall crosses")
     good = parse_site(walls.replace("[2, 2], [2, 0]", "[2, 0], [2, 2]"), Path("site.toml"))
     assert [w.name for w in good.walls] == ["north", "bow"] and len(good.static_obstacles()) == 7
+
+
+def test_a_bay_that_walls_close_off_fails_loading_with_its_name_and_line() -> None:
+    room = GOOD + (
+        '\n[[walls]]\nname = "room"\nclosed = true\n'
+        "points = [[1.5, 4.5], [4.5, 4.5], [4.5, 7.5], [1.5, 7.5]]\n"
+    )
+    assert problems(room, robot_radius=0.2, peer_radius=1.0) == [
+        (24, "bays[1].pose: bay C1: no route reaches it from bay A1 (walls close it off from "
+             "the other bays for a robot of radius 0.2 m)")
+    ]  # fmt: skip
+    door = room.replace(
+        "closed = true\npoints = [[1.5, 4.5], [4.5, 4.5], [4.5, 7.5], [1.5, 7.5]]",
+        "points = [[3.0, 4.5], [4.5, 4.5], [4.5, 7.5], [1.5, 7.5], [1.5, 4.5]]",
+    )  # the same room with a door on its south side
+    assert parse_site(door, Path("site.toml"), robot_radius=0.2, peer_radius=1.0).walls

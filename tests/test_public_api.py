@@ -9,7 +9,15 @@ import pytest
 EXPORTS = {
     "fleet.cli": ["main"],
     "fleet.service": ["FleetService"],
-    "fleet.core.types": ["LAWS", "BoolArray", "FloatArray", "GainTriple", "Law", "Posture"],
+    "fleet.core.types": [
+        "LAWS",
+        "BoolArray",
+        "FloatArray",
+        "GainTriple",
+        "IntArray",
+        "Law",
+        "Posture",
+    ],
     "fleet.core.planner": [
         "Action",
         "Plan",

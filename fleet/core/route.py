@@ -35,3 +35,22 @@ def route_table(
     table[VIA_HEADING, -1] = wrap_to_2pi(goal[2])
     table[VIA_CW, -1] = 1.0 if cw else 0.0
     return table
+
+
+def remaining(via: Sequence[tuple[float, float]], x: float, y: float) -> FloatArray:
+    """The via-points (m', 2) [m] a robot at (x, y) [m] still has to pass on route ``via``:
+    from the one whose leg (from the via-point before it; the first: the point itself)
+    passes nearest to the robot. The robot does not report which one it aims at; this is
+    the planner's (and the dashboard's) estimate."""
+    points = np.asarray(via, dtype=np.float64).reshape(-1, 2)
+    if points.shape[0] == 0:
+        return points
+    a = np.vstack([points[:1], points[:-1]])  # each leg's start
+    d = points - a
+    length_sq = (d * d).sum(axis=1)
+    t = np.where(
+        length_sq > 0, ((np.array([x, y]) - a) * d).sum(axis=1) / np.maximum(length_sq, 1e-300), 0.0
+    )
+    closest = a + np.clip(t, 0.0, 1.0)[:, None] * d
+    nearest = int(np.argmin(np.hypot(closest[:, 0] - x, closest[:, 1] - y)))
+    return points[nearest:].copy()

@@ -80,6 +80,7 @@ def _task_snapshot(
         revision=task.revision,
         hold=task.hold or (under_way and task.robot_id in held),
         start_delay_s=task.start_delay_s,
+        route=tuple(task.route) if under_way else (),
         avoid_robot=avoided.get(task.id),
         start_delay_left_s=(
             max(0.0, task.start_delay_s - running_s[task.id]) if task.id in running_s else None

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from fleet.core.params import Tolerance
-from fleet.core.planner import Plan, PlanningSnapshot, RobotSnapshot, TaskSnapshot
+from fleet.core.planner import Plan, PlannerConfig, PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.planner.rollout import STANDING_DELAY
-from fleet.core.simulate import BatchProblem, SimResult, batch_filter, simulate
+from fleet.core.simulate import BatchProblem, SimResult, batch_filter, obstacle_columns, simulate
 from fleet.core.tasks import DEFAULT_GAINS, Direction, RobotStatus, TaskStatus
 from fleet.core.types import Law, Posture
 
@@ -96,6 +96,7 @@ def replay(snapshot: PlanningSnapshot, result: Plan, max_time: float = 300.0) ->
     tasks = {t.task_id: t for t in snapshot.tasks}
     by_robot = {t.robot_id: t for t in snapshot.tasks if t.robot_id is not None}
     starts, goals, gains, laws, tols, delays, moving = [], [], [], [], [], [], []
+    routes: list[tuple[tuple[float, float], ...]] = []
     for r in snapshot.robots:
         d = decisions.get(r.robot_id)
         task = tasks[d.task_id] if d is not None else by_robot.get(r.robot_id)
@@ -110,6 +111,8 @@ def replay(snapshot: PlanningSnapshot, result: Plan, max_time: float = 300.0) ->
         tols.append(task.tolerance if drives and task is not None else _STAND)
         delays.append(delay if drives else STANDING_DELAY)  # standing robots never move
         moving.append(drives)
+        sent = d.route if d is not None else (task.route if task is not None else ())
+        routes.append(sent if drives else ())
     obstacles = snapshot.obstacles
     avoid = snapshot.avoidance
     problem = BatchProblem.build(
@@ -119,14 +122,14 @@ def replay(snapshot: PlanningSnapshot, result: Plan, max_time: float = 300.0) ->
         laws,
         tolerance=tols,
         profile=snapshot.profile,
-        obstacles=[(o.x, o.y) for o in obstacles],
-        obstacle_radius=[o.radius for o in obstacles],
-        obstacle_body=[o.body_radius for o in obstacles],
+        **obstacle_columns(obstacles),
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius,
         min_x_oa=avoid.min_x_oa,
         start_delay=delays,
         safety=batch_filter(snapshot.safety),
+        routes=routes,
+        pass_radius=PlannerConfig().pass_m,
     )
     xy = np.array([s[:2] for s in starts])
     d0 = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
@@ -154,6 +157,7 @@ def moved_on(snapshot: PlanningSnapshot, result: Plan, elapsed: float) -> Planni
                 law=d.law,
                 start_delay_s=d.start_delay_s,
                 start_delay_left_s=max(0.0, d.start_delay_s - elapsed),
+                route=d.route,
             )
         )
     return dataclasses.replace(

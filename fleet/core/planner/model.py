@@ -83,7 +83,9 @@ class TaskSnapshot:
     unknown: the whole delay while the task is ``assigned`` or its robot reports
     ``waiting``, none otherwise.
     ``avoid_robot``: a queued task taken from this robot (it was stuck): give it to another
-    robot if there is one.
+    robot if there is one. ``route``: the via-points its robot drives (the plan predicts
+    the rest of them, :func:`fleet.core.route.remaining`, and keeps them unless it revises
+    the task).
     """
 
     task_id: str
@@ -101,6 +103,8 @@ class TaskSnapshot:
     start_delay_s: float = 0.0
     start_delay_left_s: float | None = None
     avoid_robot: str | None = None
+    #: the via-points (x, y) [m] its robot was sent (under way only; empty: none)
+    route: tuple[tuple[float, float], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -40,6 +40,7 @@ from fleet.core.planner.rollout import (
     limits_of,
     roll_out,
 )
+from fleet.core.route import remaining
 from fleet.core.tasks import RobotStatus, TaskStatus
 from fleet.core.types import LAWS, BoolArray, FloatArray, IntArray, Law
 
@@ -234,7 +235,7 @@ def build_fleet(
         snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles), snapshot.safety,
         config.pass_m,
     )  # fmt: skip
-    route = _routes(pose0, goal, limits, world, config)
+    route = _routes(pose0, goal, limits, world, config, [t.route for t in tasks])
 
     # Lead-in: robots under way go on as they are; new and held robots stand.
     driving = kind == UNDER_WAY
@@ -307,12 +308,19 @@ def build_fleet(
 
 
 def _routes(
-    pose: FloatArray, goal: FloatArray, limits: FloatArray, world: World, config: PlannerConfig
+    pose: FloatArray,
+    goal: FloatArray,
+    limits: FloatArray,
+    world: World,
+    config: PlannerConfig,
+    sent: Sequence[Sequence[tuple[float, float]]],
 ) -> tuple[FloatArray, ...]:
-    """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the static
-    obstacles (:mod:`fleet.core.planner.roadmap`): (0, 4) where the straight way is clear,
-    there are no obstacles, or no route exists (the robot then drives straight and its
-    safety filter stops it at the obstacle; the API refuses such goals)."""
+    """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the
+    static obstacles: the rest of the route its robot was ``sent`` (the robot drives it:
+    re-routing a robot beside a wall from scratch can send it another way), else a new one
+    (:mod:`fleet.core.planner.roadmap`); (0, 2) where the straight way is clear, there are no
+    obstacles, or no route exists (the robot then drives straight and its safety filter
+    stops it at the obstacle; the API refuses such goals)."""
     k = pose.shape[0]
     if not world.obstacles or k == 0:
         return ()
@@ -324,6 +332,9 @@ def _routes(
     roadmap = roadmap_of(world.obstacles, clearance)
     out = []
     for i in range(k):
+        if sent[i]:
+            out.append(remaining(sent[i], float(pose[i, 0]), float(pose[i, 1])))
+            continue
         points = roadmap.route(
             (float(pose[i, 0]), float(pose[i, 1])),
             (float(goal[i, 0]), float(goal[i, 1]), float(goal[i, 2])),

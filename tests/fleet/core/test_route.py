@@ -13,7 +13,7 @@ from pydantic import ValidationError
 
 from fleet.core import step
 from fleet.core.params import RobotProfile, SafetyConfig
-from fleet.core.route import route_table
+from fleet.core.route import remaining, route_table
 from fleet.core.simulate import BatchProblem, batch_filter, obstacle_columns, simulate
 from fleet.core.types import Law, Posture
 from fleet.core.wire import Obstacle, ParkAssignment, parse_assignment
@@ -149,3 +149,10 @@ def test_an_assignment_without_a_route_is_the_one_of_before_and_pass_m_is_checke
     assert isinstance(parsed, ParkAssignment) and parsed.route == []
     with pytest.raises(ValidationError, match="pass_m"):
         support.park(goal=GOAL, route=[(0.0, 0.0)], pass_m=0.05)
+
+
+def test_the_rest_of_a_route_starts_at_the_leg_the_robot_is_on() -> None:
+    assert remaining(AROUND, *START[:2]).tolist() == [list(p) for p in AROUND]
+    assert remaining(AROUND, 0.0, -2.1).tolist() == [list(p) for p in AROUND[1:]]
+    assert remaining(AROUND, 1.6, -0.8).tolist() == [list(AROUND[2])]
+    assert remaining([], 0.0, 0.0).shape == (0, 2)

@@ -21,6 +21,7 @@ from fleet.core.planner import (
     plan,
 )
 from fleet.core.tasks import DEFAULT_GAINS, RobotStatus, TaskStatus
+from fleet.core.wire import Obstacle
 
 
 def by_task(result: Plan) -> dict[str, TaskDecision]:
@@ -281,3 +282,31 @@ def test_a_task_taken_from_a_stuck_robot_goes_to_another_one_and_keeps_its_revis
     alone = replace(snapshot, robots=(near,), tasks=(avoiding,))
     (back,) = plan(alone).decisions  # no other robot: it goes back rather than wait for ever
     assert back.robot_id == "near"
+
+
+#: A wall across the way of a robot from (-3, 0) to (3, 0).
+WALL = Obstacle(x=0.0, y=-1.5, end=(0.0, 1.5), radius=0.3, body=0.05)
+
+
+def test_a_robot_behind_a_wall_is_routed_round_it_and_the_plan_predicts_its_run() -> None:
+    snapshot = replace(scene([(-3.0, 0.0, 0.0)], [(3.0, 0.0, 0.0)]), obstacles=(WALL,))
+    result = plan(snapshot)
+    (d,) = result.decisions
+    assert d.action == "assign" and d.route and max(abs(y) for _, y in d.route) > 1.5
+    assert d.route[-1] == pytest.approx((2.0, 0.0))  # the pre-bay point, 1 m before the goal
+    run = replay(snapshot, result)  # the robot following the route on its own
+    assert run.result.done.all()
+    assert d.predicted_arrival_s == pytest.approx(float(run.result.time[0]), abs=0.05)
+    # the wall gone, the same task goes straight
+    assert plan(replace(snapshot, obstacles=())).decisions[0].route == ()
+
+
+def test_a_robot_under_way_keeps_the_rest_of_the_route_it_was_sent() -> None:
+    snapshot = replace(scene([(-3.0, 0.0, 0.0)], [(3.0, 0.0, 0.0)]), obstacles=(WALL,))
+    first = plan(snapshot)
+    shortest = first.decisions[0].route
+    other_way = tuple((x, -y) for x, y in shortest)  # round the wall's other end
+    later = moved_on(snapshot, first, 1.0)
+    task = replace(later.tasks[0], route=other_way)
+    (d,) = plan(replace(later, tasks=(task,))).decisions
+    assert d.route == other_way  # not re-routed from scratch

@@ -269,7 +269,7 @@ def decide(
         limit = min(limit, a.max_wheel_speed)  # never above the robot's own limit
     hold = task.waiting(now)
     params = _step_params(task, profile, limit)
-    leg = step.aim(pose[0], pose[1], pose[2], params, task.route, task.leg)
+    leg = step.aim(pose[0], pose[1], pose[2], params, task.route, task.leg, obstacles)
     if leg != task.leg:
         task = replace(task, leg=leg)
     postures, shapes = peers

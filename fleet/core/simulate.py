@@ -356,7 +356,8 @@ def simulate(
     metrics = np.zeros((2, n))
     obstacles = np.zeros((OBSTACLE_ROWS, 0))
     filtered = problem.safety.margin >= 0.0
-    if (problem.k_avoid > 0 or filtered) and problem.obstacles.shape[0] > 0:
+    routed = problem.route is not None  # routes look past their corners at the bodies
+    if (problem.k_avoid > 0 or filtered or routed) and problem.obstacles.shape[0] > 0:
         m = problem.obstacles.shape[0]
         body = np.zeros(m) if problem.obstacle_body is None else problem.obstacle_body
         influence = problem.obstacle_radius if problem.k_avoid > 0 else np.zeros(m)

@@ -333,46 +333,6 @@ def _euler(
     return x + c * u * dt, y + s * u * dt, theta + omega * dt
 
 
-# -- routes (scalar, compiled) ---------------------------------------------------------------
-@njit(inline="always", error_model="numpy")
-def _aim(
-    x: float, y: float, theta: float, params: FloatArray, i: int, route: FloatArray, leg: int,
-    pass_sq: float,
-) -> int:  # fmt: skip
-    """:func:`aim` on row i of ``params``, inlined into the batch."""
-    last = int(params[i, ROUTE_LAST])
-    while leg < last:
-        dx, dy = route[VIA_X, leg] - x, route[VIA_Y, leg] - y
-        if dx * dx + dy * dy >= pass_sq:
-            break
-        leg += 1
-    params[i, GOAL_X], params[i, GOAL_Y] = route[VIA_X, leg], route[VIA_Y, leg]
-    if leg < last:  # a via-point: face it, turning the shorter way (right: law (20))
-        dx, dy = route[VIA_X, leg] - x, route[VIA_Y, leg] - y
-        params[i, GOAL_HEADING] = wrap_to_2pi(math.atan2(dy, dx))
-        params[i, CW] = 1.0 if math.cos(theta) * dy - math.sin(theta) * dx < 0.0 else 0.0
-    else:
-        params[i, GOAL_HEADING], params[i, CW] = route[VIA_HEADING, leg], route[VIA_CW, leg]
-    return leg
-
-
-@njit("int64(float64, float64, float64, float64[:, ::1], float64[:, ::1], int64)", cache=True)
-def aim(x: float, y: float, theta: float, params: FloatArray, route: FloatArray, leg: int) -> int:
-    """Point robot ``params[0]`` at (x [m], y [m], theta [rad]) along its route table
-    ``route``, from entry ``leg`` on; returns the entry it now aims at.
-
-    It passes every via-point within the pass-through radius (``params[0, PASS_SQ]``) of
-    (x, y). At a via-point it aims at the posture *facing* it (the bearing from the robot)
-    with the law that turns the shorter way ((20) when it lies to the right, y_e < 0): the
-    robot turns towards the via-point and drives on. Both laws command u = kx x_e, so the
-    distance to the via-point never grows (the Lyapunov-like L = (x_e^2 + y_e^2) / 2 of
-    Eq. (10.a), ``fleet.core.switching``) and the robot reaches it. Last comes the goal with
-    the task's law. Writes the goal columns of ``params[0]``; the agent calls it before its
-    tick's step and the batch before each step (the same code: the planner predicts it).
-    """
-    return _aim(x, y, theta, params, 0, route, leg, params[0, PASS_SQ])
-
-
 # -- the safety filter (scalar, compiled) ----------------------------------------------------
 class Safety(NamedTuple):
     """Safety filter parameters (module docstring): ``margin`` [m] between bodies (< 0: the
@@ -445,6 +405,19 @@ def _add_body(
 
 
 @njit(inline="always", error_model="numpy")
+def _closest_offset(
+    ax: float, ay: float, bx: float, by: float, px: float, py: float
+) -> tuple[float, float]:
+    """(dx, dy) [m] from (px, py) to the closest point of the segment from a to b."""
+    ex, ey = bx - ax, by - ay
+    length_sq = ex * ex + ey * ey
+    t = 0.0
+    if length_sq > 0.0:
+        t = min(max(((px - ax) * ex + (py - ay) * ey) / length_sq, 0.0), 1.0)
+    return ax + t * ex - px, ay + t * ey - py
+
+
+@njit(inline="always", error_model="numpy")
 def obstacle_offset(obstacles: FloatArray, j: int, px: float, py: float) -> tuple[float, float]:
     """(dx, dy) [m] from (px, py) to the closest point of obstacle ``j``'s core: its centre,
     or, with rows ``END_X``/``END_Y``, the closest point of the segment from (x, y) to the
@@ -452,12 +425,7 @@ def obstacle_offset(obstacles: FloatArray, j: int, px: float, py: float) -> tupl
     ax, ay = obstacles[0, j], obstacles[1, j]
     if obstacles.shape[0] <= END_Y:
         return ax - px, ay - py
-    ex, ey = obstacles[END_X, j] - ax, obstacles[END_Y, j] - ay
-    length_sq = ex * ex + ey * ey
-    t = 0.0
-    if length_sq > 0.0:
-        t = min(max(((px - ax) * ex + (py - ay) * ey) / length_sq, 0.0), 1.0)
-    return ax + t * ex - px, ay + t * ey - py
+    return _closest_offset(ax, ay, obstacles[END_X, j], obstacles[END_Y, j], px, py)
 
 
 @njit(inline="always", error_model="numpy")
@@ -554,6 +522,101 @@ def safety_filter(
 
 
 # -- THE step ---------------------------------------------------------------------------------
+# -- routes (scalar, compiled) ---------------------------------------------------------------
+@njit(inline="always", error_model="numpy")
+def _cross(ax: float, ay: float, bx: float, by: float, px: float, py: float) -> float:
+    """(b - a) x (p - a): > 0 when p lies left of the line from a to b."""
+    return (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+
+
+@njit(inline="always", error_model="numpy")
+def _segment_gap(
+    px: float, py: float, qx: float, qy: float, ax: float, ay: float, bx: float, by: float
+) -> float:
+    """Distance [m] between the segments p-q and a-b (0 when they cross)."""
+    d1, d2 = _cross(ax, ay, bx, by, px, py), _cross(ax, ay, bx, by, qx, qy)
+    d3, d4 = _cross(px, py, qx, qy, ax, ay), _cross(px, py, qx, qy, bx, by)
+    if d1 * d2 < 0.0 and d3 * d4 < 0.0:
+        return 0.0
+    best = math.inf
+    for ox, oy, sx, sy, ex, ey in (
+        (px, py, ax, ay, bx, by), (qx, qy, ax, ay, bx, by),
+        (ax, ay, px, py, qx, qy), (bx, by, px, py, qx, qy),
+    ):  # fmt: skip
+        dx, dy = _closest_offset(sx, sy, ex, ey, ox, oy)
+        best = min(best, math.sqrt(dx * dx + dy * dy))
+    return best
+
+
+@njit(inline="always", error_model="numpy")
+def _sight_blocked(
+    x0: float, y0: float, x1: float, y1: float, obstacles: FloatArray, clearance: float
+) -> bool:
+    """Whether a disc of radius ``clearance`` [m] moving straight from (x0, y0) to (x1, y1)
+    would touch a static obstacle's body."""
+    walls = obstacles.shape[0] > END_Y
+    for j in range(obstacles.shape[1]):
+        ax, ay = obstacles[0, j], obstacles[1, j]
+        bx, by = (obstacles[END_X, j], obstacles[END_Y, j]) if walls else (ax, ay)
+        if _segment_gap(x0, y0, x1, y1, ax, ay, bx, by) < obstacles[BODY, j] + clearance:
+            return True
+    return False
+
+
+@njit(inline="always", error_model="numpy")
+def _aim(
+    x: float, y: float, theta: float, params: FloatArray, i: int, route: FloatArray, leg: int,
+    pass_sq: float, obstacles: FloatArray,
+) -> int:  # fmt: skip
+    """:func:`aim` on row i of ``params``, inlined into the batch."""
+    last = int(params[i, ROUTE_LAST])
+    while leg < last:
+        dx, dy = route[VIA_X, leg] - x, route[VIA_Y, leg] - y
+        d_sq = dx * dx + dy * dy
+        if d_sq >= pass_sq:
+            break
+        if d_sq >= params[i, TOL_POSITION_SQ] and _sight_blocked(
+            x, y, route[VIA_X, leg + 1], route[VIA_Y, leg + 1], obstacles, params[i, BODY_RADIUS]
+        ):
+            break  # the next leg cuts a corner from here: drive on to the via-point
+        leg += 1
+    params[i, GOAL_X], params[i, GOAL_Y] = route[VIA_X, leg], route[VIA_Y, leg]
+    if leg < last:  # a via-point: face it, turning the shorter way (right: law (20))
+        dx, dy = route[VIA_X, leg] - x, route[VIA_Y, leg] - y
+        params[i, GOAL_HEADING] = wrap_to_2pi(math.atan2(dy, dx))
+        params[i, CW] = 1.0 if math.cos(theta) * dy - math.sin(theta) * dx < 0.0 else 0.0
+    else:
+        params[i, GOAL_HEADING], params[i, CW] = route[VIA_HEADING, leg], route[VIA_CW, leg]
+    return leg
+
+
+@njit(
+    "int64(float64, float64, float64, float64[:, ::1], float64[:, ::1], int64, float64[:, ::1])",
+    cache=True,
+    error_model="numpy",
+)
+def aim(
+    x: float, y: float, theta: float, params: FloatArray, route: FloatArray, leg: int,
+    obstacles: FloatArray,
+) -> int:  # fmt: skip
+    """Point robot ``params[0]`` at (x [m], y [m], theta [rad]) along its route table
+    ``route``, from entry ``leg`` on; returns the entry it now aims at.
+
+    It passes every via-point within the pass-through radius (``params[0, PASS_SQ]``) of
+    (x, y) -- unless the straight way from (x, y) to the next entry would bring its body
+    into a static obstacle's (``obstacles``, rows of the step; a corner cut short), then it
+    drives on until it is within its position tolerance of the via-point. At a via-point it
+    aims at the posture *facing* it (the bearing from the robot) with the law that turns
+    the shorter way ((20) when it lies to the right, y_e < 0): the robot turns towards the
+    via-point and drives on. Both laws command u = kx x_e, so the distance to the via-point
+    never grows (the Lyapunov-like L = (x_e^2 + y_e^2) / 2 of Eq. (10.a),
+    ``fleet.core.switching``) and the robot reaches it. Last comes the goal with the task's
+    law. Writes the goal columns of ``params[0]``; the agent calls it before its tick's
+    step and the batch before each step (the same code: the planner predicts it).
+    """
+    return _aim(x, y, theta, params, 0, route, leg, params[0, PASS_SQ], obstacles)
+
+
 class StepResult(NamedTuple):
     """One step of one robot: pre-step error, stop rule, applied control, next posture."""
 
@@ -841,7 +904,7 @@ def _advance_robot(
         following[0, i], following[1, i], following[2, i] = x, y, theta
         return 0
     if moving and leg[i] >= 0:
-        leg[i] = _aim(x, y, theta, params, i, route, leg[i], params[i, PASS_SQ])
+        leg[i] = _aim(x, y, theta, params, i, route, leg[i], params[i, PASS_SQ], obstacles)
     hold = t < params[i, DELAY_END]
     r = robot_step(
         x, y, theta, params, i, hold, current, shapes, peer_lo, peer_hi, i, obstacles,

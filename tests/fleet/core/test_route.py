@@ -123,7 +123,7 @@ def test_a_step_never_takes_a_robot_farther_from_the_via_point_it_aims_at(
         np.full(1, 0.05), np.full(1, 0.15), np.full(1, limit), np.full(1, 0.2),
         route_last=np.ones(1), pass_radius=0.5,
     )  # fmt: skip
-    assert step.aim(*pose, params, table, 0) == 0
+    assert step.aim(*pose, params, table, 0, obstacle_arrays([])) == 0
     assert (params[0, step.GOAL_X], params[0, step.GOAL_Y]) == via
     r = step.step_robot(
         pose, params, peers=np.zeros((3, 0)), shapes=np.zeros((2, 0)),
@@ -156,3 +156,20 @@ def test_the_rest_of_a_route_starts_at_the_leg_the_robot_is_on() -> None:
     assert remaining(AROUND, 0.0, -2.1).tolist() == [list(p) for p in AROUND[1:]]
     assert remaining(AROUND, 1.6, -0.8).tolist() == [list(AROUND[2])]
     assert remaining([], 0.0, 0.0).shape == (0, 2)
+
+
+def test_a_via_point_is_passed_early_only_where_the_next_leg_clears_the_corner() -> None:
+    table = route_table([(0.0, 2.1), (1.5, 0.0)], GOAL, cw=False)
+    params = step.robot_params(
+        np.array([GOAL]), np.array([(1.0, 1.0, 1.0)]), np.zeros(1), np.full(1, 0.1),
+        np.full(1, 0.1), np.full(1, 0.05), np.full(1, 0.15), np.full(1, 10.0), np.full(1, 0.2),
+        route_last=np.full(1, 2.0), pass_radius=0.5,
+    )  # fmt: skip
+    wall = obstacle_arrays([WALL])
+    # within the pass radius, but the straight way on would graze the wall's upper end
+    assert step.aim(-0.4, 2.0, 0.0, params, table, 0, wall) == 0
+    assert step.aim(-0.4, 2.0, 0.0, params, table, 0, obstacle_arrays([])) == 1
+    # past the corner the next leg is clear: passed without reaching the via-point
+    assert step.aim(0.3, 2.05, 0.0, params, table, 0, wall) == 1
+    # at the via-point itself (within the position tolerance) it is passed anyway
+    assert step.aim(-0.05, 2.08, 0.0, params, table, 0, wall) == 1

@@ -61,7 +61,7 @@ released by an operator. The service compares it (with the roster's) to tell a s
 from __future__ import annotations
 
 from collections import Counter, OrderedDict
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Literal
@@ -155,6 +155,15 @@ class Observation:
 
 _NOTHING = Observation([])
 _STRAY = Observation([], stray=True)
+
+
+def _suffix(rest: Sequence[tuple[float, float]], route: Sequence[tuple[float, float]]) -> bool:
+    """Whether the via-points ``rest`` end ``route`` (what is left of it: no new route; the
+    rest of a route is never empty, so an empty ``rest`` of a route is a new, straight way)."""
+    if not rest:
+        return not route
+    tail = [tuple(p) for p in route[len(route) - len(rest) :]]
+    return len(rest) <= len(route) and tail == [tuple(p) for p in rest]
 
 
 def assignment_of(task: Task, avoidance: Avoidance) -> ParkAssignment:
@@ -461,7 +470,9 @@ class TaskLedger:
             return Outcome.STALE, []
         track = self._tracking[task.id]
         wanted = (decision.law, decision.start_delay_s, decision.hold)
-        if decision.action == "keep" or wanted == (task.law, task.start_delay_s, task.hold):
+        rerouted = not _suffix(decision.route, task.route)  # a new way round, not the rest
+        unchanged = decision.action == "keep" or wanted == (task.law, task.start_delay_s, task.hold)
+        if unchanged and not rerouted:
             if decision.corridor:
                 track.corridor = self._corridor(task.revision, decision, origin_seq)
             return Outcome.UNCHANGED, []

@@ -153,6 +153,11 @@ class Roadmap:
         body (strictly farther)."""
         return not self._segment_blocked(a, b, self._bodies + self.clearance_m)
 
+    def clear(self, a: Point, b: Point, clearance_m: float) -> bool:
+        """Whether the segment from ``a`` to ``b`` [m] keeps ``clearance_m`` [m] (e.g. a
+        robot's radius: its body's straight way) from every body."""
+        return not self._segment_blocked(a, b, self._bodies + clearance_m)
+
     def end_clearance(self, point: Point) -> float:
         """The clearance [m] a segment ending at ``point`` [m] must keep from every body:
         ``min(clearance_m, point's distance to the nearest body - 0.01)``, never below 0."""

@@ -316,11 +316,12 @@ def _routes(
     sent: Sequence[Sequence[tuple[float, float]]],
 ) -> tuple[FloatArray, ...]:
     """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the
-    static obstacles: the rest of the route its robot was ``sent`` (the robot drives it:
-    re-routing a robot beside a wall from scratch can send it another way), else a new one
-    (:mod:`fleet.core.planner.roadmap`); (0, 2) where the straight way is clear, there are no
-    obstacles, or no route exists (the robot then drives straight and its safety filter
-    stops it at the obstacle; the API refuses such goals)."""
+    static obstacles: the rest of the route its robot was ``sent`` while its body's straight
+    way to the next via-point is clear (the robot drives it: re-routing a robot beside a
+    wall from scratch can send it another way), else a new one from where it is (pushed off
+    its route by its peers) (:mod:`fleet.core.planner.roadmap`); (0, 2) where the straight
+    way is clear, there are no obstacles, or no route exists (the robot then drives straight
+    and its safety filter stops it at the obstacle; the API refuses such goals)."""
     k = pose.shape[0]
     if not world.obstacles or k == 0:
         return ()
@@ -332,8 +333,10 @@ def _routes(
     roadmap = roadmap_of(world.obstacles, clearance)
     out = []
     for i in range(k):
-        if sent[i]:
-            out.append(remaining(sent[i], float(pose[i, 0]), float(pose[i, 1])))
+        here = (float(pose[i, 0]), float(pose[i, 1]))
+        rest = remaining(sent[i], *here) if sent[i] else NO_ROUTE
+        if len(rest) and roadmap.clear(here, (rest[0, 0], rest[0, 1]), float(radii[i])):
+            out.append(rest)  # still in sight of the next via-point: drive the rest
             continue
         points = roadmap.route(
             (float(pose[i, 0]), float(pose[i, 1])),

@@ -421,3 +421,27 @@ def test_version_rises_with_every_task_transition_and_operator_hold(ledger: Task
     assert rose()
     ledger.cancel("t1", WALL)
     assert rose()
+
+
+def test_a_new_way_round_is_a_revision_and_the_rest_of_the_route_is_not(
+    ledger: TaskLedger,
+) -> None:
+    route = ((0.0, 2.1), (2.0, 0.0))
+    ledger.add(task("t1"))
+    effects = applied(ledger, assign("t1", "r1", law="cw", route=route))
+    (sent,) = [e.message for e in effects if isinstance(e, Publish)]
+    assert isinstance(sent, ParkAssignment) and [tuple(p) for p in sent.route] == list(route)
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING), 0.0, WALL)
+    rest = TaskDecision("t1", "r1", "keep", "cw", revision=0, route=route[1:])
+    outcome, effects = ledger.apply(
+        rest, robot_available=True, plan_safe=True, origin_seq=None, now=0.0, wall=WALL
+    )
+    assert outcome is Outcome.UNCHANGED and effects == []  # the rest of it: nothing to send
+    other = ((0.0, -2.1), (2.0, 0.0))
+    effects = applied(ledger, TaskDecision("t1", "r1", "keep", "cw", revision=0, route=other))
+    (sent,) = [e.message for e in effects if isinstance(e, Publish)]
+    assert isinstance(sent, ParkAssignment) and sent.revision == 1
+    assert [tuple(p) for p in sent.route] == list(other)
+    straight = TaskDecision("t1", "r1", "keep", "cw", revision=1, route=())
+    assert kinds(applied(ledger, straight))[-1] == "publish:park"  # straight on: a revision
+    assert ledger.active["t1"].route == []

@@ -310,3 +310,18 @@ def test_a_robot_under_way_keeps_the_rest_of_the_route_it_was_sent() -> None:
     task = replace(later.tasks[0], route=other_way)
     (d,) = plan(replace(later, tasks=(task,))).decisions
     assert d.route == other_way  # not re-routed from scratch
+
+
+def test_a_robot_pushed_off_its_route_is_routed_again_from_where_it_is() -> None:
+    snapshot = replace(scene([(-3.0, 0.0, 0.0)], [(3.0, 0.0, 0.0)]), obstacles=(WALL,))
+    first = plan(snapshot)
+    later = moved_on(snapshot, first, 1.0)
+    side = 1.0 if max(y for _, y in first.decisions[0].route) > 1.5 else -1.0  # its way round
+    # pushed along the wall towards its other end: that end is the way round now
+    robot = replace(later.robots[0], pose=(-0.6, -1.2 * side, 0.0))
+    (d,) = plan(replace(later, robots=(robot,))).decisions
+    assert d.route and min(side * y for _, y in d.route) < -1.5  # round the other end
+    # still beside its route, it keeps the rest of it
+    beside = replace(later.robots[0], pose=(0.6, 0.3 * side, 0.0))
+    (kept,) = plan(replace(later, robots=(beside,))).decisions
+    assert kept.route == first.decisions[0].route[-len(kept.route) :]

@@ -575,7 +575,7 @@ def _aim(
         d_sq = dx * dx + dy * dy
         if d_sq >= pass_sq:
             break
-        if d_sq >= params[i, TOL_POSITION_SQ] and _sight_blocked(
+        if d_sq >= 0.25 * pass_sq and _sight_blocked(  # beyond half the pass radius
             x, y, route[VIA_X, leg + 1], route[VIA_Y, leg + 1], obstacles, params[i, BODY_RADIUS]
         ):
             break  # the next leg cuts a corner from here: drive on to the via-point
@@ -605,7 +605,8 @@ def aim(
     It passes every via-point within the pass-through radius (``params[0, PASS_SQ]``) of
     (x, y) -- unless the straight way from (x, y) to the next entry would bring its body
     into a static obstacle's (``obstacles``, rows of the step; a corner cut short), then it
-    drives on until it is within its position tolerance of the via-point. At a via-point it
+    drives on until it is within half that radius (closer still, peers crowding a gate's
+    corner would keep it from ever passing). At a via-point it
     aims at the posture *facing* it (the bearing from the robot) with the law that turns
     the shorter way ((20) when it lies to the right, y_e < 0): the robot turns towards the
     via-point and drives on. Both laws command u = kx x_e, so the distance to the via-point

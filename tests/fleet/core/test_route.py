@@ -171,5 +171,5 @@ def test_a_via_point_is_passed_early_only_where_the_next_leg_clears_the_corner()
     assert step.aim(-0.4, 2.0, 0.0, params, table, 0, obstacle_arrays([])) == 1
     # past the corner the next leg is clear: passed without reaching the via-point
     assert step.aim(0.3, 2.05, 0.0, params, table, 0, wall) == 1
-    # at the via-point itself (within the position tolerance) it is passed anyway
-    assert step.aim(-0.05, 2.08, 0.0, params, table, 0, wall) == 1
+    # within half the pass radius it is passed anyway (peers may crowd the corner)
+    assert step.aim(-0.2, 2.0, 0.0, params, table, 0, wall) == 1

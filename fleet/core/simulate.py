@@ -48,13 +48,11 @@ from fleet.core.step import (
     robot_params,
 )
 from fleet.core.types import BoolArray, FloatArray, IntArray, Law
-from fleet.core.wire import Obstacle
+from fleet.core.wire import DEFAULT_PASS_M, Obstacle
 
 PAPER_DT = 0.01
 #: Tolerance [s] on the end of a start delay (as ``robot_agent.logic.DELAY_EPS``).
 DELAY_EPS = 1e-6
-#: [m] default pass-through radius of a route's via-points.
-DEFAULT_PASS_RADIUS = 0.5
 #: Recorded rows per compiled call when recording (bounds the buffers to rows x N x 8 floats).
 RECORD_CHUNK_ROWS = 256
 
@@ -156,7 +154,7 @@ class BatchProblem:
             0.0 if self.pass_radius is None else self.pass_radius,
         )
 
-    def legs(self) -> npt.NDArray[np.int64]:
+    def legs(self) -> IntArray:
         """(N,) the route entry each robot aims at first (-1: no route)."""
         if self.route_first is None:
             return np.full(self.size, -1, dtype=np.int64)
@@ -181,7 +179,7 @@ class BatchProblem:
         safety: Safety = SAFETY_OFF,
         obstacle_end: npt.ArrayLike | None = None,
         routes: Sequence[npt.ArrayLike | None] | None = None,
-        pass_radius: npt.ArrayLike = DEFAULT_PASS_RADIUS,
+        pass_radius: npt.ArrayLike = DEFAULT_PASS_M,
     ) -> BatchProblem:
         """Broadcast per-robot inputs (scalars, models or arrays) to an N-robot problem.
 
@@ -304,6 +302,9 @@ class SimResult:
     steps: int  # steps simulated for the whole batch
     min_pair_distance: FloatArray | None = None  # (N, N) min centre distance over time [m]
     trajectory: Trajectory | None = None
+    #: (N,) how many of its via-points each robot passed (None: no robot had a route); a
+    #: run continued from ``final_pose`` goes on with the rest of each route
+    passed: IntArray | None = None
 
     @property
     def min_separation(self) -> float:
@@ -418,4 +419,5 @@ def simulate(
         steps=step,
         min_pair_distance=min_pair_full,
         trajectory=trajectory,
+        passed=None if problem.route is None else np.where(leg >= 0, leg - problem.legs(), 0),
     )

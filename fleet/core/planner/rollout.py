@@ -34,7 +34,7 @@ import numpy as np
 
 from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
 from fleet.core.simulate import BatchProblem, SimResult, batch_filter, obstacle_columns, simulate
-from fleet.core.types import BoolArray, FloatArray
+from fleet.core.types import BoolArray, FloatArray, IntArray
 from fleet.core.wire import DEFAULT_PASS_M, Obstacle
 
 #: Padded group sizes (a scene of n rows runs in the smallest bucket >= n).
@@ -144,6 +144,7 @@ class Outcome:
     distance: FloatArray  # (n,) driven [m]
     times: FloatArray | None = None
     xy: FloatArray | None = None
+    passed: IntArray | None = None  # (n,) via-points each robot passed (None: no routes)
 
 
 @dataclass(frozen=True)
@@ -294,6 +295,7 @@ def _own(result: SimResult, rows: slice, times: FloatArray | None, dt: float) ->
         distance=result.distance[rows].copy(),
         times=times,
         xy=xy,
+        passed=None if result.passed is None else result.passed[rows].copy(),
     )
 
 
@@ -316,13 +318,21 @@ class Live:
         self.elapsed = 0.0
         self.steps = 0
         self.distance = np.zeros(n)
+        self.passed = np.zeros(n, dtype=np.int64)  # via-points passed (the routes go on)
         self.stopped = n == 0
         self._xy: list[FloatArray] = []
         self._times: list[FloatArray] = []
 
     def current(self) -> Rows:
-        """The rest of the run as a fresh scene: done robots stand where they are."""
+        """The rest of the run as a fresh scene: done robots stand where they are, the others
+        go on with the rest of their routes."""
         r, done = self.rows, self.done[:, None]
+        route = None
+        if r.route is not None:
+            route = tuple(
+                NO_ROUTE if d else via[p:]
+                for via, p, d in zip(r.routes(), self.passed, self.done, strict=True)
+            )
         return Rows(
             start=self.pose,
             goal=np.where(done, self.pose, r.goal),
@@ -331,6 +341,7 @@ class Live:
             tolerance=np.where(done, STANDING_TOLERANCE, r.tolerance),
             delay=np.where(self.done, STANDING_DELAY, np.maximum(r.delay - self.elapsed, 0.0)),
             limits=r.limits,
+            route=route,
         )
 
     def absorb(self, o: Outcome, dt: float) -> None:
@@ -346,6 +357,8 @@ class Live:
             self._times.append(o.times[keep] + self.elapsed)
         self.pose = o.final
         self.distance += o.distance
+        if o.passed is not None:
+            self.passed += o.passed
         self.steps += o.steps
         self.elapsed = self.steps * dt
         if self.done.all():

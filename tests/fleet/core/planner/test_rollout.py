@@ -19,7 +19,7 @@ DT = 0.05
 
 @st.composite
 def rows(draw: st.DrawFn) -> Rows:
-    """2..4 robots in a 6 m square with gains, laws, tolerances and start delays."""
+    """2..4 robots in a 6 m square with gains, laws, tolerances, start delays and routes."""
     n = draw(st.integers(2, 4))
     coord = st.floats(-3.0, 3.0, allow_nan=False)
     angle = st.floats(-3.0, 3.0, allow_nan=False)
@@ -28,7 +28,13 @@ def rows(draw: st.DrawFn) -> Rows:
     cw = np.array(draw(st.lists(st.booleans(), min_size=n, max_size=n)))
     gains = np.array([DEFAULT_GAINS["cw" if c else "ccw"].as_tuple() for c in cw])
     delay = np.array(draw(st.lists(st.sampled_from([0.0, 0.5, 1.25]), min_size=n, max_size=n)))
-    movers = Rows(start, goal, gains, cw, np.tile([0.3, 0.5], (n, 1)), delay)
+    route = tuple(  # 0..2 via-points each: rollouts follow them across segments
+        np.array([[draw(coord), draw(coord)] for _ in range(draw(st.integers(0, 2)))]).reshape(
+            -1, 2
+        )
+        for _ in range(n)
+    )
+    movers = Rows(start, goal, gains, cw, np.tile([0.3, 0.5], (n, 1)), delay, route=route)
     k = draw(st.integers(0, 2))  # robots standing among them (repelling, never moving)
     still = np.array([[draw(coord), draw(coord)] for _ in range(k)]).reshape(k, 2)
     return Rows.concat([movers, Rows.standing(still)])

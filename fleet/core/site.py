@@ -299,14 +299,16 @@ class Site(_Strict):
                             ("bays", j, "pose"),
                         )
                     )
-        out.extend(self._unreachable_bays(robot_radius))
+        reported = {p.loc[1] for p in out if len(p.loc) > 1}
+        out.extend(self._unreachable_bays(robot_radius, reported))
         return out
 
-    def _unreachable_bays(self, robot_radius: float) -> list[SiteError]:
+    def _unreachable_bays(self, robot_radius: float, skip: set[str | int]) -> list[SiteError]:
         """Bays that no route reaches from the site's other bays (its largest group of
         bays that routes join) for robots of ``robot_radius`` [m] keeping the default
-        contact margin (:mod:`fleet.core.planner.roadmap`). Only sites with walls; skipped
-        on a machine without the route graph's libraries (a robot computer plans nothing)."""
+        contact margin (:mod:`fleet.core.planner.roadmap`); bays in ``skip`` (indices with
+        a problem already) are left out. Only sites with walls; skipped on a machine
+        without the route graph's libraries (a robot computer plans nothing)."""
         if not self.walls or len(self.bays) < 2:
             return []
         try:
@@ -319,6 +321,8 @@ class Site(_Strict):
         roadmap = roadmap_of(tuple(self.static_obstacles()), clearance)
         groups: list[list[int]] = []
         for i, bay in enumerate(self.bays):
+            if i in skip:
+                continue
             for group in groups:
                 first = self.bays[group[0]].pose
                 goal = bay.pose.as_tuple()
@@ -327,6 +331,8 @@ class Site(_Strict):
                     break
             else:
                 groups.append([i])
+        if not groups:
+            return []
         main = max(groups, key=len)
         return [
             SiteError(

@@ -26,7 +26,8 @@ Every stop says why (``TickResult.detail``: ``pose stale``, ``link lost``, ``tas
 cancelled``, ``start delay``, ``held by the fleet``). An operator's pause or e-stop
 (:mod:`robot_agent.operator`) overrides the whole tick in the agent, before :func:`decide`.
 
-Control of an active task (:func:`decide`) is one call of the compiled control step,
+Control of an active task (:func:`decide`) is :func:`fleet.core.step.aim` (the via-point
+of its route it aims at, or its goal) then one call of the compiled control step,
 :func:`fleet.core.step.step_robot` -- the same code the batch simulator and the planner's
 rollouts run: error of Eq. (5), stop rule, law (17) ``ccw`` or (20) ``cw``, the repulsion
 -K_avoid/x_OA of Eq. (27) from every peer within the peer influence radius and every

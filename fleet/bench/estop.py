@@ -47,6 +47,7 @@ on average and one period at worst, plus delivery.
 from __future__ import annotations
 
 import json
+import math
 import os
 import random
 import subprocess
@@ -192,6 +193,20 @@ LATENCY_BOUND_S = 0.15
 HOLD_S = 0.4
 
 
+def _ticks_later(states: _States, seconds: float, period: float) -> None:
+    """Wait until every robot has ticked ``seconds`` of its own time further (its state's
+    ``seq`` counts its ticks of ``period`` [s]): a busy machine slows the simulated robots,
+    and a wall-clock sleep would leave their drive commands short of the wheels."""
+    ticks = math.ceil(seconds / period)
+    with states.lock:
+        since = {rid: s.seq for rid, s in states.latest.items()}
+
+    def done() -> bool:
+        return all(states.latest[rid].seq >= seq + ticks for rid, seq in since.items())
+
+    states.wait(done, 60.0, f"{ticks} ticks of every robot")
+
+
 def wheels_stopped(t: FloatArray, poses: FloatArray, after: float) -> float | None:
     """When a robot's wheels stopped [s], at or after ``after``, from its true poses (T, 3)
     at times ``t``: the first tick k from which the pose no longer changes bounds it; within
@@ -245,7 +260,7 @@ def _measure(
             rng = random.Random(7)
             for trial in range(trials):
                 _all_driving(session, keys, states, robots, trial)
-                time.sleep(HOLD_S)  # until the drive commands reach the wheels (latency)
+                _ticks_later(states, LATENCY_BOUND_S + HOLD_S, period)  # commands at the wheels
                 time.sleep(rng.uniform(0.0, 2.0 * period))  # a random phase of the ticks
                 with states.lock:
                     states.stopped_at.clear()

@@ -338,11 +338,8 @@ def _routes(
         if len(rest) and roadmap.clear(here, (rest[0, 0], rest[0, 1]), float(radii[i])):
             out.append(rest)  # still in sight of the next via-point: drive the rest
             continue
-        points = roadmap.route(
-            (float(pose[i, 0]), float(pose[i, 1])),
-            (float(goal[i, 0]), float(goal[i, 1]), float(goal[i, 2])),
-            config.approach_m,
-        )
+        target = (float(goal[i, 0]), float(goal[i, 1]), float(goal[i, 2]))
+        points = roadmap.route(here, target, config.approach_m)
         out.append(np.array(points, dtype=np.float64).reshape(-1, 2) if points else NO_ROUTE)
     return tuple(out)
 

@@ -19,9 +19,6 @@ import numpy.typing as npt
 from fleet.core.step import ROUTE_ROWS, VIA_CW, VIA_HEADING, VIA_X, VIA_Y, wrap_to_2pi
 from fleet.core.types import FloatArray, Posture
 
-#: Most via-points of one route (a route is a handful of aisle corners).
-MAX_VIA_POINTS = 64
-
 
 def route_table(
     via: Sequence[tuple[float, float]] | npt.ArrayLike, goal: Posture, cw: bool

@@ -579,14 +579,13 @@ class ParkAssignment(_Message):
     ``route``: via-points (x, y) [m] the robot passes, in order, before the goal: it aims at
     each (facing it, turning the shorter way) and passes it when its centre comes within
     ``pass_m`` [m] (:func:`fleet.core.step.aim`); ``pass_m`` is at least the position
-    tolerance. A
-    revision's route replaces the route, taken from its first via-point again (the fleet
-    plans it from where the robot is). Compatibility rule (``v`` stays 1): both fields are
-    additive; without them the robot drives straight to its goal, as before. A robot of an
-    older release ignores them and drives straight to its goal: its safety filter still
-    keeps it off the walls, but it stops at a wall the route goes around, and the planner's
-    prediction (which follows the route) is wrong for it. Upgrade the robots before giving
-    a site walls that robots must drive around.
+    tolerance. A revision's route replaces the route, taken from its first via-point again
+    (the fleet plans it from where the robot is). Compatibility rule (``v`` stays 1): both
+    fields are additive; without them the robot drives straight to its goal, as before. A
+    robot of an older release ignores them and drives straight to its goal: its safety
+    filter still keeps it off the walls, but it stops at a wall the route goes around, and
+    the planner's prediction (which follows the route) is wrong for it. Upgrade the robots
+    before giving a site walls that robots must drive around.
     """
 
     kind: Literal["park"] = "park"

@@ -43,6 +43,7 @@ from fleet.core.planner.rollout import (
 from fleet.core.route import remaining
 from fleet.core.tasks import RobotStatus, TaskStatus
 from fleet.core.types import LAWS, BoolArray, FloatArray, IntArray, Law
+from fleet.core.wire import MAX_ROUTE_POINTS
 
 #: [m] beyond the separation: a solo path this near another mover's goal is blocked once
 #: that mover parks there (see ``Fleet.blocks``).
@@ -340,6 +341,9 @@ def _routes(
             continue
         target = (float(goal[i, 0]), float(goal[i, 1]), float(goal[i, 2]))
         points = roadmap.route(here, target, config.approach_m)
+        # At most what an assignment carries: a longer way is driven as far as that goes,
+        # and routed again from there once the robot is out of the next point's sight.
+        points = (points or ())[:MAX_ROUTE_POINTS]
         out.append(np.array(points, dtype=np.float64).reshape(-1, 2) if points else NO_ROUTE)
     return tuple(out)
 

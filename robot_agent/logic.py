@@ -87,11 +87,6 @@ class AgentTask:
         if self.route.shape[1] == 0:  # built once per assignment, not per tick
             object.__setattr__(self, "route", route_of(self.assignment))
 
-    @classmethod
-    def of(cls, assignment: ParkAssignment, applied_at: float) -> AgentTask:
-        """A task running ``assignment`` from its route's first via-point."""
-        return cls(assignment, applied_at=applied_at)
-
     @property
     def task_id(self) -> str:
         return self.assignment.task_id
@@ -117,7 +112,7 @@ def apply_assignment(
                 return task  # at-least-once delivery: a repeat or a stale revision is ignored
             # re-planned: new law, route, delay or hold, same status
             return AgentTask(message, task.status, applied_at=now)
-        return AgentTask.of(message, now)
+        return AgentTask(message, applied_at=now)
     if task is not None and task.task_id == message.task_id:
         return replace(task, status=AgentTaskStatus.CANCELLED)
     return task

@@ -566,10 +566,10 @@ def _sight_blocked(
 @njit(inline="always", error_model="numpy")
 def _aim(
     x: float, y: float, theta: float, params: FloatArray, i: int, route: FloatArray, leg: int,
-    pass_sq: float, obstacles: FloatArray,
+    obstacles: FloatArray,
 ) -> int:  # fmt: skip
     """:func:`aim` on row i of ``params``, inlined into the batch."""
-    last = int(params[i, ROUTE_LAST])
+    last, pass_sq = int(params[i, ROUTE_LAST]), params[i, PASS_SQ]
     while leg < last:
         dx, dy = route[VIA_X, leg] - x, route[VIA_Y, leg] - y
         d_sq = dx * dx + dy * dy
@@ -615,7 +615,7 @@ def aim(
     law. Writes the goal columns of ``params[0]``; the agent calls it before its tick's
     step and the batch before each step (the same code: the planner predicts it).
     """
-    return _aim(x, y, theta, params, 0, route, leg, params[0, PASS_SQ], obstacles)
+    return _aim(x, y, theta, params, 0, route, leg, obstacles)
 
 
 class StepResult(NamedTuple):
@@ -905,7 +905,7 @@ def _advance_robot(
         following[0, i], following[1, i], following[2, i] = x, y, theta
         return 0
     if moving and leg[i] >= 0:
-        leg[i] = _aim(x, y, theta, params, i, route, leg[i], params[i, PASS_SQ], obstacles)
+        leg[i] = _aim(x, y, theta, params, i, route, leg[i], obstacles)
     hold = t < params[i, DELAY_END]
     r = robot_step(
         x, y, theta, params, i, hold, current, shapes, peer_lo, peer_hi, i, obstacles,

@@ -182,23 +182,22 @@ async def test_a_goal_no_route_reaches_is_409_and_a_task_shows_its_route(
                 behind = await c.post("/tasks", json={"goal": {"x": 3.0, "y": 0.0}})
                 assert behind.status_code == 201, behind.text
                 task_id = behind.json()["id"]
+
                 # the ledger moves the task on before the outbox publishes: wait for the send
-                wait_for(
-                    lambda: any(
-                        isinstance(m, ParkAssignment) and m.task_id == task_id for m in bus.sent("r1")
-                    ),
-                    60,
-                    "the assignment sent to r1",
-                )
+                def assignments() -> list[ParkAssignment]:
+                    return [
+                        m
+                        for m in bus.sent("r1")
+                        if isinstance(m, ParkAssignment) and m.task_id == task_id
+                    ]
+
+                wait_for(lambda: bool(assignments()), 60, "the assignment sent to r1")
                 shown = (await c.get(f"/tasks/{task_id}")).json()
                 route = [(p["x"], p["y"]) for p in shown["route"]]
                 assert route, "the wall is in the way: the task goes round it"
                 # round one of the wall's ends, keeping clear of it, ending before the goal
                 assert max(abs(y) for _, y in route) > 1.5
                 assert route[-1] == pytest.approx((2.0, 0.0))  # the pre-bay point, 1 m before
-                sent = [
-                    m for m in bus.sent("r1") if isinstance(m, ParkAssignment) and m.task_id == task_id
-                ]
-                assert [tuple(p) for p in sent[-1].route] == route
+                assert [tuple(p) for p in assignments()[-1].route] == route
     finally:
         store.close()

@@ -31,6 +31,7 @@ from fleet.core.wire import (
 )
 from fleet.service.bays import BayState
 from fleet.service.stats import PlannerStats
+from fleet.service.zones import ZoneState
 
 Coordinate = Annotated[
     float, Field(allow_inf_nan=False, description="metres, inside the yard (see /healthz)")
@@ -408,6 +409,29 @@ class BayOut(BaseModel):
             status=state.status,
             task_id=state.task_id,
             robot_id=state.robot_id,
+        )
+
+
+class ZoneOut(BaseModel):
+    """A single-robot zone: one robot at a time drives in it."""
+
+    name: str
+    polygon: list[tuple[float, float]] = Field(description="outline (x, y) [m], world frame")
+    found: bool = Field(
+        description="a narrow passage found in the walls and posts (else: the site map's)"
+    )
+    robot_id: str | None = Field(description="the robot holding it (driving through, or in it)")
+    task_id: str | None = Field(description="that robot's task under way")
+
+    @classmethod
+    def of(cls, state: ZoneState) -> ZoneOut:
+        zone = state.zone
+        return cls(
+            name=zone.name,
+            polygon=[(round(x, 3), round(y, 3)) for x, y in zone.outline],
+            found=zone.found,
+            robot_id=state.robot_id,
+            task_id=state.task_id,
         )
 
 

@@ -1,5 +1,6 @@
-"""``/site`` and ``/bays``: the site map (yard, obstacles, keep-out zones, bays) and the
-state of every bay (free, reserved by an active task, occupied by a parked robot)."""
+"""``/site``, ``/bays`` and ``/zones``: the site map (yard, obstacles, keep-out zones, bays,
+single-robot zones), the state of every bay (free, reserved by an active task, occupied by
+a parked robot) and who holds each single-robot zone."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from typing import Any
 from fastapi import APIRouter, HTTPException, status
 
 from api.deps import ServiceDep, SettingsDep
-from api.schemas import BayOut, ErrorOut
+from api.schemas import BayOut, ErrorOut, ZoneOut
 from fleet.core.site import Site
 from fleet.io.settings import Settings
 
@@ -36,3 +37,10 @@ def bays(service: ServiceDep, settings: SettingsDep) -> list[BayOut]:
     """Every bay of the site map with its state (404 without a site map)."""
     _site_of(settings)
     return [BayOut.of(state) for state in service.bays()]
+
+
+@router.get("/zones")
+def zones(service: ServiceDep) -> list[ZoneOut]:
+    """Every single-robot zone -- the site map's and the narrow passages found in the walls
+    and posts -- with the robot holding it (empty: none; works without a site map)."""
+    return [ZoneOut.of(state) for state in service.zones()]

@@ -76,6 +76,7 @@ export const api = {
   controlState: () => request("GET", "control"),
   site: () => request("GET", "site"),
   bays: () => request("GET", "bays"),
+  zones: () => request("GET", "zones"),
 };
 
 /**

@@ -63,6 +63,7 @@ const state = {
   obstacles: [],
   site: null, // GET /site: yard, obstacles, keep_out, bays (null: no site map)
   bays: [], // GET /bays: name, group, pose, status (free / reserved / occupied)
+  zones: [], // GET /zones: single-robot zones, name, polygon, found, robot_id (its holder)
   control: { fleet: { paused: false, estop: false }, robots: {} }, // GET /control
   connection: "connecting",
   draft: null, // {x, y, theta} [m, m, rad]
@@ -261,11 +262,12 @@ async function fetchBays() {
   }
 }
 
-/** Bays and the operator's holds (no events carry them). */
+/** Bays, single-robot zones and the operator's holds (no events carry them). */
 async function refreshOperator() {
   try {
-    const [bays, control] = await Promise.all([fetchBays(), api.controlState()]);
+    const [bays, zones, control] = await Promise.all([fetchBays(), api.zones(), api.controlState()]);
     state.bays = bays;
+    state.zones = zones;
     state.control = control;
     dirty.map = true;
     dirty.operator = true;
@@ -351,6 +353,7 @@ function drawMap() {
     obstacles: state.obstacles,
     site: state.site,
     bays: state.bays,
+    zones: state.zones,
     draft: state.draft,
     options: state.options,
     robotRadius: state.config.robot_radius,
@@ -978,8 +981,10 @@ window.__parkfleet = {
     return state.control;
   },
   bays: () => state.bays.map((b) => ({ ...b })),
+  zones: () => state.zones.map((z) => ({ ...z })),
   faults: () => allFaults(),
-  /** What the map drew last frame: keep-out zones, bays, wall segments and routes. */
+  /** What the map drew last frame: keep-out zones, bays, single-robot zones (and how many
+   * held), wall segments and routes. */
   get drawn() {
     return { ...map.drawn };
   },

@@ -33,6 +33,9 @@ const COLORS = {
   draft: "#fde047",
   keepOut: "rgba(250, 204, 21, 0.10)",
   keepOutEdge: "rgba(250, 204, 21, 0.75)",
+  zone: "rgba(167, 139, 250, 0.08)",
+  zoneHeld: "rgba(192, 132, 252, 0.22)",
+  zoneEdge: "rgba(167, 139, 250, 0.85)",
 };
 
 /** Outline colour of a bay by state (free / reserved by a task / occupied by a robot). */
@@ -207,6 +210,7 @@ export class YardMap {
     ctx.fillRect(0, 0, this.width, this.height);
     this.drawYard();
     this.drawSite(scene.site, scene.bays ?? []);
+    this.drawZones(scene.zones ?? []);
     this.drawObstacles(scene.obstacles);
     if (scene.options.trails) this.drawTrails(scene.robots);
     this.drawGoals(scene.goals, scene.robots);
@@ -353,6 +357,40 @@ export class YardMap {
       ctx.textBaseline = "bottom";
       ctx.fillText(bay.name, cx, cy - half - 2);
       this.drawn.bays += 1;
+    }
+  }
+
+  /** Single-robot zones: outlined, filled while a robot holds one, named with the holder. */
+  drawZones(zones) {
+    this.drawn.singleZones = 0;
+    this.drawn.zonesHeld = 0;
+    const ctx = this.ctx;
+    ctx.font = FONT_SMALL;
+    for (const zone of zones) {
+      if (zone.polygon.length < 3) continue;
+      ctx.beginPath();
+      zone.polygon.forEach(([x, y], i) => {
+        const [px, py] = this.toCanvas(x, y);
+        if (i === 0) ctx.moveTo(px, py);
+        else ctx.lineTo(px, py);
+      });
+      ctx.closePath();
+      ctx.fillStyle = zone.robot_id ? COLORS.zoneHeld : COLORS.zone;
+      ctx.fill();
+      ctx.setLineDash([6, 3]);
+      ctx.strokeStyle = COLORS.zoneEdge;
+      ctx.lineWidth = zone.robot_id ? 2 : 1.2;
+      ctx.stroke();
+      ctx.setLineDash([]);
+      const mx = zone.polygon.reduce((s, p) => s + p[0], 0) / zone.polygon.length;
+      const my = Math.max(...zone.polygon.map((p) => p[1]));
+      const [lx, ly] = this.toCanvas(mx, my);
+      ctx.fillStyle = COLORS.zoneEdge;
+      ctx.textAlign = "center";
+      ctx.textBaseline = "bottom";
+      ctx.fillText(zone.robot_id ? `${zone.name}: ${zone.robot_id}` : zone.name, lx, ly - 2);
+      this.drawn.singleZones += 1;
+      if (zone.robot_id) this.drawn.zonesHeld += 1;
     }
   }
 

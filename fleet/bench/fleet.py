@@ -374,6 +374,9 @@ def run_fleet_policy(
             "safety": SafetyConfig(enabled=False),
         }
     settings = base.model_copy(update=update)
+    site = scenario.site()
+    if site is not None:  # its single-robot zones
+        settings = settings.with_site(site)
     ids = scenario.robot_ids
     spawn = workdir / f"{fleet_name}.json"
     spawn.write_text(

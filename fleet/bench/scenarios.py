@@ -13,7 +13,9 @@ when the task is submitted, after the run's start. Optional fields: ``robots[].i
 ``obstacles[].body`` (physical radius [m], default 0.1: what counts as hitting it; ``radius``
 is the influence radius of Eq. 27, as in the API); ``walls`` (as in a site file:
 ``[{"points": [[x, y], ...], "closed": false, "body": 0.05, "radius": 0.3}]``, every edge
-a segment with a body); ``law_gains`` (``{"ccw": {"kx", "ky",
+a segment with a body); ``zones`` (single-robot zones as in a site file:
+``[{"name": "gate", "rect": {"xmin", "xmax", "ymin", "ymax"}}]`` or a ``polygon``; the
+narrow passages the walls make are found without it); ``law_gains`` (``{"ccw": {"kx", "ky",
 "ktheta"}, "cw": {...}}``); ``tolerance`` (``{"position", "heading"}``, default 0.1 m /
 0.1 rad); ``time_limit_s`` (default 120: the run stops this long after the last arrival);
 ``family`` and ``seed`` (group seeds of one family in the summary); ``yard``
@@ -40,6 +42,9 @@ Built-in families (:func:`full_suite`, :func:`quick_suite`):
   body) instead of posts.
 * ``garage-12`` -- a parking garage with two gates (west and east) and three aisles, bays
   along its north and south walls; six robots queued outside each gate; fleet-assigned.
+* ``corridor-6`` -- two 8 x 10 m rooms joined by an 8 m corridor 1.2 m wide (two robots
+  cannot pass in it: a narrow passage, held by one robot at a time); three robots in each
+  room, each bound for a bay in the other room. Named.
 * ``case-III`` -- the paper's comparative case III with two obstacles at (+-0.8, 0) (the
   paper gives only the figure), Table 8 gains; ``case-III-4`` -- four robots crossing the
   same pair of obstacles.
@@ -58,7 +63,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from fleet.core.goals import Occupied, validate_goal
 from fleet.core.params import Avoidance, Gains, Tolerance
-from fleet.core.site import Wall
+from fleet.core.site import Site, Wall, Yard, Zone
 from fleet.core.tasks import GoalRejected
 from fleet.core.types import Law, Posture
 from fleet.core.wire import Obstacle, Pose, RobotId
@@ -117,6 +122,8 @@ class Scenario(BaseModel):
     obstacles: list[ObstacleSpec] = []
     #: Walls (polylines, polygons) as in a site file: segments with a body.
     walls: Annotated[list[Wall], Field(max_length=100)] = []
+    #: Single-robot zones as in a site file (narrow passages the walls make are found).
+    zones: Annotated[list[Zone], Field(max_length=100)] = []
     law_gains: dict[Law, Gains] | None = None
     tolerance: Tolerance = BENCH_TOLERANCE
     time_limit_s: Annotated[float, Field(gt=0.0, le=3600.0)] = 120.0
@@ -146,6 +153,19 @@ class Scenario(BaseModel):
                 raise ValueError(f"robot {k} ({ids[k]}): {exc}") from None
             taken.append(Occupied(goal.x, goal.y, f"the goal of robot {k} ({ids[k]})"))
         return self
+
+    def site(self) -> Site | None:
+        """The site map the fleet runs with (None: no zones, the service needs none)."""
+        if not self.zones:
+            return None
+        xmin, xmax, ymin, ymax = self.bounds
+        return Site(
+            name=self.name,
+            yard=Yard(xmin=xmin, xmax=xmax, ymin=ymin, ymax=ymax),
+            obstacles=[o.as_obstacle() for o in self.obstacles],
+            walls=self.walls,
+            zones=self.zones,
+        )
 
     def static_obstacles(self) -> list[Obstacle]:
         """Posts and wall segments, as the fleet publishes them."""
@@ -392,6 +412,31 @@ def garage() -> Scenario:
     )
 
 
+def corridor() -> Scenario:
+    """Three robots in each of two rooms cross to bays in the other through a corridor
+    too narrow for two robots to pass in.
+
+    The rooms are 8 x 10 m (x in [-12, -4] and [4, 12], |y| < 5), joined by a corridor
+    |x| < 4, |y| < 0.6 (wall centre lines; walls of body 0.05 m: 1.1 m between them). The
+    west robots stand at x = -10.5 facing east, the east robots at x = 10.5 facing west, at
+    y = -2, 0, 2; each parks nose to the north or south wall of the other room, clear of
+    the ways of the robots waiting there."""
+    outline = [(-12, 5), (-4, 5), (-4, 0.6), (4, 0.6), (4, 5), (12, 5), (12, -5), (4, -5),
+               (4, -0.6), (-4, -0.6), (-4, -5), (-12, -5)]  # fmt: skip
+    up, down = math.pi / 2, -math.pi / 2
+    starts = [(side * 10.5, y, 0.0 if side < 0 else math.pi) for side in (-1, 1)
+              for y in (-2.0, 0.0, 2.0)]  # fmt: skip
+    goals = [(-side * x, y, heading) for side in (-1, 1)
+             for x, y, heading in ((6.5, -3.5, down), (6.5, 3.5, up), (8.5, 3.5, up))]  # fmt: skip
+    return Scenario(
+        name="corridor-6",
+        robots=[RobotSpec(start=s, goal=g) for s, g in zip(starts, goals, strict=True)],
+        walls=[Wall(name="rooms", points=outline, closed=True, body=0.05)],
+        yard=(-13.0, 13.0, -6.0, 6.0),
+        time_limit_s=300.0,
+    )
+
+
 def _case_iii_obstacles() -> list[ObstacleSpec]:
     return [
         ObstacleSpec(x=0.8, y=0.0, radius=1.0, body=0.2),
@@ -441,8 +486,8 @@ STREAM_SEEDS = tuple(range(1, 6))
 
 def full_suite() -> list[Scenario]:
     """Every built-in scenario: swaps in both chiralities, yards x 10 seeds, streams, the car
-    park (at once, as a stream, with walls), the garage, case III alone and with four
-    robots."""
+    park (at once, as a stream, with walls), the garage, the corridor, case III alone and
+    with four robots."""
     return [
         *(swap(n, c) for n in SWAP_SIZES for c in ("right", "left")),
         *(random_yard(n, s) for n in YARD_SIZES for s in YARD_SEEDS),
@@ -451,6 +496,7 @@ def full_suite() -> list[Scenario]:
         car_park(seed=1),
         car_park(walls=True),
         garage(),
+        corridor(),
         case_iii(),
         case_iii_crossing(),
     ]

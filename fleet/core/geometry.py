@@ -1,4 +1,5 @@
-"""Plane geometry of the site (pure): distance to a segment and whether segments cross.
+"""Plane geometry of the site (pure): distance to a segment, whether segments cross, and
+whether a point lies in a polygon.
 
 World frame, metres. The compiled control step has its own copy of the segment distance
 inside the step (:func:`fleet.core.step.obstacle_offset`, the same arithmetic); this module
@@ -22,6 +23,19 @@ def segment_distance(x: float, y: float, a: Point, b: Point) -> float:
     if length_sq > 0.0:
         t = min(max(((x - ax) * dx + (y - ay) * dy) / length_sq, 0.0), 1.0)
     return math.hypot(ax + t * dx - x, ay + t * dy - y)
+
+
+def inside_polygon(vertices: Sequence[Point], x: float, y: float) -> bool:
+    """Whether (x, y) lies inside the polygon ``vertices`` (even-odd rule; a point on an
+    edge may fall either way: callers also use a distance)."""
+    inside = False
+    j = len(vertices) - 1
+    for i, (xi, yi) in enumerate(vertices):
+        xj, yj = vertices[j]
+        if (yi > y) != (yj > y) and x < (xj - xi) * (y - yi) / (yj - yi) + xi:
+            inside = not inside
+        j = i
+    return inside
 
 
 def _orientation(p: Point, q: Point, r: Point) -> float:

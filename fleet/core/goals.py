@@ -10,6 +10,8 @@ it conflicts with, when it lies
   (the safety filter would never let it arrive);
 * inside a keep-out zone of the site map (:mod:`fleet.core.site`), or so near one that the
   parked robot's body (``margin``, its radius [m]) would reach into it;
+* inside a single-robot zone (:mod:`fleet.core.zones`), or so near one that the parked
+  robot's body would reach into it: a robot parked there would hold the zone for ever;
 * within the peer influence radius [m] of another active task's goal or of a parked robot
   (two robots parked that close would push each other through Eq. (27)).
 
@@ -27,6 +29,7 @@ from dataclasses import dataclass
 from fleet.core.site import KeepOutZone
 from fleet.core.tasks import GoalRejected
 from fleet.core.wire import Obstacle, Pose
+from fleet.core.zones import ZoneShape
 
 Yard = tuple[float, float, float, float]
 
@@ -49,6 +52,7 @@ def validate_goal(
     keep_out: Iterable[KeepOutZone] = (),
     margin: float = 0.0,
     contact_margin: float = 0.0,
+    zones: Iterable[ZoneShape] = (),
 ) -> None:
     """Raise :class:`GoalRejected` if ``goal`` is not a valid parking posture."""
     xmin, xmax, ymin, ymax = yard
@@ -87,6 +91,15 @@ def validate_goal(
             raise GoalRejected(
                 f"goal ({goal.x:.2f}, {goal.y:.2f}) is {d:.2f} m from keep-out zone {zone.name}: "
                 f"a parked robot (radius {margin:g} m) would reach into it"
+            )
+    for single in zones:
+        d = single.distance(goal.x, goal.y)
+        if d <= margin:
+            where = "lies inside" if d == 0.0 else f"is {d:.2f} m from"
+            kind = "narrow passage" if single.found else "single-robot zone"
+            raise GoalRejected(
+                f"goal ({goal.x:.2f}, {goal.y:.2f}) {where} the {kind} {single.name}: a robot "
+                "parked there would hold it, and no other robot could drive through"
             )
     for other in occupied:
         d = math.hypot(goal.x - other.x, goal.y - other.y)

@@ -14,7 +14,11 @@ the fleet, x and y in metres, theta in radians counter-clockwise from +x.
   parked robot's body. They restrict goals; robots are not steered around them: put a wall
   or a post where robots must not drive through;
 * ``bays`` -- named parking postures, optionally in a ``group`` such as ``charging``; a
-  task may ask for a bay by name or for any free bay of a group.
+  task may ask for a bay by name or for any free bay of a group;
+* ``zones`` -- named single-robot zones (polygon, rectangle or circle): gates and narrow
+  aisles one robot at a time drives through (:class:`Zone`; the fleet holds them like
+  bays, :mod:`fleet.core.zones`). Narrow passages the walls make are found as well
+  (:mod:`fleet.core.planner.passages`).
 
 :meth:`Site.problems` checks what needs the fleet's settings (robot radius, peer
 influence radius): every bay a valid goal, and bays far enough apart to be used together.
@@ -23,11 +27,11 @@ influence radius): every bay a valid goal, and bays far enough apart to be used 
 from __future__ import annotations
 
 import math
-from typing import Annotated, Self
+from typing import Annotated, ClassVar, Self
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from fleet.core.geometry import first_self_crossing, segment_distance
+from fleet.core.geometry import first_self_crossing, inside_polygon, segment_distance
 from fleet.core.params import SafetyConfig
 from fleet.core.wire import Obstacle, Pose
 
@@ -90,22 +94,29 @@ class Circle(_Strict):
     radius: Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
-class KeepOutZone(_Strict):
-    """A named zone where no goal may lie: exactly one of ``polygon`` (vertices in order,
-    at least 3), ``rect`` or ``circle``."""
+class Area(_Strict):
+    """A region of the floor: exactly one of ``polygon`` (vertices in order, at least 3),
+    ``rect`` or ``circle``."""
 
-    name: Name
     polygon: Annotated[list[Point], Field(min_length=3, max_length=MAX_VERTICES)] | None = None
     rect: Rect | None = None
     circle: Circle | None = None
+
+    #: What the area is called in messages ("keep-out zone", "single-robot zone").
+    kind: ClassVar[str] = "area"
 
     @model_validator(mode="after")
     def _one_shape(self) -> Self:
         given = [s for s in (self.polygon, self.rect, self.circle) if s is not None]
         if len(given) != 1:
-            raise ValueError("a keep-out zone needs exactly one of polygon, rect or circle")
-        if self.polygon is not None and _polygon_area(self.polygon) == 0.0:
-            raise ValueError("the polygon has no area (collinear or repeated vertices)")
+            raise ValueError(f"a {self.kind} needs exactly one of polygon, rect or circle")
+        if self.polygon is not None:
+            crossing = first_self_crossing(self.polygon, closed=True)
+            if crossing is not None:
+                i, j = crossing
+                raise ValueError(f"polygon: edges {i} and {j} cross (a polygon must be simple)")
+            if _polygon_area(self.polygon) == 0.0:
+                raise ValueError("the polygon has no area (collinear or repeated vertices)")
         return self
 
     def vertices(self) -> list[tuple[float, float]]:
@@ -117,18 +128,50 @@ class KeepOutZone(_Strict):
             return [(r.xmin, r.ymin), (r.xmax, r.ymin), (r.xmax, r.ymax), (r.xmin, r.ymax)]
         return []
 
+    def outline(self, chords: int = 24) -> list[tuple[float, float]]:
+        """The outline as a polygon; a circle as the regular polygon of ``chords`` sides
+        around it (its edges touch the circle: the polygon contains it)."""
+        if self.circle is None:
+            return self.vertices()
+        c = self.circle
+        grown = c.radius / math.cos(math.pi / chords)
+        return [
+            (c.x + grown * math.cos(2 * math.pi * k / chords),
+             c.y + grown * math.sin(2 * math.pi * k / chords))
+            for k in range(chords)
+        ]  # fmt: skip
+
     def distance(self, x: float, y: float) -> float:
-        """Distance [m] from (x, y) to the zone; 0 inside or on its edge."""
+        """Distance [m] from (x, y) to the area; 0 inside or on its edge."""
         if self.circle is not None:
             c = self.circle
             return max(0.0, math.hypot(x - c.x, y - c.y) - c.radius)
         vertices = self.vertices()
-        if _inside_polygon(vertices, x, y):
+        if inside_polygon(vertices, x, y):
             return 0.0
         return min(
             segment_distance(x, y, a, b)
             for a, b in zip(vertices, vertices[1:] + vertices[:1], strict=True)
         )
+
+
+class KeepOutZone(Area):
+    """A named zone where no goal may lie (see the module docstring)."""
+
+    kind: ClassVar[str] = "keep-out zone"
+    name: Name
+
+
+class Zone(Area):
+    """A named single-robot zone (a gate, a narrow aisle): one robot at a time drives in it.
+
+    The fleet grants a zone to one robot before it starts (or goes on) on a way through
+    it, and takes it back once that robot has left it and its way no longer enters it; a
+    robot standing in it (lost, idle, its task ended) keeps it until it leaves or is
+    removed. No goal may lie in it (a parked robot would hold it for ever)."""
+
+    kind: ClassVar[str] = "single-robot zone"
+    name: Name
 
 
 #: A wall's body radius (half its thickness) [m] when the site file gives none.
@@ -205,12 +248,14 @@ class Site(_Strict):
         default_factory=list
     )
     bays: Annotated[list[Bay], Field(max_length=MAX_BAYS)] = Field(default_factory=list)
+    zones: Annotated[list[Zone], Field(max_length=MAX_ZONES)] = Field(default_factory=list)
 
     @model_validator(mode="after")
     def _consistent(self) -> Self:
         names: list[tuple[str, str, list[str]]] = [
             ("bays", "bay", [b.name for b in self.bays]),
             ("keep_out", "keep-out zone", [z.name for z in self.keep_out]),
+            ("zones", "single-robot zone", [z.name for z in self.zones]),
         ]
         for field, what, items in names:
             seen: set[str] = set()
@@ -251,9 +296,9 @@ class Site(_Strict):
         """What makes some bays unusable with these radii [m] (empty: none).
 
         A bay must lie outside every obstacle's influence zone, more than ``robot_radius``
-        from every keep-out zone, more than ``peer_radius`` from every other bay (two
-        robots parked closer would push each other away by Eq. (27)), and be reachable on a
-        route from the other bays (:meth:`_unreachable_bays`).
+        from every keep-out and single-robot zone, more than ``peer_radius`` from every
+        other bay (two robots parked closer would push each other away by Eq. (27)), and be
+        reachable on a route from the other bays (:meth:`_unreachable_bays`).
         """
         out: list[SiteError] = []
         static = self.static_obstacles()
@@ -282,6 +327,15 @@ class Site(_Strict):
                 out.append(
                     SiteError(
                         f"bay {bay.name} is within {robot_radius:g} m of keep-out zone {zone.name}",
+                        ("bays", i, "pose"),
+                    )
+                )
+            single = next((z for z in self.zones if z.distance(x, y) <= robot_radius), None)
+            if single is not None:
+                out.append(
+                    SiteError(
+                        f"bay {bay.name} is within {robot_radius:g} m of single-robot zone "
+                        f"{single.name}: a robot parked there would hold the zone",
                         ("bays", i, "pose"),
                     )
                 )
@@ -354,15 +408,3 @@ def _polygon_area(points: list[Point]) -> float:
             for (x0, y0), (x1, y1) in zip(points, points[1:] + points[:1], strict=True)
         )
     )
-
-
-def _inside_polygon(vertices: list[tuple[float, float]], x: float, y: float) -> bool:
-    """Even-odd rule (a point on an edge may fall either way: callers also use distance)."""
-    inside = False
-    j = len(vertices) - 1
-    for i, (xi, yi) in enumerate(vertices):
-        xj, yj = vertices[j]
-        if (yi > y) != (yj > y) and x < (xj - xi) * (y - yi) / (yj - yi) + xi:
-            inside = not inside
-        j = i
-    return inside

@@ -301,6 +301,9 @@ class Settings(RobotSettings):
     #: holds the GIL the API's requests and the robots' messages need (the default); off:
     #: on the planner worker's thread.
     planner_process: bool = True
+    #: Passages the walls and posts make too narrow for two robots to pass are single-robot
+    #: zones, beside the site map's own (fleet/core/planner/passages.py).
+    narrow_passages: bool = True
     replan_corridor_m: Annotated[float, Field(gt=0)] = 0.3
     replan_separation_margin_m: Annotated[float, Field(ge=0)] = 0.2
     # Retention: a robot lost this long [s] is forgotten (an operator may remove it sooner,
@@ -351,6 +354,13 @@ class Settings(RobotSettings):
     def site(self) -> Site | None:
         """The site map of ``site_file`` (None without one)."""
         return self._site
+
+    def with_site(self, site: Site) -> Settings:
+        """A copy running with ``site``, its yard included: a site map built in code (the
+        fleet bench's scenarios) rather than read from ``site_file``."""
+        copy = self.model_copy(update={"yard": site.yard.as_tuple(), "site_file": None})
+        copy._site = site
+        return copy
 
 
 _S = TypeVar("_S", bound=ZenohSettings)

@@ -65,7 +65,8 @@ import threading
 from collections.abc import Callable
 from types import TracebackType
 
-from fleet.core.planner import plan
+from fleet.core.planner import PlannerConfig, plan
+from fleet.core.planner.passages import narrow_passages
 from fleet.core.tasks import (
     RobotConflict,
     RobotEvent,
@@ -82,6 +83,7 @@ from fleet.core.wire import (
     RobotDescription,
     RobotState,
 )
+from fleet.core.zones import ZoneShape, declared
 from fleet.io.settings import Settings
 from fleet.service.bus import FleetBus
 from fleet.service.clock import Clock, SystemClock
@@ -99,6 +101,7 @@ from fleet.service.stats import Counters
 from fleet.service.store import TaskStore
 from fleet.service.stuck import stuck_cause
 from fleet.service.submission import Submission
+from fleet.service.zones import ZoneState
 
 _log = logging.getLogger(__name__)
 
@@ -156,6 +159,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         )
         site = settings.site  # the site map's obstacles are the initial ones (PUT replaces)
         self._obstacles: list[Obstacle] = [] if site is None else site.static_obstacles()
+        self._ledger.zones.set_zones(self._zone_shapes(self._obstacles))
         self._desk = ControlDesk()  # what the operator asked (pause, e-stop), held to
         self._keys_in_flight: dict[str, threading.Event] = {}  # idempotency keys being stored
         self._obstacles_version = 0  # rises with every set_obstacles
@@ -292,6 +296,8 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             self._planner.request("task_finished")
         elif seen.off_corridor:
             self._planner.request("corridor")
+        elif seen.zones_changed:
+            self._planner.request("zones")
         elif joined:
             self._planner.request("robot_joined")
 
@@ -553,14 +559,42 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             ]
 
     def set_obstacles(self, obstacles: list[Obstacle]) -> None:
-        """Replace the static obstacles and publish them (``ObstacleSet``)."""
+        """Replace the static obstacles and publish them (``ObstacleSet``); the narrow
+        passages they make are found again."""
         msg = ObstacleSet(obstacles=list(obstacles))
+        zones = self._zone_shapes(msg.obstacles)
         with self._lock:
             self._obstacles = list(msg.obstacles)
+            self._ledger.zones.set_zones(zones)
             self._obstacles_version += 1
             batch = self._queue([Publish(msg)], self._clock.monotonic())
         self._settle(batch, wait=True)
         self._planner.request("obstacles")
+
+    def _zone_shapes(self, obstacles: list[Obstacle]) -> tuple[ZoneShape, ...]:
+        """The fleet's single-robot zones: the site map's, then (``narrow_passages``) the
+        passages ``obstacles`` make too narrow for two robots of the host's profile to pass
+        (:mod:`fleet.core.planner.passages`)."""
+        zones = declared(self.settings.site)
+        if not self.settings.narrow_passages or not obstacles:
+            return zones
+        radius = self.settings.profile.radius
+        clearance = PlannerConfig().route_clearance(radius, self.settings.safety.contact_margin_m)
+        return zones + narrow_passages(obstacles, clearance, radius)
+
+    def zones(self) -> list[ZoneState]:
+        """Every single-robot zone with the robot holding it (and that robot's task)."""
+        with self._lock:
+            book = self._ledger.zones
+            holders = book.holders()
+            return [
+                ZoneState(
+                    z,
+                    holders.get(z.name),
+                    None if z.name not in holders else self._ledger.robot_task.get(holders[z.name]),
+                )
+                for z in book.shapes
+            ]
 
     def path(self, task_id: str) -> list[PathSample]:
         """Recorded (t [s since epoch], x [m], y [m], theta [rad], u [m/s], omega [rad/s])

@@ -36,6 +36,12 @@ requeue to another robot) or fails the task, with the cause in its reason and hi
 Bays (:mod:`~fleet.service.bays`): a task's bay is held from its reservation until it is
 final (or the reservation is given back).
 
+Single-robot zones (:mod:`~fleet.service.zones`): a decision that starts or moves a robot
+carries the zones its way enters; it is applied only if no other robot holds one of them
+(else :attr:`Outcome.STALE`), and the robot then holds them. Every state of a robot gives
+back the zones it has left (:meth:`TaskLedger.observe`: ``zones_changed`` asks for a plan,
+so the next robot goes); a robot removed from the fleet gives back every one.
+
 The plan's decisions (:class:`fleet.core.planner.TaskDecision`) are applied by
 :meth:`TaskLedger.apply`: ``assign`` gives a queued task its robot, law, start delay or hold;
 ``revise`` stores ``revision + 1`` with the new law, delay or hold (a flip, a hold, a
@@ -60,8 +66,9 @@ released by an operator. The service compares it (with the roster's) to tell a s
 
 from __future__ import annotations
 
+import dataclasses
 from collections import Counter, OrderedDict
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Literal
@@ -73,12 +80,14 @@ from fleet.core.site import Site
 from fleet.core.tasks import Task, TaskEvent, TaskNotFound, TaskStatus
 from fleet.core.types import Law
 from fleet.core.wire import CancelAssignment, ParkAssignment, RobotMode, RobotState
+from fleet.core.zones import Point, declared, way
 from fleet.io.settings import Settings
 from fleet.service.bays import BayBook
 from fleet.service.effects import Effects, Notify, Publish, StoreWrite
 from fleet.service.horizon import Corridor
 from fleet.service.paths import PathRecorder
 from fleet.service.stuck import RECOVERIES, StuckWatch
+from fleet.service.zones import ZoneBook
 
 #: Robot modes in which a robot drives a task (a stray one is told to stop).
 _MOVING = frozenset({RobotMode.DRIVING, RobotMode.AVOIDING})
@@ -151,6 +160,7 @@ class Observation:
     finished: bool = False  # the robot's task ended (arrived)
     stray: bool = False  # the robot drives a task that is not active (maybe finished)
     off_corridor: bool = False  # the robot left its predicted corridor
+    zones_changed: bool = False  # it took or gave back a single-robot zone
 
 
 _NOTHING = Observation([])
@@ -195,6 +205,7 @@ class TaskLedger:
         self.config = config
         self.paths = paths if paths is not None else PathRecorder()
         self.bays = BayBook(site)  # bay -> the active (or reserved) task holding it
+        self.zones = ZoneBook(declared(site))  # single-robot zone -> the robot holding it
         self.stuck_watch = StuckWatch(config.stuck_after_s)  # progress of tasks under way
         self._held: dict[str, str] = {}  # robots an operator holds still -> why
         self._avoid: dict[str, str] = {}  # task -> robot it was taken from (stuck)
@@ -292,6 +303,7 @@ class TaskLedger:
             "paths": len(self.paths),
             "path_samples": self.paths.samples,
             "bays_reserved": len(self.bays),
+            "zones_held": len(self.zones),
             "tasks_watched_stuck": len(self.stuck_watch),
             "robots_held": len(self._held),
         }
@@ -396,9 +408,29 @@ class TaskLedger:
     # -- robot reports -----------------------------------------------------------------
 
     def observe(self, state: RobotState, now: float, wall: float) -> Observation:
-        """A robot's state: acknowledgement, arrival, path recording, progress (stuck),
-        corridor check."""
+        """A robot's state: single-robot zones it took or left, acknowledgement, arrival,
+        path recording, progress (stuck), corridor check."""
         task_id = self._robot_task.get(state.robot_id)
+        if self.zones and self.zones.observe(
+            state.robot_id, state.pose.x, state.pose.y, self._way_of(task_id, state)
+        ):
+            self._version += 1
+            seen = self._observe_task(task_id, state, now, wall)
+            return dataclasses.replace(seen, zones_changed=True)
+        return self._observe_task(task_id, state, now, wall)
+
+    def _way_of(self, task_id: str | None, state: RobotState) -> Callable[[], list[Point]] | None:
+        """The rest of the way of the robot of ``state`` (None: it has no task under way)."""
+        task = None if task_id is None else self._under_way.get(task_id)
+        if task is None:
+            return None
+        goal = task.request.goal
+        p = state.pose
+        return lambda: way(p.x, p.y, task.route, (goal.x, goal.y))
+
+    def _observe_task(
+        self, task_id: str | None, state: RobotState, now: float, wall: float
+    ) -> Observation:
         if task_id is None or state.task_id != task_id:
             if task_id is not None:
                 self._tracking[task_id].seen_revision = -1  # it does not run its task
@@ -472,9 +504,14 @@ class TaskLedger:
         wanted = (decision.law, decision.start_delay_s, decision.hold)
         rerouted = not _suffix(decision.route, task.route)  # a new way round, not the rest
         unchanged = decision.action == "keep" or wanted == (task.law, task.start_delay_s, task.hold)
+        moves = not decision.hold
+        if moves and not self.zones.can_take(decision.robot_id, decision.zones):
+            return Outcome.STALE, []  # another robot holds a zone on its way
         if unchanged and not rerouted:
             if decision.corridor:
                 track.corridor = self._corridor(task.revision, decision, origin_seq)
+            if moves:
+                self._take_zones(decision)
             return Outcome.UNCHANGED, []
         if task.robot_id in self._held and not decision.hold:
             return Outcome.UNCHANGED, []  # an operator holds it: a plan after the release
@@ -504,8 +541,15 @@ class TaskLedger:
         self._transition(revised, event, effects)
         track.sent_at = now
         track.corridor = self._corridor(revised.revision, decision, None)
+        if moves:
+            self._take_zones(decision)
         effects.append(Publish(assignment_of(revised, self.config.avoidance)))
         return Outcome.APPLIED, effects
+
+    def _take_zones(self, decision: TaskDecision) -> None:
+        """The decision's robot holds the zones of its way (checked free by the caller)."""
+        if self.zones.take(decision.robot_id, decision.zones):
+            self._version += 1
 
     def _assign(
         self,
@@ -528,6 +572,8 @@ class TaskLedger:
             return Outcome.STALE, []
         if not decision.hold and not plan_safe:
             return Outcome.UNSAFE, []
+        if not decision.hold and not self.zones.can_take(decision.robot_id, decision.zones):
+            return Outcome.STALE, []  # another robot holds a zone on its way
         assigned = self._update(
             task,
             wall,
@@ -550,6 +596,8 @@ class TaskLedger:
         )
         self.paths.start(task.id)
         self.stuck_watch.start(task.id, now)
+        if not decision.hold:
+            self._take_zones(decision)
         effects.append(Publish(assignment_of(assigned, self.config.avoidance)))
         return Outcome.APPLIED, effects
 
@@ -750,6 +798,7 @@ class TaskLedger:
         come back to take them). Call only when it has no task under way."""
         assert robot_id not in self._robot_task
         self._version += self._held.pop(robot_id, None) is not None
+        self._version += self.zones.release_robot(robot_id)
         effects: Effects = []
         for task in [t for t in self._queued.values() if t.request.robot_id == robot_id]:
             reason = f"robot {robot_id} was removed from the fleet"

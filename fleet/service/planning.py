@@ -60,6 +60,8 @@ class PlannerGlue(ServiceState):
             pinned = self._ledger.pinned()
             acknowledged = {t: now - at for t, at in self._ledger.acknowledged_at().items()}
             obstacles = list(self._obstacles)
+            zones = self._ledger.zones.shapes
+            zone_holders = self._ledger.zones.holders()
             version = self._snapshot_version()
             lead_time = self._lead_time()
             scale = self._time_scale if self._time_scale is not None else 1.0
@@ -77,6 +79,8 @@ class PlannerGlue(ServiceState):
             avoided,
             acknowledged,
             pinned,
+            zones=zones,
+            zone_holders=zone_holders,
         )
 
     def _apply_plan(self, plan: Plan, work: PlanInput) -> None:

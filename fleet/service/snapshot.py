@@ -20,6 +20,7 @@ from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapsh
 from fleet.core.tasks import RobotStatus, Task, TaskStatus
 from fleet.core.types import LAWS, Law
 from fleet.core.wire import Obstacle, RobotState
+from fleet.core.zones import ZoneShape
 from fleet.io.settings import Settings
 
 
@@ -100,13 +101,17 @@ def planning_input(
     avoided: Mapping[str, str] | None = None,
     acknowledged_s: Mapping[str, float] | None = None,
     pinned: Mapping[str, Law] | None = None,
+    *,
+    zones: Sequence[ZoneShape] = (),
+    zone_holders: Mapping[str, str] | None = None,
 ) -> PlanInput:
     """The planner's snapshot (robots sorted by id, tasks oldest first). ``held``: robots an
     operator holds still (their tasks stand, ``hold``); ``avoided``: queued task -> the
     stuck robot it was taken from; ``acknowledged_s``: task under way -> how long ago [s,
     monotonic] its robot first reported the current revision (so the planner knows how much
     of the start delay is left, in robot time); ``pinned``: task under way -> the law a
-    stuck recovery chose (the planner may only use it)."""
+    stuck recovery chose (the planner may only use it); ``zones``: the single-robot zones,
+    ``zone_holders``: zone -> the robot holding it."""
     hz = settings.control_rate_hz
     running = {tid: ago * time_scale for tid, ago in (acknowledged_s or {}).items()}
     robot_snaps = []
@@ -141,5 +146,7 @@ def planning_input(
         separation_m=settings.safety_separation_m,
         lead_time_s=lead_time_s,
         control_dt=1.0 / hz,
+        zones=tuple(zones),
+        zone_holders=tuple(sorted((zone_holders or {}).items())),
     )
     return PlanInput(snapshot, origins)

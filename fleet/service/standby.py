@@ -70,6 +70,7 @@ from fleet.service.roles import FailoverStatus, NotLeader, Role
 from fleet.service.stats import PlannerStats
 from fleet.service.store_postgres import TASKS_CHANNEL, PostgresTaskStore, connect
 from fleet.service.zenoh_bus import ZenohFleetBus
+from fleet.service.zones import ZoneState
 
 _log = logging.getLogger(__name__)
 
@@ -298,6 +299,10 @@ class FailoverService:
     def bays(self) -> list[BayState]:
         service = self.leading
         return [] if service is None else service.bays()
+
+    def zones(self) -> list[ZoneState]:
+        service = self.leading
+        return [] if service is None else service.zones()
 
     def decommission(self, robot_id: str) -> RobotView:
         return self._writer().decommission(robot_id)

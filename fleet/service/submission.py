@@ -150,6 +150,7 @@ class Submission(ServiceState):
                 () if site is None else site.keep_out,
                 margin=self._profile_of(rid).radius,
                 contact_margin=self.settings.safety.contact_margin_m,
+                zones=self._ledger.zones.shapes,
             )
             # Reserve the goal and bay while the task is written (outside the lock, so
             # concurrent submits share one commit): a concurrent submit near it (or for the

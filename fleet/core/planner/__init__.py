@@ -5,6 +5,7 @@
 - :mod:`~fleet.core.planner.plan`: :func:`plan`, the steps below in order.
 - :mod:`~fleet.core.planner.assign`: queued tasks to available robots.
 - :mod:`~fleet.core.planner.scene`: movers, standing robots, lead-in, solo predictions.
+- :mod:`~fleet.core.planner.gates`: single-robot zones -- who goes through first, who waits.
 - :mod:`~fleet.core.planner.clusters`: robots whose predicted paths interact.
 - :mod:`~fleet.core.planner.search`: law, start delay or hold per robot of a cluster.
 - :mod:`~fleet.core.planner.cost`: safety, holds, makespan, arrivals, changes.

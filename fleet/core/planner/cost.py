@@ -11,7 +11,8 @@ Lexicographic, smaller is better (:attr:`Score.key`):
    the solo estimate of their arrivals (each robot's delay plus its solo time with its
    law);
 2. **trapped**, then **held** -- robots that stand because they hold (a hold is the last
-   resort), and first among them those that a robot this plan moves will trap by parking
+   resort; a robot waiting for a single-robot zone holds in every candidate and is not
+   counted), and first among them those that a robot this plan moves will trap by parking
    on their way (``Fleet.blocks``): such a hold would never be released;
 3. **unfinished** -- moving robots that do not arrive within the horizon;
 4. **makespan** -- the latest predicted arrival of a moving robot [s], plus
@@ -204,7 +205,7 @@ def score(
     return Score(
         candidate=c,
         shortfall=max(shortfall, 0.0),
-        held=int(np.count_nonzero(c.hold)),
+        held=int(np.count_nonzero(c.hold & ~fleet.forced(np.asarray(movers, dtype=np.int64)))),
         trapped=trapped(fleet, movers, c),
         unfinished=unfinished,
         makespan=float(np.nanmax(arrival)) if moving.any() else 0.0,

@@ -17,6 +17,9 @@ Decisions, per task (see :class:`TaskDecision`):
 * ``keep`` -- nothing to send; the decision still carries the fresh corridor and arrival.
 
 A plan never starts or resumes a robot it predicts unsafe: such robots hold, with the reason.
+A robot whose way enters a single-robot zone another robot holds (or goes through first)
+holds too, waiting for that zone (``TaskDecision.waits_for``); a decision that moves a robot
+carries the zones it holds for it (``TaskDecision.zones``, :mod:`fleet.core.planner.gates`).
 
 What the service does with a plan (the receding horizon):
 
@@ -44,6 +47,7 @@ from fleet.core.params import Avoidance, Gains, RobotProfile, SafetyConfig, Tole
 from fleet.core.tasks import Direction, RobotStatus, TaskStatus
 from fleet.core.types import Law, Posture
 from fleet.core.wire import DEFAULT_PASS_M, Obstacle
+from fleet.core.zones import ZoneShape
 
 Action = Literal["assign", "revise", "keep"]
 
@@ -123,6 +127,9 @@ class PlanningSnapshot:
     separation_m: float = 0.5  # minimum centre distance a plan must keep [m]
     lead_time_s: float = 0.0  # until the plan reaches the robots [s, robot time]
     control_dt: float = 0.02  # the agents' control period = Euler step [s]
+    #: the single-robot zones (:mod:`fleet.core.zones`) and who holds them: (zone, robot)
+    zones: tuple[ZoneShape, ...] = ()
+    zone_holders: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -155,6 +162,11 @@ class TaskDecision:
     #: pass-through radius [m] (``ParkAssignment.route`` and ``pass_m``)
     route: tuple[tuple[float, float], ...] = ()
     pass_m: float = DEFAULT_PASS_M
+    #: single-robot zones the robot holds for this decision (its way enters them; it
+    #: starts or goes on only once it holds them): :mod:`fleet.core.planner.gates`
+    zones: tuple[str, ...] = ()
+    #: the zone a held robot waits for (another robot holds it, or goes first)
+    waits_for: str | None = None
 
 
 @dataclass(frozen=True)

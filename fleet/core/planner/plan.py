@@ -3,8 +3,10 @@
 1. **Assignment** (:mod:`~fleet.core.planner.assign`): queued tasks get available robots
    (a pair whose every way passes a robot standing there is tried with another robot).
 2. **Scene** (:mod:`~fleet.core.planner.scene`): the robots to decide (new, under way,
-   held), the standing robots, the lead-in until the plan reaches the robots, and each
-   mover's solo predictions.
+   held), the standing robots, the lead-in until the plan reaches the robots, each
+   mover's solo predictions, and the single-robot zones each mover's way enters: a robot
+   whose zone another holds or takes first holds in every candidate below
+   (:mod:`~fleet.core.planner.gates`).
 3. **Seed and clusters**: a prioritised plan on the solo predictions staggers the robots
    (:mod:`~fleet.core.planner.reserve`, no simulation); robots whose staggered paths come
    within the peer radius (+ a margin) of each other at about the same time while both
@@ -150,12 +152,19 @@ def _record_every(fleet: Fleet, config: PlannerConfig) -> int:
 
 
 def _hold_reasons(fleet: Fleet, search: ClusterSearch) -> dict[int, str]:
-    """Why each held robot of the chosen plan holds: the closest call of its best release."""
+    """Why each held robot of the chosen plan holds: the zone it waits for, or the closest
+    call of its best release."""
     best = search.best
     assert best is not None
     out: dict[int, str] = {}
     ids = row_names(fleet, search.cluster)
     for pos in (int(v) for v in np.flatnonzero(best.candidate.hold)):
+        zone_reason = (
+            fleet.gates.reasons[search.cluster.movers[pos]] if fleet.gates.reasons else None
+        )
+        if zone_reason is not None:
+            out[pos] = zone_reason
+            continue
         released = [s for s in search.memo.values() if not s.candidate.hold[pos]]
         me = ids[pos]
         if not released:
@@ -351,9 +360,23 @@ def _decisions(
                     predicted_min_separation_m=float(s.best.separation[pos]),
                     route=tuple((float(x), float(y)) for x, y in m.route[i]) if m.route else (),
                     pass_m=fleet.world.pass_m,
+                    zones=() if hold else _granted(fleet, i),
+                    waits_for=_waits_for(fleet, i) if hold else None,
                 )
             )
     return out
+
+
+def _granted(fleet: Fleet, i: int) -> tuple[str, ...]:
+    """The single-robot zones mover ``i`` holds when it moves."""
+    granted = fleet.gates.granted
+    return granted[i] if i < len(granted) else ()
+
+
+def _waits_for(fleet: Fleet, i: int) -> str | None:
+    """The single-robot zone mover ``i`` waits for, if it holds for one."""
+    waits = fleet.gates.waits_for
+    return waits[i] if i < len(waits) else None
 
 
 def _whole(fleet: Fleet, settled: Sequence[_Settled]) -> tuple[Candidate, dict[int, str]]:
@@ -427,6 +450,8 @@ def plan(snapshot: PlanningSnapshot, config: PlannerConfig | None = None) -> Pla
         return strict
     if not all(d.hold for d in strict.decisions):
         return strict  # someone moves: the scene changes, the held are tried again
+    if all(d.waits_for is not None for d in strict.decisions):
+        return strict  # every robot waits for a zone: no margin would move one
     relaxed = _plan(dataclasses.replace(snapshot, separation_m=floor), config)
     if all(d.hold for d in relaxed.decisions):
         return dataclasses.replace(strict, rollouts=strict.rollouts + relaxed.rollouts)

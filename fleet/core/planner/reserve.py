@@ -26,8 +26,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from fleet.core.planner.gates import blocked_first
 from fleet.core.planner.scene import UNDER_WAY, Candidate, Fleet
-from fleet.core.types import BoolArray, FloatArray, IntArray
+from fleet.core.types import FloatArray, IntArray
 
 
 def _options(solo: FloatArray, laws: IntArray, shifts: IntArray, length: int) -> FloatArray:
@@ -64,25 +65,6 @@ def _first_conflicts(
     return first
 
 
-def _order(preferred: Sequence[int], blocks: BoolArray) -> list[int]:
-    """``preferred`` reordered so that every x with ``blocks[x, y]`` comes before y
-    (depth first; a cycle keeps the preferred order)."""
-    out: list[int] = []
-    seen: set[int] = set()
-
-    def place(y: int) -> None:
-        seen.add(y)
-        for x in preferred:
-            if blocks[x, y] and x not in seen:
-                place(x)
-        out.append(y)
-
-    for y in preferred:
-        if y not in seen:
-            place(y)
-    return out
-
-
 def reservation(
     fleet: Fleet,
     movers: Sequence[int],
@@ -96,7 +78,9 @@ def reservation(
     m = fleet.movers
     idx = np.asarray(movers, dtype=np.int64)
     keep = fleet.keep(movers)
-    keep.hold[:] = False  # every robot gets a way to go; the search holds if it must
+    # every robot gets a way to go (the search holds if it must), but a robot waiting for a
+    # zone stands where it is
+    keep.hold[:] = fleet.forced(idx)
     times = fleet.solo_times
     period = float(times[1] - times[0]) if times.size > 1 else 1.0
     waits = np.array([0.0, *delays])
@@ -105,7 +89,7 @@ def reservation(
     solo = fleet.solo_time[idx]
     fastest = np.min(np.where(m.allowed[idx], solo, np.inf), axis=1)
     kept = (m.kind[idx] == UNDER_WAY) & ~m.keep_hold[idx]
-    order = _order(
+    order = blocked_first(
         sorted(range(idx.size), key=lambda p: (not kept[p], -fastest[p], p)),
         fleet.blocks[np.ix_(idx, idx)],
     )
@@ -114,6 +98,10 @@ def reservation(
     placed: list[int] = []
     for p in order:
         i = int(idx[p])
+        if keep.hold[p]:
+            paths[p] = fleet.solo_xy[0, i, keep.law[p]]
+            placed.append(p)
+            continue
         if kept[p]:
             laws = np.array([keep.law[p]])
             wait = np.array([keep.delay[p]])

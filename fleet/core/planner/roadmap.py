@@ -56,7 +56,7 @@ def _margin(clearance_m: float) -> float:
     return max(0.05, 0.05 * clearance_m)
 
 
-def _geometries(obstacles: Sequence[Obstacle]) -> GeometryArray:
+def obstacle_geometries(obstacles: Sequence[Obstacle]) -> GeometryArray:
     """Each obstacle's segment (a point for a post) as a shapely geometry."""
     out = np.empty(len(obstacles), dtype=object)
     for k, o in enumerate(obstacles):
@@ -111,7 +111,7 @@ class Roadmap:
         if not (math.isfinite(clearance_m) and clearance_m >= 0.0):
             raise ValueError(f"clearance_m must be finite and >= 0, not {clearance_m}")
         obstacles = tuple(obstacles)
-        shapes = _geometries(obstacles)
+        shapes = obstacle_geometries(obstacles)
         bodies = np.array([o.body_radius for o in obstacles], dtype=np.float64)
         tree = shapely.STRtree(shapes) if len(obstacles) else None
         forbidden = shapely.union_all(shapely.buffer(shapes, bodies + clearance_m))

@@ -15,7 +15,10 @@ A :class:`Fleet` holds
   separation during the lead-in is reported (no decision can change it);
 * the **solo predictions**: each mover alone (static obstacles, no peers) with each law it
   may use, from ``start``: arrival times (lower bounds, horizons, default law), sampled
-  paths (clusters) and which movers must pass before which others park (``blocks``).
+  paths (clusters) and which movers must pass before which others park (``blocks``);
+* the **gates**: the single-robot zones each mover's way enters, and the movers that must
+  hold because another robot holds (or goes first through) one of them
+  (:mod:`~fleet.core.planner.gates`, ``Movers.must_hold``: every candidate holds them).
 
 A :class:`Candidate` gives every mover of a cluster a law, a start delay and a hold flag;
 :func:`scene_rows` turns it into the rows of one rollout (movers first, then standing).
@@ -24,12 +27,13 @@ A :class:`Candidate` gives every mover of a cluster a law, a start delay and a h
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
+from fleet.core.planner.gates import Gates, gate
 from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.planner.rollout import (
     NO_ROUTE,
@@ -78,6 +82,9 @@ class Movers:
     limits: FloatArray  # (k, 4) each robot's own profile (``Rows.limits``; NaN: the world's)
     #: each mover's via-points (m_i, 2) [m] (``Rows.route``; (0, 2): straight to its goal)
     route: tuple[FloatArray, ...] = ()
+    #: (k,) movers that must hold whatever the search finds: they wait for a single-robot
+    #: zone (:mod:`fleet.core.planner.gates`); empty: none
+    must_hold: BoolArray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     @property
     def size(self) -> int:
@@ -141,6 +148,8 @@ class Fleet:
     #: (k, k): ``blocks[x, y]`` -- every law mover x may use passes its solo path within
     #: ``separation + BLOCK_MARGIN_M`` of mover y's goal: x must pass before y parks there
     blocks: BoolArray
+    #: the single-robot zones each mover holds or waits for
+    gates: Gates = field(default_factory=lambda: Gates.none(0))
 
     @property
     def top_speed(self) -> float:
@@ -154,10 +163,17 @@ class Fleet:
         return speed if np.isfinite(speed) and speed > 0 else 1.0
 
     def keep(self, movers: Sequence[int]) -> Candidate:
-        """What the movers do now (new robots: their fastest law, no delay)."""
+        """What the movers do now (new robots: their fastest law, no delay; a robot waiting
+        for a zone holds)."""
         m = self.movers
         idx = np.asarray(movers, dtype=np.int64)
-        return Candidate(m.keep_law[idx].copy(), m.keep_delay[idx].copy(), m.keep_hold[idx].copy())
+        hold = m.keep_hold[idx] | self.forced(idx)
+        return Candidate(m.keep_law[idx].copy(), m.keep_delay[idx].copy(), hold)
+
+    def forced(self, idx: IntArray) -> BoolArray:
+        """(len(idx),) which of movers ``idx`` must hold (they wait for a zone)."""
+        must = self.movers.must_hold
+        return must[idx] if must.size else np.zeros(len(idx), dtype=bool)
 
 
 def _start_delay_left(task: TaskSnapshot, robot: RobotSnapshot) -> float:
@@ -276,6 +292,18 @@ def build_fleet(
     fastest = np.where(
         allowed[:, 0] & (~allowed[:, 1] | (solo_time[:, 0] <= solo_time[:, 1])), 0, 1
     )
+    blocks = _blocks(solo_xy, allowed, goal, snapshot.separation_m + BLOCK_MARGIN_M)
+    gates = gate(
+        snapshot.zones,
+        dict(snapshot.zone_holders),
+        [r.robot_id for r in owners],
+        kind == UNDER_WAY,
+        start,
+        route or [NO_ROUTE] * k,
+        goal,
+        [t.created_at for t in tasks],
+        blocks,
+    )
     keep_law = np.where(kind == NEW, fastest, law_now)
     movers = Movers(
         tasks=tuple(tasks),
@@ -291,6 +319,7 @@ def build_fleet(
         keep_hold=kind == HELD,
         limits=limits,
         route=route,
+        must_hold=gates.must_hold,
     )
     return Fleet(
         movers=movers,
@@ -304,7 +333,8 @@ def build_fleet(
         solo_time=solo_time,
         solo_times=solo_times,
         solo_xy=solo_xy,
-        blocks=_blocks(solo_xy, allowed, goal, snapshot.separation_m + BLOCK_MARGIN_M),
+        blocks=blocks,
+        gates=gates,
     )
 
 

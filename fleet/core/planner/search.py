@@ -108,11 +108,13 @@ class ClusterSearch:
         return self.fleet.keep(self.cluster.movers)
 
     def normalise(self, c: Candidate) -> Candidate:
-        """Held robots: the law they keep and no delay (equivalent candidates, one key)."""
+        """Held robots -- and those waiting for a zone, which always hold -- the law they
+        keep and no delay (equivalent candidates, one key)."""
         keep = self.keep()
-        law = np.where(c.hold, keep.law, c.law)
-        delay = np.where(c.hold, 0.0, np.clip(c.delay, 0.0, None))
-        return Candidate(law.astype(np.int64), delay, c.hold.copy())
+        hold = c.hold | self.fleet.forced(self._idx)
+        law = np.where(hold, keep.law, c.law)
+        delay = np.where(hold, 0.0, np.clip(c.delay, 0.0, None))
+        return Candidate(law.astype(np.int64), delay, hold)
 
     def _flippable(self, i: int) -> bool:
         return bool(self._allowed[i].all())

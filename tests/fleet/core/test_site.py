@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from pydantic import ValidationError
 
 from fleet.core.goals import validate_goal
-from fleet.core.site import Bay, KeepOutZone, Rect, Site, Wall, Yard
+from fleet.core.site import Bay, KeepOutZone, Rect, Site, Wall, Yard, Zone
 from fleet.core.tasks import GoalRejected
 from fleet.core.wire import Obstacle, Pose
 
@@ -51,11 +51,37 @@ def test_concave_polygon_inside_and_outside() -> None:
         {"name": "flat", "polygon": [[0, 0], [1, 1], [2, 2]]},
         {"name": "bad name!", "circle": {"x": 0, "y": 0, "radius": 1}},
         {"name": "r", "rect": {"xmin": 1, "xmax": 0, "ymin": 0, "ymax": 1}},
+        {"name": "bowtie", "polygon": [[0, 0], [2, 2], [2, 0], [0, 2]]},
     ],
 )
-def test_invalid_zones_are_rejected(zone: dict[str, object]) -> None:
+@pytest.mark.parametrize("kind", [KeepOutZone, Zone])
+def test_invalid_zones_are_rejected(zone: dict[str, object], kind: type[KeepOutZone]) -> None:
     with pytest.raises(ValidationError):
-        KeepOutZone.model_validate(zone)
+        kind.model_validate(zone)
+
+
+def test_a_self_crossing_polygon_is_refused_naming_its_edges() -> None:
+    with pytest.raises(ValidationError, match=r"polygon: edges 0 and 2 cross"):
+        Zone.model_validate({"name": "bowtie", "polygon": [[0, 0], [2, 2], [2, 0], [0, 2]]})
+
+
+def test_a_bay_in_or_near_a_single_robot_zone_is_a_problem_and_zone_names_are_unique() -> None:
+    gate = Zone(name="gate", rect=Rect(xmin=-1, xmax=1, ymin=-1, ymax=1))
+    site = Site(
+        yard=YARD,
+        zones=[gate],
+        bays=[
+            Bay(name="in", pose=Pose(x=0.0, y=0.0)),
+            Bay(name="edge", pose=Pose(x=0.0, y=-1.1)),
+            Bay(name="fine", pose=Pose(x=5.0, y=5.0)),
+        ],
+    )
+    problems = [str(p) for p in site.problems(robot_radius=0.2, peer_radius=1.0)]
+    assert any(p.startswith("bay in is within 0.2 m of single-robot zone gate") for p in problems)
+    assert any(p.startswith("bay edge is within 0.2 m of single-robot zone gate") for p in problems)
+    assert not any("bay fine" in p for p in problems)
+    with pytest.raises(ValidationError, match="two single-robot zones are named 'gate'"):
+        Site(yard=YARD, zones=[gate, gate])
 
 
 def bay(name: str, x: float, y: float, group: str | None = None) -> Bay:

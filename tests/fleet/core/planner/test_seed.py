@@ -43,13 +43,13 @@ def test_a_pair_that_starts_close_may_not_get_closer() -> None:
 
 
 def test_a_robot_that_must_pass_a_goal_is_placed_before_its_owner_parks() -> None:
-    from fleet.core.planner.reserve import _order
+    from fleet.core.planner.gates import blocked_first
 
     blocks = np.zeros((3, 3), dtype=bool)
     blocks[2, 0] = True  # robot 2's every way passes robot 0's goal
-    assert _order([0, 1, 2], blocks) == [2, 0, 1]
+    assert blocked_first([0, 1, 2], blocks) == [2, 0, 1]
     blocks[0, 2] = True  # a cycle keeps the preferred order as far as it can
-    assert sorted(_order([0, 1, 2], blocks)) == [0, 1, 2]
+    assert sorted(blocked_first([0, 1, 2], blocks)) == [0, 1, 2]
 
 
 def test_holding_a_robot_that_another_will_park_in_front_of_is_a_trap() -> None:

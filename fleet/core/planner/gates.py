@@ -1,0 +1,132 @@
+"""Single-robot zones in a plan: who may drive through which zone, in which order (pure).
+
+Every mover's way -- from where the plan finds it (after the lead-in) through the rest of
+its route to its goal (:func:`fleet.core.zones.way`) -- enters some zones
+(:mod:`fleet.core.zones`). The movers are taken in order:
+
+1. robots driving now (under way, not held: stopping them is what costs most);
+2. then the robot nearest the zone along its way (it gets through soonest);
+3. then the oldest task;
+
+except that a robot whose every way passes another's goal goes before it
+(:attr:`~fleet.core.planner.scene.Fleet.blocks`: once that one parks, it could not pass).
+
+A mover whose zones are all free (or its own) gets them for this plan; the zones it takes
+are taken for every mover after it. A mover one of whose zones another robot holds -- a
+robot standing in it, lost in it, or one earlier in the order -- must hold: it waits where
+it stands, and its reason names the zone and the holder. A plan is made with those robots
+held (:attr:`fleet.core.planner.scene.Movers.must_hold`); once the holder has left the zone
+the service gives it back and plans again, and the next robot goes. Granting every zone of
+a way at once, before the robot starts, means no robot ever holds one zone while it waits
+for another: zones cannot deadlock.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from fleet.core.types import BoolArray, FloatArray
+from fleet.core.zones import ZoneShape, way
+
+
+@dataclass(frozen=True)
+class Gates:
+    """The zones of each mover of a plan (indexed like :class:`~.scene.Movers`)."""
+
+    granted: tuple[tuple[str, ...], ...]  # zones the mover holds if it moves
+    must_hold: BoolArray  # (k,) it waits for a zone
+    waits_for: tuple[str | None, ...]  # the zone it waits for
+    reasons: tuple[str | None, ...]  # why it waits
+
+    @staticmethod
+    def none(k: int) -> Gates:
+        """No zones: nobody waits for one."""
+        return Gates(((),) * k, np.zeros(k, dtype=bool), (None,) * k, (None,) * k)
+
+
+def blocked_first(preferred: Sequence[int], blocks: BoolArray) -> list[int]:
+    """``preferred`` reordered so that every x with ``blocks[x, y]`` comes before y
+    (depth first; a cycle keeps the preferred order)."""
+    out: list[int] = []
+    seen: set[int] = set()
+
+    def place(y: int) -> None:
+        seen.add(y)
+        for x in preferred:
+            if blocks[x, y] and x not in seen:
+                place(x)
+        out.append(y)
+
+    for y in preferred:
+        if y not in seen:
+            place(y)
+    return out
+
+
+def gate(
+    zones: Sequence[ZoneShape],
+    holders: Mapping[str, str],
+    robot_ids: Sequence[str],
+    driving: BoolArray,
+    start: FloatArray,
+    routes: Sequence[FloatArray],
+    goal: FloatArray,
+    created_at: Sequence[float],
+    blocks: BoolArray | None = None,
+) -> Gates:
+    """Grant zones to movers (see the module docstring).
+
+    ``robot_ids``, ``driving`` (k,) whether each drives now (under way, not held),
+    ``start`` (k, 3) [m, rad] where each stands when the plan reaches it, ``routes`` its via-points
+    still to pass (m_i, 2) [m] (empty: none), ``goal`` (k, 3), ``created_at`` its task's
+    creation time; ``holders`` zone -> robot holding it now; ``blocks`` (k, k): mover x's
+    every way passes mover y's goal (:attr:`~.scene.Fleet.blocks`): x goes first."""
+    k = len(robot_ids)
+    if not zones or k == 0:
+        return Gates.none(k)
+    ways = []
+    needs: list[list[ZoneShape]] = []
+    for i in range(k):
+        via = routes[i] if i < len(routes) else np.zeros((0, 2))
+        path = way(
+            float(start[i, 0]),
+            float(start[i, 1]),
+            [(float(x), float(y)) for x, y in via],
+            (float(goal[i, 0]), float(goal[i, 1])),
+            rest=False,
+        )
+        ways.append(path)
+        needs.append([z for z in zones if z.entered_by(path)])
+
+    def order(i: int) -> tuple[bool, float, float, str]:
+        first = min((z.distance_along(ways[i]) for z in needs[i]), default=math.inf)
+        return (not bool(driving[i]), first, created_at[i], robot_ids[i])
+
+    taken = dict(holders)
+    granted: list[tuple[str, ...]] = [()] * k
+    must_hold = np.zeros(k, dtype=bool)
+    waits_for: list[str | None] = [None] * k
+    reasons: list[str | None] = [None] * k
+    preferred = sorted((i for i in range(k) if needs[i]), key=order)
+    if blocks is not None:
+        preferred = blocked_first(preferred, blocks)
+    for i in preferred:
+        me = robot_ids[i]
+        blocked = [(z.name, taken[z.name]) for z in needs[i] if taken.get(z.name, me) != me]
+        if blocked:
+            name, holder = blocked[0]
+            must_hold[i] = True
+            waits_for[i] = name
+            reasons[i] = f"waiting for single-robot zone {name} (held by {holder})"
+            continue
+        granted[i] = tuple(z.name for z in needs[i])
+        for z in needs[i]:
+            taken[z.name] = me
+    return Gates(tuple(granted), must_hold, tuple(waits_for), tuple(reasons))
+
+
+__all__ = ["Gates", "gate"]

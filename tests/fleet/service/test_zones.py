@@ -1,0 +1,164 @@
+"""Single-robot zones held by the service: the zone book, the ledger granting them with a
+plan's decisions and taking them back, and the whole service sending one robot through a
+narrow passage while the other waits for it."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from fleet.core.planner import TaskDecision
+from fleet.core.site import Wall
+from fleet.core.tasks import GoalRejected, Task, TaskRequest, TaskStatus
+from fleet.core.wire import Pose, RobotMode, RobotState
+from fleet.core.zones import ZoneShape
+from fleet.service.ledger import LedgerConfig, Outcome, TaskLedger
+from fleet.service.zones import ZoneBook
+from tests.fleet.service.conftest import Fleet, req
+
+GATE = ZoneShape("gate", ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)))
+WALL = 1.7e9
+
+
+def test_a_robot_takes_a_free_zone_it_stands_in_and_gives_it_back_once_out_and_past() -> None:
+    book = ZoneBook([GATE])
+    assert book.can_take("r1", ["gate"]) and book.take("r1", ["gate"])
+    assert not book.can_take("r2", ["gate"]) and book.can_take("r1", ["gate", "gone"])
+    ahead = [(-3.0, 0.0), (3.0, 0.0)]
+    assert not book.observe("r1", -3.0, 0.0, lambda: ahead)  # on its way to the zone: kept
+    assert not book.observe("r1", 0.0, 0.0, lambda: [(0.0, 0.0), (3.0, 0.0)])  # in it: kept
+    assert book.observe("r1", 2.0, 0.0, lambda: [(2.0, 0.0), (3.0, 0.0)])  # out and past
+    assert book.holder("gate") is None and len(book) == 0
+    assert book.observe("r2", 0.5, 0.0, None)  # a robot standing in it takes it
+    assert book.holder("gate") == "r2"
+    assert not book.observe("r2", 0.5, 0.2, None)  # standing in it: keeps it, task or not
+    assert book.release_robot("r2") and book.holder("gate") is None
+
+
+def test_zones_that_are_gone_lose_their_holders() -> None:
+    book = ZoneBook([GATE])
+    book.take("r1", ["gate"])
+    book.set_zones([])
+    assert book.holders() == {} and book.held_by("r1") == frozenset()
+
+
+def _ledger() -> TaskLedger:
+    ledger = TaskLedger(LedgerConfig(task_timeout_s=30.0, resend_interval_s=0.2, control_hz=50.0))
+    ledger.zones.set_zones([GATE])
+    return ledger
+
+
+def _task(task_id: str, x: float) -> Task:
+    return Task(
+        id=task_id, request=TaskRequest(goal=Pose(x=x, y=0.0)), created_at=WALL, updated_at=WALL
+    )
+
+
+def _apply(ledger: TaskLedger, d: TaskDecision) -> Outcome:
+    outcome, _ = ledger.apply(
+        d, robot_available=True, plan_safe=True, origin_seq=None, now=0.0, wall=WALL
+    )
+    return outcome
+
+
+def _state(rid: str, task_id: str | None, x: float, seq: int, **kw: Any) -> RobotState:
+    return RobotState(
+        robot_id=rid, seq=seq, stamp=0.0, pose=Pose(x=x, y=0.0), mode=RobotMode.DRIVING,
+        task_id=task_id, revision=1, **kw,
+    )  # fmt: skip
+
+
+def test_the_ledger_grants_a_decisions_zones_refuses_them_to_another_and_frees_them() -> None:
+    ledger = _ledger()
+    ledger.add(_task("t1", 5.0))
+    ledger.add(_task("t2", -5.0))
+    assert _apply(ledger, TaskDecision("t1", "r1", "assign", "cw", zones=("gate",))) is (
+        Outcome.APPLIED
+    )
+    assert ledger.zones.holder("gate") == "r1"
+    # a plan made before r1 took it, starting r2 through the same zone: stale, not sent
+    assert _apply(ledger, TaskDecision("t2", "r2", "assign", "cw", zones=("gate",))) is (
+        Outcome.STALE
+    )
+    assert ledger.active["t2"].status is TaskStatus.QUEUED
+    version = ledger.version
+    seen = ledger.observe(_state("r1", "t1", -3.0, 1), now=0.0, wall=WALL)
+    assert not seen.zones_changed  # on its way to the zone
+    seen = ledger.observe(_state("r1", "t1", 3.0, 2), now=0.1, wall=WALL)
+    assert seen.zones_changed and ledger.zones.holder("gate") is None
+    assert ledger.version > version  # a plan made before is stale
+
+
+def test_a_robot_removed_gives_its_zones_back() -> None:
+    ledger = _ledger()
+    ledger.observe(_state("r9", None, 0.0, 1), now=0.0, wall=WALL)  # lost in the zone
+    assert ledger.zones.holder("gate") == "r9"
+    ledger.robot_removed("r9", WALL)
+    assert ledger.zones.holder("gate") is None
+
+
+def test_the_service_sends_one_robot_through_a_narrow_passage_and_the_other_after_it() -> None:
+    """The real planner: a 1.2 m corridor between two rooms (found as a passage), a robot
+    in each room bound for the other; one drives, the other waits naming the passage; once
+    the first has come out at the far end, the passage is given back and a plan starts the
+    second through it."""
+    corridor = Wall(
+        points=[(-10, 5), (-4, 5), (-4, 0.6), (4, 0.6), (4, 5), (10, 5), (10, -5), (4, -5),
+                (4, -0.6), (-4, -0.6), (-4, -5), (-10, -5)],
+        closed=True, body=0.05,
+    ).segments()  # fmt: skip
+    f = Fleet(task_timeout_s=600.0, yard=(-11.0, 11.0, -6.0, 6.0))
+    try:
+        f.service.set_obstacles(corridor)
+        (passage,) = f.service.zones()
+        assert passage.zone.name == "passage-1" and passage.zone.found
+        f.join("w", -7.0, 0.0)
+        f.join("e", 7.0, 0.0)
+        west = f.service.submit(req(7.0, 2.5, robot="w"))
+        east = f.service.submit(TaskRequest(goal=Pose(x=-7.0, y=-2.5, theta=math.pi), robot_id="e"))
+        f.service.tick()
+        goes, waits = sorted(
+            (f.service.task(west.id), f.service.task(east.id)), key=lambda t: t.hold
+        )
+        assert not goes.hold and waits.hold and waits.status is TaskStatus.WAITING
+        assert waits.reason == f"waiting for single-robot zone passage-1 (held by {goes.robot_id})"
+        (passage,) = f.service.zones()
+        assert passage.robot_id == goes.robot_id and passage.task_id == goes.id
+        # the first robot drives through and comes out in the other room
+        assert goes.robot_id is not None and waits.robot_id is not None
+        side = 1.0 if goes.robot_id == "w" else -1.0
+        for x in (-5.0, -2.0, 2.0, 5.0, 6.0):
+            f.robot(goes.robot_id, side * x, 0.0, mode=RobotMode.DRIVING, task_id=goes.id,
+                    revision=goes.revision)  # fmt: skip
+            f.clock.advance(0.5)
+            f.service.tick()
+        (passage,) = f.service.zones()
+        assert passage.robot_id == waits.robot_id  # given back, and granted to the next
+        resumed = f.service.task(waits.id)
+        assert not resumed.hold and resumed.revision > waits.revision
+        last = [p for p in f.parks(waits.robot_id) if p.task_id == waits.id][-1]
+        assert not last.hold and last.revision == resumed.revision
+    finally:
+        f.service.close()
+
+
+def test_a_goal_in_a_site_maps_zone_is_refused_naming_it(tmp_path: Path) -> None:
+    site = tmp_path / "site.toml"
+    site.write_text(
+        "[yard]\nxmin = -10.0\nxmax = 10.0\nymin = -10.0\nymax = 10.0\n"
+        '[[zones]]\nname = "gate"\nrect = { xmin = -1.0, xmax = 1.0, ymin = -1.0, ymax = 1.0 }\n'
+    )
+    f = Fleet(site_file=site)
+    try:
+        assert [z.zone.name for z in f.service.zones()] == ["gate"]
+        f.join("r1", -5.0, 5.0)
+        with pytest.raises(GoalRejected, match="inside the single-robot zone gate"):
+            f.service.submit(req(0.0, 0.0))
+        with pytest.raises(GoalRejected, match=r"is 0\.10 m from the single-robot zone gate"):
+            f.service.submit(req(0.0, 1.1))  # the parked body would reach into it
+        f.service.submit(req(0.0, 2.0))
+    finally:
+        f.service.close()

@@ -413,15 +413,17 @@ class BayOut(BaseModel):
 
 
 class ZoneOut(BaseModel):
-    """A single-robot zone: one robot at a time drives in it."""
+    """A single-robot zone: one robot at a time drives in it (or, with ``convoys``, robots
+    going the same way, one behind the other)."""
 
     name: str
     polygon: list[tuple[float, float]] = Field(description="outline (x, y) [m], world frame")
     found: bool = Field(
         description="a narrow passage found in the walls and posts (else: the site map's)"
     )
-    robot_id: str | None = Field(description="the robot holding it (driving through, or in it)")
-    task_id: str | None = Field(description="that robot's task under way")
+    convoys: bool = Field(description="robots going the same way may follow each other in it")
+    robot_ids: list[str] = Field(description="the robots holding it (driving through, or in it)")
+    task_ids: list[str] = Field(description="their tasks under way")
 
     @classmethod
     def of(cls, state: ZoneState) -> ZoneOut:
@@ -430,8 +432,9 @@ class ZoneOut(BaseModel):
             name=zone.name,
             polygon=[(round(x, 3), round(y, 3)) for x, y in zone.outline],
             found=zone.found,
-            robot_id=state.robot_id,
-            task_id=state.task_id,
+            convoys=zone.convoys,
+            robot_ids=list(state.robot_ids),
+            task_ids=list(state.task_ids),
         )
 
 

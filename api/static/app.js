@@ -63,7 +63,7 @@ const state = {
   obstacles: [],
   site: null, // GET /site: yard, obstacles, keep_out, bays (null: no site map)
   bays: [], // GET /bays: name, group, pose, status (free / reserved / occupied)
-  zones: [], // GET /zones: single-robot zones, name, polygon, found, robot_id (its holder)
+  zones: [], // GET /zones: single-robot zones, name, polygon, found, robot_ids (holding it)
   control: { fleet: { paused: false, estop: false }, robots: {} }, // GET /control
   connection: "connecting",
   draft: null, // {x, y, theta} [m, m, rad]

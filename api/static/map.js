@@ -360,7 +360,7 @@ export class YardMap {
     }
   }
 
-  /** Single-robot zones: outlined, filled while a robot holds one, named with the holder. */
+  /** Single-robot zones: outlined, filled while held, named with the robots holding them. */
   drawZones(zones) {
     this.drawn.singleZones = 0;
     this.drawn.zonesHeld = 0;
@@ -375,11 +375,12 @@ export class YardMap {
         else ctx.lineTo(px, py);
       });
       ctx.closePath();
-      ctx.fillStyle = zone.robot_id ? COLORS.zoneHeld : COLORS.zone;
+      const held = zone.robot_ids.length > 0;
+      ctx.fillStyle = held ? COLORS.zoneHeld : COLORS.zone;
       ctx.fill();
       ctx.setLineDash([6, 3]);
       ctx.strokeStyle = COLORS.zoneEdge;
-      ctx.lineWidth = zone.robot_id ? 2 : 1.2;
+      ctx.lineWidth = held ? 2 : 1.2;
       ctx.stroke();
       ctx.setLineDash([]);
       const mx = zone.polygon.reduce((s, p) => s + p[0], 0) / zone.polygon.length;
@@ -388,9 +389,9 @@ export class YardMap {
       ctx.fillStyle = COLORS.zoneEdge;
       ctx.textAlign = "center";
       ctx.textBaseline = "bottom";
-      ctx.fillText(zone.robot_id ? `${zone.name}: ${zone.robot_id}` : zone.name, lx, ly - 2);
+      ctx.fillText(held ? `${zone.name}: ${zone.robot_ids.join(", ")}` : zone.name, lx, ly - 2);
       this.drawn.singleZones += 1;
-      if (zone.robot_id) this.drawn.zonesHeld += 1;
+      if (held) this.drawn.zonesHeld += 1;
     }
   }
 

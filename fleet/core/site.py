@@ -168,10 +168,14 @@ class Zone(Area):
     The fleet grants a zone to one robot before it starts (or goes on) on a way through
     it, and takes it back once that robot has left it and its way no longer enters it; a
     robot standing in it (lost, idle, its task ended) keeps it until it leaves or is
-    removed. No goal may lie in it (a parked robot would hold it for ever)."""
+    removed. No goal may lie in it (a parked robot would hold it for ever). With
+    ``convoys``, robots going the same way may hold it together, following each other."""
 
     kind: ClassVar[str] = "single-robot zone"
     name: Name
+    #: robots going the same way may follow each other through it (a one-way-at-a-time
+    #: aisle); default: one robot at a time
+    convoys: bool = False
 
 
 #: A wall's body radius (half its thickness) [m] when the site file gives none.

@@ -583,18 +583,18 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         return zones + narrow_passages(obstacles, clearance, radius)
 
     def zones(self) -> list[ZoneState]:
-        """Every single-robot zone with the robot holding it (and that robot's task)."""
+        """Every single-robot zone with the robots holding it (and their tasks)."""
         with self._lock:
-            book = self._ledger.zones
-            holders = book.holders()
-            return [
-                ZoneState(
-                    z,
-                    holders.get(z.name),
-                    None if z.name not in holders else self._ledger.robot_task.get(holders[z.name]),
+            book, tasks = self._ledger.zones, self._ledger.robot_task
+            out = []
+            for z in book.shapes:
+                robots = book.holding(z.name)
+                out.append(
+                    ZoneState(
+                        z, robots, tuple(t for r in robots if (t := tasks.get(r)) is not None)
+                    )
                 )
-                for z in book.shapes
-            ]
+            return out
 
     def path(self, task_id: str) -> list[PathSample]:
         """Recorded (t [s since epoch], x [m], y [m], theta [rad], u [m/s], omega [rad/s])

@@ -20,7 +20,7 @@ from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapsh
 from fleet.core.tasks import RobotStatus, Task, TaskStatus
 from fleet.core.types import LAWS, Law
 from fleet.core.wire import Obstacle, RobotState
-from fleet.core.zones import ZoneShape
+from fleet.core.zones import ZonePass, ZoneShape
 from fleet.io.settings import Settings
 
 
@@ -103,7 +103,7 @@ def planning_input(
     pinned: Mapping[str, Law] | None = None,
     *,
     zones: Sequence[ZoneShape] = (),
-    zone_holders: Mapping[str, str] | None = None,
+    zone_holders: Mapping[str, Mapping[str, ZonePass | None]] | None = None,
 ) -> PlanInput:
     """The planner's snapshot (robots sorted by id, tasks oldest first). ``held``: robots an
     operator holds still (their tasks stand, ``hold``); ``avoided``: queued task -> the
@@ -111,7 +111,7 @@ def planning_input(
     monotonic] its robot first reported the current revision (so the planner knows how much
     of the start delay is left, in robot time); ``pinned``: task under way -> the law a
     stuck recovery chose (the planner may only use it); ``zones``: the single-robot zones,
-    ``zone_holders``: zone -> the robot holding it."""
+    ``zone_holders``: zone -> robot -> its pass, the robots holding each."""
     hz = settings.control_rate_hz
     running = {tid: ago * time_scale for tid, ago in (acknowledged_s or {}).items()}
     robot_snaps = []
@@ -147,6 +147,10 @@ def planning_input(
         lead_time_s=lead_time_s,
         control_dt=1.0 / hz,
         zones=tuple(zones),
-        zone_holders=tuple(sorted((zone_holders or {}).items())),
+        zone_holders=tuple(
+            (zone, robot, how)
+            for zone, held in sorted((zone_holders or {}).items())
+            for robot, how in held.items()
+        ),
     )
     return PlanInput(snapshot, origins)

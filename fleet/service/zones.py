@@ -1,16 +1,21 @@
 """Single-robot zones the service holds for robots, as it holds bays for tasks (pure).
 
 :class:`ZoneBook` knows the fleet's zones (:class:`fleet.core.zones.ZoneShape`: the site
-map's and the narrow passages found in the walls) and which robot holds each:
+map's and the narrow passages found in the walls) and which robots hold each, with their
+passes (:class:`fleet.core.zones.ZonePass`):
 
-* a plan's decision that starts or moves a robot carries the zones its way enters
-  (:mod:`fleet.core.planner.gates`); the ledger applies it only if none of them is held by
-  another robot (:meth:`ZoneBook.can_take`), then the robot holds them (:meth:`take`);
+* a plan's decision that starts or moves a robot carries the passes of the zones its way
+  enters (:mod:`fleet.core.planner.gates`); the ledger applies it only if the robot may hold
+  every one of them (:meth:`ZoneBook.can_take`, :func:`fleet.core.zones.may_join`: nobody
+  else holds the zone, or -- a zone that allows convoys -- everybody holding it goes the
+  same way), then the robot holds them
+  (:meth:`ZoneBook.take`);
 * every state of a robot: a zone it stands in that nobody holds becomes its own (a robot
-  that got there without a plan: lost on its way, an older release); a zone it holds is
-  given back once it stands outside it and the rest of its way does not enter it
-  (:meth:`observe`); a robot standing in a zone keeps it, whatever its task;
-* a robot removed from the fleet gives back every zone (:meth:`release_robot`).
+  that got there without a plan: lost on its way, an older release; it goes no way, so
+  nobody may join it); a zone it holds is given back once it stands outside it and the
+  rest of its way does not enter it (:meth:`ZoneBook.observe`); a robot standing in a zone
+  keeps it, whatever its task;
+* a robot removed from the fleet gives back every zone (:meth:`ZoneBook.release_robot`).
 
 Pure and not thread-safe: the task ledger keeps it and the service calls it under its lock.
 """
@@ -20,16 +25,19 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
-from fleet.core.zones import Point, ZoneShape
+from fleet.core.zones import Point, ZonePass, ZoneShape, may_join
+
+#: Zone -> the robots holding it, each with its pass (None: it stands in the zone).
+Holders = Mapping[str, Mapping[str, ZonePass | None]]
 
 
 @dataclass(frozen=True)
 class ZoneState:
-    """A zone as the API shows it: its shape, the robot holding it and that robot's task."""
+    """A zone as the API shows it: its shape, the robots holding it and their tasks."""
 
     zone: ZoneShape
-    robot_id: str | None = None
-    task_id: str | None = None
+    robot_ids: tuple[str, ...] = ()
+    task_ids: tuple[str, ...] = ()
 
 
 class ZoneBook:
@@ -37,7 +45,7 @@ class ZoneBook:
 
     def __init__(self, shapes: Iterable[ZoneShape] = ()) -> None:
         self._shapes: dict[str, ZoneShape] = {}
-        self._holder: dict[str, str] = {}  # zone -> robot
+        self._holders: dict[str, dict[str, ZonePass | None]] = {}  # zone -> robot -> pass
         self._held: dict[str, set[str]] = {}  # robot -> zones
         self.set_zones(shapes)
 
@@ -46,8 +54,9 @@ class ZoneBook:
     def set_zones(self, shapes: Iterable[ZoneShape]) -> None:
         """The fleet's zones from now on; holders of zones that are gone are forgotten."""
         self._shapes = {z.name: z for z in shapes}
-        for name in [n for n in self._holder if n not in self._shapes]:
-            self._drop(name)
+        for name in [n for n in self._holders if n not in self._shapes]:
+            for robot in list(self._holders[name]):
+                self._drop(name, robot)
 
     @property
     def shapes(self) -> tuple[ZoneShape, ...]:
@@ -58,31 +67,39 @@ class ZoneBook:
 
     # -- holders -----------------------------------------------------------------------
 
-    def holders(self) -> Mapping[str, str]:
-        """Zone -> the robot holding it (a copy)."""
-        return dict(self._holder)
+    def holders(self) -> dict[str, dict[str, ZonePass | None]]:
+        """Zone -> robot -> its pass, for every zone held (a copy)."""
+        return {z: dict(h) for z, h in self._holders.items()}
 
-    def holder(self, zone: str) -> str | None:
-        return self._holder.get(zone)
+    def holding(self, zone: str) -> tuple[str, ...]:
+        """The robots holding ``zone`` (in the order they took it)."""
+        return tuple(self._holders.get(zone, ()))
 
     def held_by(self, robot_id: str) -> frozenset[str]:
         return frozenset(self._held.get(robot_id, ()))
 
-    def can_take(self, robot_id: str, zones: Iterable[str]) -> bool:
-        """Whether ``robot_id`` may hold every one of ``zones`` (free or its own; an
-        unknown zone, gone since the plan, counts as free)."""
-        return all(self._holder.get(z, robot_id) == robot_id for z in zones)
+    def can_take(self, robot_id: str, passes: Iterable[ZonePass]) -> bool:
+        """Whether ``robot_id`` may hold every zone of ``passes``
+        (:func:`fleet.core.zones.may_join`; a zone gone since the plan counts as free)."""
+        return all(
+            p.zone not in self._shapes
+            or may_join(self._shapes[p.zone], self._holders.get(p.zone, {}), robot_id, p)
+            for p in passes
+        )
 
-    def take(self, robot_id: str, zones: Iterable[str]) -> bool:
-        """``robot_id`` holds ``zones`` (known ones, free or its own); whether that
-        changed anything."""
+    def take(self, robot_id: str, passes: Iterable[ZonePass]) -> bool:
+        """``robot_id`` holds the (known) zones of ``passes`` (checked by the caller with
+        :meth:`can_take`); whether that changed anything."""
         changed = False
-        for z in zones:
-            if z in self._shapes and z not in self._holder:
-                self._holder[z] = robot_id
-                self._held.setdefault(robot_id, set()).add(z)
+        for p in passes:
+            if p.zone in self._shapes and robot_id not in self._holders.get(p.zone, {}):
+                self._hold(p.zone, robot_id, p)
                 changed = True
         return changed
+
+    def _hold(self, zone: str, robot_id: str, how: ZonePass | None) -> None:
+        self._holders.setdefault(zone, {})[robot_id] = how
+        self._held.setdefault(robot_id, set()).add(zone)
 
     def observe(
         self, robot_id: str, x: float, y: float, way: Callable[[], Sequence[Point]] | None
@@ -94,8 +111,9 @@ class ZoneBook:
             return False
         changed = False
         for name, shape in self._shapes.items():
-            if name not in self._holder and shape.contains(x, y):
-                changed |= self.take(robot_id, (name,))
+            if name not in self._holders and shape.contains(x, y):
+                self._hold(name, robot_id, None)
+                changed = True
         mine = self._held.get(robot_id)
         if not mine:
             return changed
@@ -109,25 +127,30 @@ class ZoneBook:
                     rest = way()
                 if shape.entered_by(rest):
                     continue
-            self._drop(name)
+            self._drop(name, robot_id)
             changed = True
         return changed
 
     def release_robot(self, robot_id: str) -> bool:
-        """``robot_id`` left the fleet: every zone it held is free; whether it held any."""
-        zones = self._held.pop(robot_id, set())
+        """``robot_id`` left the fleet: every zone it held is free of it; whether it held
+        any."""
+        zones = list(self._held.get(robot_id, ()))
         for z in zones:
-            self._holder.pop(z, None)
+            self._drop(z, robot_id)
         return bool(zones)
 
-    def _drop(self, zone: str) -> None:
-        robot = self._holder.pop(zone, None)
-        if robot is not None:
-            zones = self._held.get(robot)
-            if zones is not None:
-                zones.discard(zone)
-                if not zones:
-                    del self._held[robot]
+    def _drop(self, zone: str, robot_id: str) -> None:
+        holders = self._holders.get(zone)
+        if holders is not None:
+            holders.pop(robot_id, None)
+            if not holders:
+                del self._holders[zone]
+        zones = self._held.get(robot_id)
+        if zones is not None:
+            zones.discard(zone)
+            if not zones:
+                del self._held[robot_id]
 
     def __len__(self) -> int:
-        return len(self._holder)
+        """How many zones are held."""
+        return len(self._holders)

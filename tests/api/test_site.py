@@ -201,3 +201,22 @@ async def test_a_goal_no_route_reaches_is_409_and_a_task_shows_its_route(
                 assert [tuple(p) for p in assignments()[-1].route] == route
     finally:
         store.close()
+
+
+async def test_zones_list_the_site_maps_and_the_passages_put_obstacles_make(
+    client: httpx.AsyncClient, client_no_site: httpx.AsyncClient
+) -> None:
+    zones = (await client.get("/zones")).json()
+    assert [(z["name"], z["found"], z["robot_ids"]) for z in zones] == [("entrance", False, [])]
+    in_zone = await client.post("/tasks", json={"goal": {"x": -10.2, "y": 0.0}})
+    assert in_zone.status_code == 409
+    assert "inside the single-robot zone entrance" in in_zone.json()["detail"]
+    assert (await client_no_site.get("/zones")).json() == []
+    corridor = [  # two walls 1.2 m apart, 6 m long: too narrow for two robots to pass
+        {"x": -3.0, "y": y, "end": [3.0, y], "radius": 0.3, "body": 0.05} for y in (-0.6, 0.6)
+    ]
+    assert (await client_no_site.put("/obstacles", json=corridor)).status_code == 200
+    (passage,) = (await client_no_site.get("/zones")).json()
+    assert passage["name"] == "passage-1" and passage["found"] and passage["convoys"]
+    xs = [x for x, _ in passage["polygon"]]
+    assert min(xs) < -2.5 and max(xs) > 2.5

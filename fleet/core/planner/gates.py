@@ -11,10 +11,12 @@ its route to its goal (:func:`fleet.core.zones.way`) -- enters some zones
 except that a robot whose every way passes another's goal goes before it
 (:attr:`~fleet.core.planner.scene.Fleet.blocks`: once that one parks, it could not pass).
 
-A mover whose zones are all free (or its own) gets them for this plan; the zones it takes
-are taken for every mover after it. A mover one of whose zones another robot holds -- a
-robot standing in it, lost in it, or one earlier in the order -- must hold: it waits where
-it stands, and its reason names the zone and the holder. A plan is made with those robots
+A mover whose zones are all free (or its own; in a zone that allows convoys, held only by
+robots going its way) gets them for this plan, each with its pass
+(:class:`fleet.core.zones.ZonePass`); the zones it takes are taken for every mover after it.
+A mover one of whose zones another robot holds -- a robot standing in it, lost in it, one
+earlier in the order, or in a convoy zone one going the other way -- must hold: it waits
+where it stands, and its reason names the zone and the holder. A plan is made with those robots
 held (:attr:`fleet.core.planner.scene.Movers.must_hold`); once the holder has left the zone
 the service gives it back and plans again, and the next robot goes. Granting every zone of
 a way at once, before the robot starts, means no robot ever holds one zone while it waits
@@ -30,14 +32,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from fleet.core.types import BoolArray, FloatArray
-from fleet.core.zones import ZoneShape, way
+from fleet.core.zones import ZonePass, ZoneShape, may_join, way
 
 
 @dataclass(frozen=True)
 class Gates:
     """The zones of each mover of a plan (indexed like :class:`~.scene.Movers`)."""
 
-    granted: tuple[tuple[str, ...], ...]  # zones the mover holds if it moves
+    granted: tuple[tuple[ZonePass, ...], ...]  # passes the mover holds if it moves
     must_hold: BoolArray  # (k,) it waits for a zone
     waits_for: tuple[str | None, ...]  # the zone it waits for
     reasons: tuple[str | None, ...]  # why it waits
@@ -67,9 +69,19 @@ def blocked_first(preferred: Sequence[int], blocks: BoolArray) -> list[int]:
     return out
 
 
+def holders_of(
+    rows: Sequence[tuple[str, str, ZonePass | None]],
+) -> dict[str, dict[str, ZonePass | None]]:
+    """Zone -> robot -> pass, from the snapshot's (zone, robot, pass) rows."""
+    out: dict[str, dict[str, ZonePass | None]] = {}
+    for zone, robot, how in rows:
+        out.setdefault(zone, {})[robot] = how
+    return out
+
+
 def gate(
     zones: Sequence[ZoneShape],
-    holders: Mapping[str, str],
+    holders: Mapping[str, Mapping[str, ZonePass | None]],
     robot_ids: Sequence[str],
     driving: BoolArray,
     start: FloatArray,
@@ -83,7 +95,8 @@ def gate(
     ``robot_ids``, ``driving`` (k,) whether each drives now (under way, not held),
     ``start`` (k, 3) [m, rad] where each stands when the plan reaches it, ``routes`` its via-points
     still to pass (m_i, 2) [m] (empty: none), ``goal`` (k, 3), ``created_at`` its task's
-    creation time; ``holders`` zone -> robot holding it now; ``blocks`` (k, k): mover x's
+    creation time; ``holders`` zone -> robot -> its pass (None: it stands in the zone), the
+    robots holding each zone now; ``blocks`` (k, k): mover x's
     every way passes mover y's goal (:attr:`~.scene.Fleet.blocks`): x goes first."""
     k = len(robot_ids)
     if not zones or k == 0:
@@ -106,8 +119,8 @@ def gate(
         first = min((z.distance_along(ways[i]) for z in needs[i]), default=math.inf)
         return (not bool(driving[i]), first, created_at[i], robot_ids[i])
 
-    taken = dict(holders)
-    granted: list[tuple[str, ...]] = [()] * k
+    taken = {z: dict(h) for z, h in holders.items()}
+    granted: list[tuple[ZonePass, ...]] = [()] * k
     must_hold = np.zeros(k, dtype=bool)
     waits_for: list[str | None] = [None] * k
     reasons: list[str | None] = [None] * k
@@ -116,17 +129,24 @@ def gate(
         preferred = blocked_first(preferred, blocks)
     for i in preferred:
         me = robot_ids[i]
-        blocked = [(z.name, taken[z.name]) for z in needs[i] if taken.get(z.name, me) != me]
+        passes = [z.pass_of(ways[i]) for z in needs[i]]
+        blocked = [
+            z
+            for z, p in zip(needs[i], passes, strict=True)
+            if p is None or not may_join(z, taken.get(z.name, {}), me, p)
+        ]
         if blocked:
-            name, holder = blocked[0]
+            zone = blocked[0]
+            others = ", ".join(r for r in taken.get(zone.name, {}) if r != me)
+            way_ = " going the other way" if zone.convoys else ""
             must_hold[i] = True
-            waits_for[i] = name
-            reasons[i] = f"waiting for single-robot zone {name} (held by {holder})"
+            waits_for[i] = zone.name
+            reasons[i] = f"waiting for single-robot zone {zone.name} (held by {others}{way_})"
             continue
-        granted[i] = tuple(z.name for z in needs[i])
-        for z in needs[i]:
-            taken[z.name] = me
+        granted[i] = tuple(p for p in passes if p is not None)
+        for p in granted[i]:
+            taken.setdefault(p.zone, {})[me] = p
     return Gates(tuple(granted), must_hold, tuple(waits_for), tuple(reasons))
 
 
-__all__ = ["Gates", "gate"]
+__all__ = ["Gates", "blocked_first", "gate", "holders_of"]

@@ -47,7 +47,7 @@ from fleet.core.params import Avoidance, Gains, RobotProfile, SafetyConfig, Tole
 from fleet.core.tasks import Direction, RobotStatus, TaskStatus
 from fleet.core.types import Law, Posture
 from fleet.core.wire import DEFAULT_PASS_M, Obstacle
-from fleet.core.zones import ZoneShape
+from fleet.core.zones import ZonePass, ZoneShape
 
 Action = Literal["assign", "revise", "keep"]
 
@@ -127,9 +127,10 @@ class PlanningSnapshot:
     separation_m: float = 0.5  # minimum centre distance a plan must keep [m]
     lead_time_s: float = 0.0  # until the plan reaches the robots [s, robot time]
     control_dt: float = 0.02  # the agents' control period = Euler step [s]
-    #: the single-robot zones (:mod:`fleet.core.zones`) and who holds them: (zone, robot)
+    #: the single-robot zones (:mod:`fleet.core.zones`) and who holds them: (zone, robot,
+    #: its pass; None: it stands in the zone)
     zones: tuple[ZoneShape, ...] = ()
-    zone_holders: tuple[tuple[str, str], ...] = ()
+    zone_holders: tuple[tuple[str, str, ZonePass | None], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -162,9 +163,10 @@ class TaskDecision:
     #: pass-through radius [m] (``ParkAssignment.route`` and ``pass_m``)
     route: tuple[tuple[float, float], ...] = ()
     pass_m: float = DEFAULT_PASS_M
-    #: single-robot zones the robot holds for this decision (its way enters them; it
-    #: starts or goes on only once it holds them): :mod:`fleet.core.planner.gates`
-    zones: tuple[str, ...] = ()
+    #: the passes through single-robot zones the robot holds for this decision (its way
+    #: enters them; it starts or goes on only once it holds them):
+    #: :mod:`fleet.core.planner.gates`
+    zones: tuple[ZonePass, ...] = ()
     #: the zone a held robot waits for (another robot holds it, or goes first)
     waits_for: str | None = None
 

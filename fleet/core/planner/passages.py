@@ -17,7 +17,7 @@ piece that joins the wide region in two places or more (it leads somewhere: a co
 gate) is a passage; a narrow pocket with one mouth (a dead end, a bay between posts, a
 room's corner) is not. Each passage, grown by R so that a robot holds it before its body
 is in, is one zone, named ``passage-1``, ``passage-2``, ... from west to east (then south
-to north).
+to north), where robots going the same way may follow each other (``convoys``).
 """
 
 from __future__ import annotations
@@ -88,7 +88,8 @@ def _passages(
                 found.append(outline)
     found.sort(key=lambda o: (min(p[0] for p in o), min(p[1] for p in o)))
     return tuple(
-        ZoneShape(f"passage-{k + 1}", outline, found=True) for k, outline in enumerate(found)
+        ZoneShape(f"passage-{k + 1}", outline, found=True, convoys=True)
+        for k, outline in enumerate(found)
     )
 
 

@@ -74,6 +74,7 @@ from fleet.core.planner.scene import (
 )
 from fleet.core.planner.search import ClusterSearch
 from fleet.core.types import LAWS, BoolArray, FloatArray
+from fleet.core.zones import ZonePass
 
 #: [m] added to the peer radius when checking that chosen plans of clusters stay apart.
 _CHECK_MARGIN = 0.1
@@ -367,8 +368,8 @@ def _decisions(
     return out
 
 
-def _granted(fleet: Fleet, i: int) -> tuple[str, ...]:
-    """The single-robot zones mover ``i`` holds when it moves."""
+def _granted(fleet: Fleet, i: int) -> tuple[ZonePass, ...]:
+    """The passes through single-robot zones mover ``i`` holds when it moves."""
     granted = fleet.gates.granted
     return granted[i] if i < len(granted) else ()
 

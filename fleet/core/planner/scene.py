@@ -33,7 +33,7 @@ import numpy as np
 
 from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
-from fleet.core.planner.gates import Gates, gate
+from fleet.core.planner.gates import Gates, gate, holders_of
 from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.planner.rollout import (
     NO_ROUTE,
@@ -295,7 +295,7 @@ def build_fleet(
     blocks = _blocks(solo_xy, allowed, goal, snapshot.separation_m + BLOCK_MARGIN_M)
     gates = gate(
         snapshot.zones,
-        dict(snapshot.zone_holders),
+        holders_of(snapshot.zone_holders),
         [r.robot_id for r in owners],
         kind == UNDER_WAY,
         start,

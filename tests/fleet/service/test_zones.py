@@ -14,7 +14,7 @@ from fleet.core.planner import TaskDecision
 from fleet.core.site import Wall
 from fleet.core.tasks import GoalRejected, Task, TaskRequest, TaskStatus
 from fleet.core.wire import Pose, RobotMode, RobotState
-from fleet.core.zones import ZoneShape
+from fleet.core.zones import ZonePass, ZoneShape
 from fleet.service.ledger import LedgerConfig, Outcome, TaskLedger
 from fleet.service.zones import ZoneBook
 from tests.fleet.service.conftest import Fleet, req
@@ -23,24 +23,41 @@ GATE = ZoneShape("gate", ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)))
 WALL = 1.7e9
 
 
+EAST = ZonePass("gate", (-1.0, 0.0), (1.0, 0.0))
+WEST = ZonePass("gate", (1.0, 0.0), (-1.0, 0.0))
+
+
 def test_a_robot_takes_a_free_zone_it_stands_in_and_gives_it_back_once_out_and_past() -> None:
     book = ZoneBook([GATE])
-    assert book.can_take("r1", ["gate"]) and book.take("r1", ["gate"])
-    assert not book.can_take("r2", ["gate"]) and book.can_take("r1", ["gate", "gone"])
+    assert book.can_take("r1", [EAST]) and book.take("r1", [EAST])
+    assert not book.can_take("r2", [EAST]) and book.can_take("r1", [EAST])
+    assert book.can_take("r2", [ZonePass("gone", (0.0, 0.0), (1.0, 0.0))])  # no such zone
     ahead = [(-3.0, 0.0), (3.0, 0.0)]
     assert not book.observe("r1", -3.0, 0.0, lambda: ahead)  # on its way to the zone: kept
     assert not book.observe("r1", 0.0, 0.0, lambda: [(0.0, 0.0), (3.0, 0.0)])  # in it: kept
     assert book.observe("r1", 2.0, 0.0, lambda: [(2.0, 0.0), (3.0, 0.0)])  # out and past
-    assert book.holder("gate") is None and len(book) == 0
+    assert book.holding("gate") == () and len(book) == 0
     assert book.observe("r2", 0.5, 0.0, None)  # a robot standing in it takes it
-    assert book.holder("gate") == "r2"
+    assert book.holding("gate") == ("r2",)
     assert not book.observe("r2", 0.5, 0.2, None)  # standing in it: keeps it, task or not
-    assert book.release_robot("r2") and book.holder("gate") is None
+    assert book.release_robot("r2") and book.holding("gate") == ()
+
+
+def test_a_convoy_zone_is_held_by_robots_going_one_way_only() -> None:
+    book = ZoneBook([ZoneShape("gate", GATE.outline, convoys=True)])
+    assert book.take("r1", [EAST])
+    assert book.can_take("r2", [EAST]) and not book.can_take("r3", [WEST])
+    book.take("r2", [EAST])
+    assert book.holding("gate") == ("r1", "r2")
+    assert book.observe("r1", 3.0, 0.0, lambda: [(3.0, 0.0), (4.0, 0.0)])
+    assert book.holding("gate") == ("r2",) and not book.can_take("r3", [WEST])
+    book.release_robot("r2")
+    assert book.can_take("r3", [WEST])
 
 
 def test_zones_that_are_gone_lose_their_holders() -> None:
     book = ZoneBook([GATE])
-    book.take("r1", ["gate"])
+    book.take("r1", [EAST])
     book.set_zones([])
     assert book.holders() == {} and book.held_by("r1") == frozenset()
 
@@ -75,12 +92,12 @@ def test_the_ledger_grants_a_decisions_zones_refuses_them_to_another_and_frees_t
     ledger = _ledger()
     ledger.add(_task("t1", 5.0))
     ledger.add(_task("t2", -5.0))
-    assert _apply(ledger, TaskDecision("t1", "r1", "assign", "cw", zones=("gate",))) is (
+    assert _apply(ledger, TaskDecision("t1", "r1", "assign", "cw", zones=(EAST,))) is (
         Outcome.APPLIED
     )
-    assert ledger.zones.holder("gate") == "r1"
+    assert ledger.zones.holding("gate") == ("r1",)
     # a plan made before r1 took it, starting r2 through the same zone: stale, not sent
-    assert _apply(ledger, TaskDecision("t2", "r2", "assign", "cw", zones=("gate",))) is (
+    assert _apply(ledger, TaskDecision("t2", "r2", "assign", "cw", zones=(WEST,))) is (
         Outcome.STALE
     )
     assert ledger.active["t2"].status is TaskStatus.QUEUED
@@ -88,16 +105,16 @@ def test_the_ledger_grants_a_decisions_zones_refuses_them_to_another_and_frees_t
     seen = ledger.observe(_state("r1", "t1", -3.0, 1), now=0.0, wall=WALL)
     assert not seen.zones_changed  # on its way to the zone
     seen = ledger.observe(_state("r1", "t1", 3.0, 2), now=0.1, wall=WALL)
-    assert seen.zones_changed and ledger.zones.holder("gate") is None
+    assert seen.zones_changed and ledger.zones.holding("gate") == ()
     assert ledger.version > version  # a plan made before is stale
 
 
 def test_a_robot_removed_gives_its_zones_back() -> None:
     ledger = _ledger()
     ledger.observe(_state("r9", None, 0.0, 1), now=0.0, wall=WALL)  # lost in the zone
-    assert ledger.zones.holder("gate") == "r9"
+    assert ledger.zones.holding("gate") == ("r9",)
     ledger.robot_removed("r9", WALL)
-    assert ledger.zones.holder("gate") is None
+    assert ledger.zones.holding("gate") == ()
 
 
 def test_the_service_sends_one_robot_through_a_narrow_passage_and_the_other_after_it() -> None:
@@ -114,7 +131,7 @@ def test_the_service_sends_one_robot_through_a_narrow_passage_and_the_other_afte
     try:
         f.service.set_obstacles(corridor)
         (passage,) = f.service.zones()
-        assert passage.zone.name == "passage-1" and passage.zone.found
+        assert passage.zone.name == "passage-1" and passage.zone.found and passage.zone.convoys
         f.join("w", -7.0, 0.0)
         f.join("e", 7.0, 0.0)
         west = f.service.submit(req(7.0, 2.5, robot="w"))
@@ -124,9 +141,11 @@ def test_the_service_sends_one_robot_through_a_narrow_passage_and_the_other_afte
             (f.service.task(west.id), f.service.task(east.id)), key=lambda t: t.hold
         )
         assert not goes.hold and waits.hold and waits.status is TaskStatus.WAITING
-        assert waits.reason == f"waiting for single-robot zone passage-1 (held by {goes.robot_id})"
+        assert waits.reason == (
+            f"waiting for single-robot zone passage-1 (held by {goes.robot_id} going the other way)"
+        )
         (passage,) = f.service.zones()
-        assert passage.robot_id == goes.robot_id and passage.task_id == goes.id
+        assert passage.robot_ids == (goes.robot_id,) and passage.task_ids == (goes.id,)
         # the first robot drives through and comes out in the other room
         assert goes.robot_id is not None and waits.robot_id is not None
         side = 1.0 if goes.robot_id == "w" else -1.0
@@ -136,7 +155,7 @@ def test_the_service_sends_one_robot_through_a_narrow_passage_and_the_other_afte
             f.clock.advance(0.5)
             f.service.tick()
         (passage,) = f.service.zones()
-        assert passage.robot_id == waits.robot_id  # given back, and granted to the next
+        assert passage.robot_ids == (waits.robot_id,)  # given back, and granted to the next
         resumed = f.service.task(waits.id)
         assert not resumed.hold and resumed.revision > waits.revision
         last = [p for p in f.parks(waits.robot_id) if p.task_id == waits.id][-1]

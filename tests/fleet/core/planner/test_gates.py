@@ -11,7 +11,7 @@ from planning import idle, queued, replay
 
 from fleet.core.planner import PlanningSnapshot, plan
 from fleet.core.planner.gates import gate
-from fleet.core.zones import ZoneShape
+from fleet.core.zones import ZonePass, ZoneShape
 
 GATE = ZoneShape("gate", ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)))
 NO_ROUTE = np.zeros((0, 2))
@@ -32,7 +32,7 @@ def test_the_robot_nearer_the_zone_goes_first_and_the_other_waits_naming_it() ->
         poses((6.0, 0.0), (-6.0, 0.0)),
         [0.0, 1.0],
     )
-    assert g.granted == ((), ("gate",))
+    assert g.granted == ((), (ZonePass("gate", (1.0, 0.0), (-1.0, 0.0)),))
     assert g.must_hold.tolist() == [True, False]
     assert g.waits_for == ("gate", None)
     assert g.reasons[0] == "waiting for single-robot zone gate (held by near)"
@@ -44,8 +44,8 @@ def test_a_robot_driving_goes_first_and_a_robot_standing_in_the_zone_holds_it() 
     driving = gate([GATE], {}, ["far", "near"], np.array([True, False]), starts,
                    [NO_ROUTE, NO_ROUTE], goals, [0.0, 1.0])  # fmt: skip
     assert driving.must_hold.tolist() == [False, True]
-    lost = gate([GATE], {"gate": "lost-one"}, ["far", "near"], np.array([True, False]), starts,
-                [NO_ROUTE, NO_ROUTE], goals, [0.0, 1.0])  # fmt: skip
+    lost = gate([GATE], {"gate": {"lost-one": None}}, ["far", "near"], np.array([True, False]),
+                starts, [NO_ROUTE, NO_ROUTE], goals, [0.0, 1.0])  # fmt: skip
     assert lost.must_hold.tolist() == [True, True]
     assert lost.reasons[1] == "waiting for single-robot zone gate (held by lost-one)"
 
@@ -60,12 +60,14 @@ def test_a_robot_whose_way_passes_the_others_goal_goes_before_it() -> None:
 
 
 def test_a_way_that_misses_the_zone_needs_nothing() -> None:
-    g = gate([GATE], {"gate": "other"}, ["r"], np.array([False]), poses((-6.0, 5.0)),
+    g = gate([GATE], {"gate": {"other": None}}, ["r"], np.array([False]), poses((-6.0, 5.0)),
              [np.array([[0.0, 5.0]])], poses((6.0, 5.0)), [0.0])  # fmt: skip
     assert g.granted == ((),) and not g.must_hold.any()
 
 
-def corridor_swap(holders: tuple[tuple[str, str], ...] = ()) -> PlanningSnapshot:
+def corridor_swap(
+    holders: tuple[tuple[str, str, ZonePass | None], ...] = (), zone: ZoneShape = GATE
+) -> PlanningSnapshot:
     """Two robots 5 m either side of a 2 m gate zone, each bound for the other's side."""
     robots = (idle("r0", (-5.0, 0.0, 0.0)), idle("r1", (5.0, 0.2, math.pi)))
     tasks = (
@@ -73,7 +75,7 @@ def corridor_swap(holders: tuple[tuple[str, str], ...] = ()) -> PlanningSnapshot
         queued("t1", (-5.0, 2.0, math.pi), "r1", 1.0),
     )
     return PlanningSnapshot(
-        version=1, robots=robots, tasks=tasks, control_dt=0.05, zones=(GATE,),
+        version=1, robots=robots, tasks=tasks, control_dt=0.05, zones=(zone,),
         zone_holders=holders,
     )  # fmt: skip
 
@@ -85,7 +87,7 @@ def test_a_plan_sends_one_robot_through_the_zone_and_holds_the_other_for_it() ->
     going = [x for x in d.values() if not x.hold]
     waiting = [x for x in d.values() if x.hold]
     assert len(going) == 1 and len(waiting) == 1
-    assert going[0].zones == ("gate",) and going[0].waits_for is None
+    assert [p.zone for p in going[0].zones] == ["gate"] and going[0].waits_for is None
     assert waiting[0].zones == () and waiting[0].waits_for == "gate"
     assert waiting[0].reason == f"waiting for single-robot zone gate (held by {going[0].robot_id})"
     assert result.replan_in_s is not None  # the waiting robot is tried again
@@ -95,6 +97,35 @@ def test_a_plan_sends_one_robot_through_the_zone_and_holds_the_other_for_it() ->
 
 
 def test_no_robot_moves_through_a_zone_a_third_robot_holds_and_no_margin_is_relaxed() -> None:
-    result = plan(corridor_swap(holders=(("gate", "r9"),)))
+    result = plan(corridor_swap(holders=(("gate", "r9", None),)))
     assert all(x.hold and x.waits_for == "gate" for x in result.decisions)
     assert not any("standstill" in n for n in result.notes)
+
+
+CONVOY = ZoneShape("aisle", GATE.outline, convoys=True)
+
+
+def test_in_a_convoy_zone_robots_going_the_same_way_follow_and_the_other_way_waits() -> None:
+    starts = poses((-6.0, 0.0), (-8.0, 0.5), (6.0, 0.0))
+    goals = poses((6.0, 2.0), (6.0, -2.0), (-6.0, 2.0))
+    g = gate([CONVOY], {}, ["lead", "next", "back"], np.array([False, False, False]), starts,
+             [NO_ROUTE] * 3, goals, [0.0, 1.0, 2.0])  # fmt: skip
+    assert g.must_hold.tolist() == [False, False, True]
+    assert [p.zone for p in g.granted[1]] == ["aisle"]
+    assert g.reasons[2] == "waiting for single-robot zone aisle (held by lead going the other way)"
+    single = gate([GATE], {}, ["lead", "next", "back"], np.array([False, False, False]), starts,
+                  [NO_ROUTE] * 3, goals, [0.0, 1.0, 2.0])  # fmt: skip
+    assert single.must_hold.tolist() == [False, True, True]
+
+
+def test_a_robot_joins_a_convoy_under_way_and_never_one_coming_the_other_way() -> None:
+    east = ZonePass("aisle", (-1.0, 0.0), (1.0, 0.0))
+    follows = gate([CONVOY], {"aisle": {"lead": east}}, ["next"], np.array([False]),
+                   poses((-5.0, 0.0)), [NO_ROUTE], poses((5.0, 0.0)), [0.0])  # fmt: skip
+    assert not follows.must_hold.any()
+    meets = gate([CONVOY], {"aisle": {"lead": east}}, ["back"], np.array([False]),
+                 poses((5.0, 0.0)), [NO_ROUTE], poses((-5.0, 0.0)), [0.0])  # fmt: skip
+    assert meets.must_hold.tolist() == [True]
+    standing = gate([CONVOY], {"aisle": {"lost": None}}, ["next"], np.array([False]),
+                    poses((-5.0, 0.0)), [NO_ROUTE], poses((5.0, 0.0)), [0.0])  # fmt: skip
+    assert standing.must_hold.tolist() == [True]  # a robot standing in it goes no way

@@ -60,12 +60,15 @@ finished tasks are deleted from the store ``finished_task_retention_s`` after th
 
 from __future__ import annotations
 
+import itertools
 import logging
+import math
 import threading
 from collections.abc import Callable
 from types import TracebackType
 
 from fleet.core.planner import PlannerConfig, plan
+from fleet.core.planner.clusters import components
 from fleet.core.planner.passages import narrow_passages
 from fleet.core.tasks import (
     RobotConflict,
@@ -387,6 +390,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             timeouts = self._ledger.timeouts(now, wall)
             self._queue(timeouts, now)
             stuck, recovered = self._recover_stuck(now, wall)
+            standoffs = self._break_standoffs(now, wall)
             resends = self._ledger.resends(now)
             self._outbox.enqueue(resends)
             points = self._positions()
@@ -408,6 +412,10 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             self._counters.add("stuck", stuck)
             self._counters.add("recoveries", recovered)
             self._planner.request("stuck")
+        if standoffs:
+            self._counters.add("standoffs_broken", len(standoffs))
+            _log.info("standoffs broken: %s", "; ".join(standoffs))
+            self._planner.request("standoff")
         if removed:
             self._planner.request("robot_removed")
         self._check_separation(points)
@@ -426,6 +434,60 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             self._queue(self._ledger.recover_stuck(task.id, cause, now, wall), now)
             recovered += task.id in self._ledger.active
         return len(stuck), recovered
+
+    def _break_standoffs(self, now: float, wall: float) -> list[str]:
+        """Break every standoff (call with the lock held): the robots in one (within the
+        peer radius of each other) are a group, the one with the youngest task gives way
+        and the others' windows restart; returns what was done, one line per standoff. A
+        robot alone (no robot within the peer radius: held by the repulsion of an obstacle)
+        is left to the stuck watch."""
+        tasks = self._ledger.standoffs()
+        if not tasks:
+            return []
+        radius = self.settings.avoidance.peer_radius
+        where: dict[str, tuple[float, float]] = {}
+        for task in tasks:
+            rec = None if task.robot_id is None else self._roster.record(task.robot_id)
+            if rec is not None and rec.state is not None:
+                where[task.id] = (rec.state.pose.x, rec.state.pose.y)
+        tasks = [t for t in tasks if t.id in where]
+        links = [
+            (i, j)
+            for i, j in itertools.combinations(range(len(tasks)), 2)
+            if math.dist(where[tasks[i].id], where[tasks[j].id]) <= radius
+        ]
+        done = []
+        for members in components(len(tasks), links):
+            group = [tasks[i] for i in members]
+            gives = max(group, key=lambda t: (t.created_at, t.robot_id or ""))
+            assert gives.robot_id is not None
+            cause = self._standoff_cause(gives.robot_id, where[gives.id], radius)
+            if cause is None:  # alone (by an obstacle): the stuck watch's, not a standoff
+                self._ledger.stuck_watch.restart(gives.id)
+                continue
+            self._queue(self._ledger.break_standoff(gives.id, cause, now, wall), now)
+            for other in group:
+                if other is not gives:
+                    self._ledger.stuck_watch.restart(other.id)
+            done.append(f"{gives.robot_id} gives way ({cause})")
+        return done
+
+    def _standoff_cause(self, robot_id: str, at: tuple[float, float], radius: float) -> str | None:
+        """The robot nearest ``robot_id`` (at ``at``) within ``radius`` [m], as words (None:
+        no robot is that near)."""
+        near = []
+        for rec in self._roster.records():
+            s = rec.state
+            if rec.robot_id == robot_id or s is None or rec.gone_for_good:
+                continue
+            d = math.hypot(s.pose.x - at[0], s.pose.y - at[1])
+            if d <= radius:
+                near.append((d, rec.robot_id))
+        if not near:
+            return None
+        seconds = self.settings.standoff_after_s
+        d, other = min(near)
+        return f"no progress for {seconds:g} s while avoiding {other} at {d:.2f} m"
 
     def _stuck_cause(self, task: Task, now: float) -> str:
         """What the service sees around a stuck task's robot: the peers near it (robots

@@ -32,6 +32,9 @@ Stuck robots (:mod:`~fleet.service.stuck`): every state of a robot driving its t
 its progress watch; :meth:`TaskLedger.stuck` lists the tasks with no progress for
 ``stuck_after_s`` and :meth:`TaskLedger.recover_stuck` applies the next recovery (flip, wait,
 requeue to another robot) or fails the task, with the cause in its reason and history.
+:meth:`TaskLedger.standoffs` lists, sooner, robots ``avoiding`` without progress for
+``standoff_after_s`` of their own time; :meth:`TaskLedger.break_standoff` makes one of them
+give way (a held revision, the other law pinned), for a plan to resume.
 
 Bays (:mod:`~fleet.service.bays`): a task's bay is held from its reservation until it is
 final (or the reservation is given back).
@@ -67,6 +70,7 @@ released by an operator. The service compares it (with the roster's) to tell a s
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections import Counter, OrderedDict
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -123,6 +127,8 @@ class LedgerConfig:
     corridor_m: float = 0.3  # [m] an observed pose farther than this from its prediction
     control_hz: float = 50.0  # the robots' control rate (state seq per second)
     stuck_after_s: float = 30.0  # [s] no progress this long: stuck (recoveries, then failed)
+    #: [s, robot time] avoiding with no progress this long: a standoff (one robot gives way)
+    standoff_after_s: float = math.inf
 
 
 def ledger_config(settings: Settings) -> LedgerConfig:
@@ -136,6 +142,7 @@ def ledger_config(settings: Settings) -> LedgerConfig:
         corridor_m=settings.replan_corridor_m,
         control_hz=settings.control_rate_hz,
         stuck_after_s=settings.stuck_after_s,
+        standoff_after_s=settings.standoff_after_s,
     )
 
 
@@ -206,7 +213,10 @@ class TaskLedger:
         self.paths = paths if paths is not None else PathRecorder()
         self.bays = BayBook(site)  # bay -> the active (or reserved) task holding it
         self.zones = ZoneBook(declared(site))  # single-robot zone -> the robot holding it
-        self.stuck_watch = StuckWatch(config.stuck_after_s)  # progress of tasks under way
+        # progress of tasks under way (stuck robots, standoffs)
+        self.stuck_watch = StuckWatch(
+            config.stuck_after_s, standoff_after_s=config.standoff_after_s
+        )
         self._held: dict[str, str] = {}  # robots an operator holds still -> why
         self._avoid: dict[str, str] = {}  # task -> robot it was taken from (stuck)
         self._pinned: dict[str, Law] = {}  # task under way -> the law a recovery chose
@@ -453,7 +463,15 @@ class TaskLedger:
         if state.mode is RobotMode.ARRIVED:
             return Observation(self._finish(task, TaskStatus.SUCCEEDED, None, wall, False), True)
         still = state.mode in _STILL_ON_PURPOSE or track.held_at is not None or task.hold
-        self.stuck_watch.observe(task_id, p, task.request.goal, now, still)
+        self.stuck_watch.observe(
+            task_id,
+            p,
+            task.request.goal,
+            now,
+            still,
+            robot_t=state.seq / self.config.control_hz,
+            avoiding=state.mode is RobotMode.AVOIDING,
+        )
         effects: Effects = []
         if task.status is TaskStatus.ASSIGNED and state.revision >= task.revision:
             driving = self._update(task, wall, status=TaskStatus.DRIVING)
@@ -749,6 +767,46 @@ class TaskLedger:
             and self._tracking[t.id].held_at is None
             and watch.stuck(t.id, now)
         ]
+
+    def standoffs(self) -> list[Task]:
+        """Tasks driving, their robot not held, in a standoff (:mod:`~fleet.service.stuck`)."""
+        watch = self.stuck_watch
+        return [
+            t
+            for t in self._under_way.values()
+            if t.status is TaskStatus.DRIVING
+            and self._tracking[t.id].held_at is None
+            and not t.hold
+            and watch.standoff(t.id)
+        ]
+
+    def break_standoff(self, task_id: str, cause: str, now: float, wall: float) -> Effects:
+        """The task's robot gives way in a standoff: a held revision (it stands until a plan
+        resumes it through the plan's check), with the other law pinned for an ``auto``
+        task -- another sense of rotation is another way past. ``cause`` goes into the
+        reason and the history (``standoff``); the task's stuck window is not spent."""
+        task = self._under_way[task_id]
+        assert task.law is not None
+        law = task.law
+        if task.request.direction == "auto":
+            law = self._pinned[task_id] = "cw" if task.law == "ccw" else "ccw"
+        revised = self._update(
+            task,
+            wall,
+            status=TaskStatus.WAITING,
+            law=law,
+            start_delay_s=0.0,
+            hold=True,
+            revision=task.revision + 1,
+            reason=f"standoff: {cause}; gives way ({law}) until a plan resumes it",
+        )
+        effects: Effects = []
+        self._transition(revised, "standoff", effects)
+        track = self._tracking[task_id]
+        track.sent_at, track.corridor = now, None
+        self.stuck_watch.restart(task_id)
+        effects.append(Publish(assignment_of(revised, self.config.avoidance)))
+        return effects
 
     def silent(self, task_id: str, now: float) -> bool:
         """No state of the task's robot for the whole stuck window."""

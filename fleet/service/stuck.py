@@ -13,6 +13,15 @@ window), a peer within the peer influence radius, a static obstacle within its i
 zone. :data:`RECOVERIES` is the order the service tries (each attempt stored in the task's
 history and counted): re-plan with the other law (flip), wait a while (a start delay, so
 the peer passes), requeue to another robot; after the last the task fails.
+
+**Standoffs** are found sooner, on the robots' own clock: a robot that reports ``avoiding``
+(its safety filter or the repulsion of Eq. (27) acts) and has made no progress for
+``standoff_after_s`` robot seconds (its state's ``seq`` over the control rate, so a
+time-scaled simulation is judged like a real robot) is in a standoff with the robots near
+it -- typically two robots nose to nose, each one's filter holding it off the other.
+:meth:`StuckWatch.standoff` lists it; the service breaks each standoff by making one robot
+give way (:meth:`fleet.service.ledger.TaskLedger.break_standoff`) and restarts the windows
+of the others (:meth:`StuckWatch.restart`).
 """
 
 from __future__ import annotations
@@ -34,6 +43,12 @@ class _Progress:
     seen: float  # [s, monotonic] last state of the task's robot
     checked: float = -math.inf  # [s, monotonic] last distance measured
     attempts: int = 0
+    #: the standoff window, on the robot's clock [s]: its best distance, when that last
+    #: shrank, its time at its last state, and whether it then reported ``avoiding``
+    robot_best: float = math.inf
+    robot_since: float = math.nan
+    robot_now: float = math.nan
+    avoiding: bool = False
 
 
 def remaining(pose: Pose, goal: Pose, heading_arm: float) -> float:
@@ -51,8 +66,10 @@ class StuckWatch:
         min_progress_m: float = 0.05,
         heading_arm: float = 0.2,
         check_interval_s: float = 0.25,
+        standoff_after_s: float = math.inf,
     ) -> None:
         self.stuck_after_s = stuck_after_s
+        self.standoff_after_s = standoff_after_s
         self.min_progress_m = min_progress_m
         self.heading_arm = heading_arm
         self.check_interval_s = check_interval_s
@@ -61,13 +78,24 @@ class StuckWatch:
     def __len__(self) -> int:
         return len(self._tasks)
 
-    def observe(self, task_id: str, pose: Pose, goal: Pose, now: float, held: bool) -> None:
-        """A state of the task's robot at ``now`` [s, monotonic]; ``held``: it stands still
-        on purpose (the window restarts)."""
+    def observe(
+        self,
+        task_id: str,
+        pose: Pose,
+        goal: Pose,
+        now: float,
+        held: bool,
+        robot_t: float = math.nan,
+        avoiding: bool = False,
+    ) -> None:
+        """A state of the task's robot at ``now`` [s, monotonic], ``robot_t`` [s] on the
+        robot's own clock (NaN: unknown, no standoff window); ``held``: it stands still on
+        purpose (the windows restart); ``avoiding``: it reported ``avoiding``."""
         progress = self._tasks.get(task_id)
         if progress is None:
             progress = self._tasks[task_id] = _Progress(math.inf, now, now)
         progress.seen = now
+        self._observe_standoff(progress, pose, goal, held, robot_t, avoiding)
         if held:
             progress.best, progress.since = math.inf, now
             return
@@ -78,6 +106,32 @@ class StuckWatch:
         if left < progress.best - self.min_progress_m:
             progress.best, progress.since = left, now
 
+    def _observe_standoff(
+        self, p: _Progress, pose: Pose, goal: Pose, held: bool, robot_t: float, avoiding: bool
+    ) -> None:
+        """The standoff window: progress on the robot's clock (a clock that went back, a
+        restarted robot, restarts it)."""
+        p.avoiding = avoiding
+        if math.isnan(robot_t):
+            return
+        restarted = not robot_t >= p.robot_now  # also the first state (NaN)
+        p.robot_now = robot_t
+        left = remaining(pose, goal, self.heading_arm)
+        if held or restarted or left < p.robot_best - self.min_progress_m:
+            p.robot_best, p.robot_since = left, robot_t
+
+    def standoff(self, task_id: str) -> bool:
+        """The task's robot reports ``avoiding`` and has made no progress for
+        ``standoff_after_s`` on its own clock."""
+        p = self._tasks.get(task_id)
+        return p is not None and p.avoiding and p.robot_now - p.robot_since >= self.standoff_after_s
+
+    def restart(self, task_id: str) -> None:
+        """A fresh standoff window for the task (another robot gave way)."""
+        p = self._tasks.get(task_id)
+        if p is not None:
+            p.robot_best, p.robot_since = math.inf, p.robot_now
+
     def start(self, task_id: str, now: float) -> None:
         """The task got (again) a robot at ``now``: a fresh window, attempts kept."""
         progress = self._tasks.get(task_id)
@@ -86,6 +140,7 @@ class StuckWatch:
         else:
             progress.best, progress.since, progress.seen = math.inf, now, now
             progress.checked = -math.inf
+            progress.robot_best, progress.robot_since = math.inf, progress.robot_now
 
     def stuck(self, task_id: str, now: float) -> bool:
         progress = self._tasks.get(task_id)

@@ -125,3 +125,72 @@ def test_a_stuck_task_is_flipped_then_delayed_then_requeued_to_another_robot_the
     events = [event for _, event, _ in fleet.service.history(task.id)]
     assert events.count("recovery") == 3
     assert fleet.service.counters["recoveries"] == 3 and fleet.service.counters["stuck"] == 4
+
+
+def test_a_standoff_is_avoiding_without_progress_on_the_robots_own_clock() -> None:
+    watch = StuckWatch(1000.0, standoff_after_s=4.0)
+    goal = Pose(x=5, y=0)
+    here = Pose(x=0, y=0)
+    watch.start("t", 0.0)
+    watch.observe("t", here, goal, 0.0, held=False, robot_t=10.0, avoiding=True)
+    watch.observe("t", here, goal, 0.0, held=False, robot_t=13.9, avoiding=True)
+    assert not watch.standoff("t")  # service time stood still: robot time is what counts
+    watch.observe("t", here, goal, 0.0, held=False, robot_t=14.0, avoiding=True)
+    assert watch.standoff("t")
+    watch.observe("t", here, goal, 0.0, held=False, robot_t=14.1, avoiding=False)
+    assert not watch.standoff("t")  # driving, not held off by anything: not a standoff
+    watch.observe("t", here, goal, 0.0, held=False, robot_t=14.2, avoiding=True)
+    assert watch.standoff("t")
+    watch.restart("t")  # another robot gave way
+    assert not watch.standoff("t")
+    watch.observe("t", Pose(x=0.2, y=0), goal, 0.0, held=False, robot_t=20.0, avoiding=True)
+    assert not watch.standoff("t")  # progress restarts the window
+    watch.observe("t", Pose(x=0.2, y=0), goal, 0.0, held=False, robot_t=1.0, avoiding=True)
+    watch.observe("t", Pose(x=0.2, y=0), goal, 0.0, held=False, robot_t=4.5, avoiding=True)
+    assert not watch.standoff("t")  # the robot restarted (its clock went back): a new window
+    watch.observe("t", Pose(x=0.2, y=0), goal, 0.0, held=False, robot_t=5.0, avoiding=True)
+    assert watch.standoff("t")
+
+
+def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_plan() -> None:
+    from fleet.core.wire import RobotState
+    from tests.fleet.service.conftest import ScriptedPlanner, assign_queued
+
+    f = Fleet(planner=ScriptedPlanner(assign_queued("ccw")), task_timeout_s=1000.0)
+    try:
+        f.join("old", -0.3, 0.0)
+        f.join("new", 0.3, 0.0)
+        f.join("far", 5.0, 5.0)
+        first = f.service.submit(req(4.0, 0.0, robot="old"))
+        f.clock.advance(1.0)
+        second = f.service.submit(req(-4.0, 0.0, robot="new"))
+        third = f.service.submit(req(5.0, -3.0, robot="far"))
+        f.service.tick()
+
+        def states(seq: int) -> None:
+            for rid, x, task in (("old", -0.3, first), ("new", 0.3, second), ("far", 5.0, third)):
+                f.bus.deliver_state(
+                    RobotState(robot_id=rid, seq=seq, stamp=f.clock.wall(),
+                               pose=Pose(x=x, y=0.0 if rid != "far" else 5.0),
+                               mode=RobotMode.AVOIDING, task_id=task.id, revision=0)
+                )  # fmt: skip
+
+        states(100)  # nose to nose, both avoiding, no progress; "far" avoids alone
+        states(299)
+        f.service.tick()
+        assert f.service.counters.get("standoffs_broken", 0) == 0  # 3.98 s: not yet
+        states(300)  # 4 s of the robots' own time (50 Hz)
+        f.service.tick()
+        assert f.service.counters["standoffs_broken"] == 1
+        gave = f.service.task(second.id)
+        assert gave.hold and gave.law == "cw" and gave.revision == 1
+        assert gave.reason is not None and gave.reason.startswith(
+            "standoff: no progress for 4 s while avoiding old at 0.60 m; gives way (cw)"
+        )
+        assert not f.service.task(first.id).hold and f.service.task(first.id).revision == 0
+        assert not f.service.task(third.id).hold  # alone: the stuck watch's, not a standoff
+        (held,) = [p for p in f.parks("new") if p.revision == 1]
+        assert held.hold and held.law == "cw"
+        assert [e for _, e, _ in f.service.history(second.id)][-1] == "standoff"
+    finally:
+        f.service.close()

@@ -33,6 +33,7 @@ const COLORS = {
   draft: "#fde047",
   keepOut: "rgba(250, 204, 21, 0.10)",
   keepOutEdge: "rgba(250, 204, 21, 0.75)",
+  lane: "rgba(56, 189, 248, 0.55)",
   zone: "rgba(167, 139, 250, 0.08)",
   zoneHeld: "rgba(192, 132, 252, 0.22)",
   zoneEdge: "rgba(167, 139, 250, 0.85)",
@@ -336,6 +337,7 @@ export class YardMap {
       ctx.fillText(zone.name, label[0], label[1]);
       this.drawn.zones += 1;
     }
+    this.drawLanes(site.lanes ?? []);
     const states = new Map(bays.map((b) => [b.name, b.status]));
     for (const bay of site.bays) {
       const [cx, cy] = this.toCanvas(bay.pose.x, bay.pose.y);
@@ -358,6 +360,40 @@ export class YardMap {
       ctx.fillText(bay.name, cx, cy - half - 2);
       this.drawn.bays += 1;
     }
+  }
+
+  /** Lanes: dashed lines, an arrow on every leg of a one-way lane. */
+  drawLanes(lanes) {
+    this.drawn.lanes = 0;
+    const ctx = this.ctx;
+    ctx.save();
+    ctx.strokeStyle = COLORS.lane;
+    ctx.fillStyle = COLORS.lane;
+    ctx.lineWidth = 1.5;
+    for (const lane of lanes) {
+      const points = lane.points.map(([x, y]) => this.toCanvas(x, y));
+      ctx.setLineDash([8, 5]);
+      ctx.beginPath();
+      points.forEach(([px, py], i) => (i === 0 ? ctx.moveTo(px, py) : ctx.lineTo(px, py)));
+      ctx.stroke();
+      ctx.setLineDash([]);
+      if (lane.one_way) {
+        for (let i = 1; i < points.length; i++) {
+          const [ax, ay] = points[i - 1];
+          const [bx, by] = points[i];
+          const angle = Math.atan2(by - ay, bx - ax);
+          const [mx, my] = [(ax + bx) / 2, (ay + by) / 2];
+          ctx.beginPath();
+          ctx.moveTo(mx + 7 * Math.cos(angle), my + 7 * Math.sin(angle));
+          ctx.lineTo(mx + 5 * Math.cos(angle + 2.5), my + 5 * Math.sin(angle + 2.5));
+          ctx.lineTo(mx + 5 * Math.cos(angle - 2.5), my + 5 * Math.sin(angle - 2.5));
+          ctx.closePath();
+          ctx.fill();
+        }
+      }
+      this.drawn.lanes += 1;
+    }
+    ctx.restore();
   }
 
   /** Single-robot zones: outlined, filled while held, named with the robots holding them. */

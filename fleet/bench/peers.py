@@ -52,7 +52,8 @@ from scipy.optimize import linear_sum_assignment
 from fleet.bench.scenarios import Scenario
 from fleet.core.params import RobotProfile
 from fleet.core.planner.config import PlannerConfig
-from fleet.core.planner.roadmap import roadmap_of
+from fleet.core.planner.lanes import route_graph
+from fleet.core.route import lane_shapes
 from fleet.core.types import FloatArray, Posture
 from fleet.core.wire import Obstacle, Pose, RobotMode
 from fleet.io.trace import TraceChunk
@@ -242,7 +243,8 @@ def _router(scenario: Scenario, profile: RobotProfile, contact_margin_m: float) 
     config = PlannerConfig()
     if not obstacles:
         return lambda start, goal: ()
-    roadmap = roadmap_of(obstacles, config.route_clearance(profile.radius, contact_margin_m))
+    clearance = config.route_clearance(profile.radius, contact_margin_m)
+    roadmap = route_graph(obstacles, clearance, lane_shapes(scenario.lanes))
     return lambda start, goal: roadmap.route(start, goal, config.approach_m) or ()
 
 

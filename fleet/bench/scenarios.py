@@ -15,9 +15,11 @@ is the influence radius of Eq. 27, as in the API); ``walls`` (as in a site file:
 ``[{"points": [[x, y], ...], "closed": false, "body": 0.05, "radius": 0.3}]``, every edge
 a segment with a body); ``zones`` (single-robot zones as in a site file:
 ``[{"name": "gate", "rect": {"xmin", "xmax", "ymin", "ymax"}}]`` or a ``polygon``; the
-narrow passages the walls make are found without it); ``law_gains`` (``{"ccw": {"kx", "ky",
-"ktheta"}, "cw": {...}}``); ``tolerance`` (``{"position", "heading"}``, default 0.1 m /
-0.1 rad); ``time_limit_s`` (default 120: the run stops this long after the last arrival);
+narrow passages the walls make are found without it); ``lanes`` (as in a site file:
+``[{"points": [[x, y], ...], "one_way": false}]``: routes follow them); ``law_gains``
+(``{"ccw": {"kx", "ky", "ktheta"}, "cw": {...}}``); ``tolerance``
+(``{"position", "heading"}``, default 0.1 m / 0.1 rad); ``time_limit_s`` (default 120:
+the run stops this long after the last arrival);
 ``family`` and ``seed`` (group seeds of one family in the summary); ``yard``
 (``[xmin, xmax, ymin, ymax]``, the service's yard for the run; default 20 m x 20 m around
 the origin). Built-in scenarios
@@ -63,7 +65,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from fleet.core.goals import Occupied, validate_goal
 from fleet.core.params import Avoidance, Gains, Tolerance
-from fleet.core.site import Site, Wall, Yard, Zone
+from fleet.core.site import Lane, Site, Wall, Yard, Zone
 from fleet.core.tasks import GoalRejected
 from fleet.core.types import Law, Posture
 from fleet.core.wire import Obstacle, Pose, RobotId
@@ -124,6 +126,8 @@ class Scenario(BaseModel):
     walls: Annotated[list[Wall], Field(max_length=100)] = []
     #: Single-robot zones as in a site file (narrow passages the walls make are found).
     zones: Annotated[list[Zone], Field(max_length=100)] = []
+    #: Lanes as in a site file: routes follow them.
+    lanes: Annotated[list[Lane], Field(max_length=100)] = []
     law_gains: dict[Law, Gains] | None = None
     tolerance: Tolerance = BENCH_TOLERANCE
     time_limit_s: Annotated[float, Field(gt=0.0, le=3600.0)] = 120.0
@@ -155,8 +159,9 @@ class Scenario(BaseModel):
         return self
 
     def site(self) -> Site | None:
-        """The site map the fleet runs with (None: no zones, the service needs none)."""
-        if not self.zones:
+        """The site map the fleet runs with (None: no zones or lanes, the service needs
+        none)."""
+        if not self.zones and not self.lanes:
             return None
         xmin, xmax, ymin, ymax = self.bounds
         return Site(
@@ -165,6 +170,7 @@ class Scenario(BaseModel):
             obstacles=[o.as_obstacle() for o in self.obstacles],
             walls=self.walls,
             zones=self.zones,
+            lanes=self.lanes,
         )
 
     def static_obstacles(self) -> list[Obstacle]:

@@ -38,6 +38,18 @@ def inside_polygon(vertices: Sequence[Point], x: float, y: float) -> bool:
     return inside
 
 
+def segments_distance(a: Point, b: Point, c: Point, d: Point) -> float:
+    """Distance [m] between the segments [a, b] and [c, d] (0 where they cross or touch)."""
+    if segments_cross(a, b, c, d):
+        return 0.0
+    return min(
+        segment_distance(*a, c, d),
+        segment_distance(*b, c, d),
+        segment_distance(*c, a, b),
+        segment_distance(*d, a, b),
+    )
+
+
 def _orientation(p: Point, q: Point, r: Point) -> float:
     """Twice the signed area of (p, q, r): > 0 counter-clockwise, 0 collinear."""
     return (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])

@@ -11,13 +11,32 @@ predicts what the robot does.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
+from fleet.core.site import Lane
 from fleet.core.step import ROUTE_ROWS, VIA_CW, VIA_HEADING, VIA_X, VIA_Y, wrap_to_2pi
 from fleet.core.types import FloatArray, Posture
+
+
+@dataclass(frozen=True)
+class LaneShape:
+    """A site's lane as routing sees it (:class:`fleet.core.site.Lane`,
+    :mod:`fleet.core.planner.lanes`): its points [m] and whether it is one-way."""
+
+    points: tuple[tuple[float, float], ...]
+    one_way: bool = False
+
+
+def lane_shapes(lanes: Iterable[Lane]) -> tuple[LaneShape, ...]:
+    """The site's lanes as :class:`LaneShape` (hashable: route graphs are cached by them)."""
+    return tuple(
+        LaneShape(tuple((float(x), float(y)) for x, y in lane.points), lane.one_way)
+        for lane in lanes
+    )
 
 
 def route_table(

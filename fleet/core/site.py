@@ -18,7 +18,10 @@ the fleet, x and y in metres, theta in radians counter-clockwise from +x.
 * ``zones`` -- named single-robot zones (polygon, rectangle or circle): gates and narrow
   aisles one robot at a time drives through (:class:`Zone`; the fleet holds them like
   bays, :mod:`fleet.core.zones`). Narrow passages the walls make are found as well
-  (:mod:`fleet.core.planner.passages`).
+  (:mod:`fleet.core.planner.passages`);
+* ``lanes`` -- polylines robots drive along, one-way or two-way: with lanes, routes follow
+  them from a lane point a robot sees to one its bay's approach sees
+  (:mod:`fleet.core.planner.lanes`); without, routes are found in the free space.
 
 :meth:`Site.problems` checks what needs the fleet's settings (robot radius, peer
 influence radius): every bay a valid goal, and bays far enough apart to be used together.
@@ -26,12 +29,18 @@ influence radius): every bay a valid goal, and bays far enough apart to be used 
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Annotated, ClassVar, Self
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from fleet.core.geometry import first_self_crossing, inside_polygon, segment_distance
+from fleet.core.geometry import (
+    first_self_crossing,
+    inside_polygon,
+    segment_distance,
+    segments_distance,
+)
 from fleet.core.params import SafetyConfig
 from fleet.core.wire import Obstacle, Pose
 
@@ -231,6 +240,24 @@ class Wall(_Strict):
         ]
 
 
+class Lane(_Strict):
+    """A lane robots drive along: a polyline through ``points`` [m]; ``one_way``: only from
+    the first point towards the last. Lanes meet where they share a point (a junction);
+    lanes that cross without sharing one do not meet. When a site has lanes, routes follow
+    them (:mod:`fleet.core.planner.lanes`)."""
+
+    name: Name | None = None
+    points: Annotated[list[Point], Field(min_length=2, max_length=MAX_VERTICES)]
+    one_way: bool = False
+
+    @model_validator(mode="after")
+    def _no_empty_leg(self) -> Self:
+        for i, (a, b) in enumerate(itertools.pairwise(self.points)):
+            if a == b:
+                raise ValueError(f"points: point {i + 1} repeats point {i} (an empty leg)")
+        return self
+
+
 class Bay(_Strict):
     """A named parking posture, optionally in a group (e.g. ``charging``)."""
 
@@ -253,6 +280,7 @@ class Site(_Strict):
     )
     bays: Annotated[list[Bay], Field(max_length=MAX_BAYS)] = Field(default_factory=list)
     zones: Annotated[list[Zone], Field(max_length=MAX_ZONES)] = Field(default_factory=list)
+    lanes: Annotated[list[Lane], Field(max_length=MAX_ZONES)] = Field(default_factory=list)
 
     @model_validator(mode="after")
     def _consistent(self) -> Self:
@@ -359,6 +387,29 @@ class Site(_Strict):
                     )
         reported = {p.loc[1] for p in out if len(p.loc) > 1}
         out.extend(self._unreachable_bays(robot_radius, reported))
+        out.extend(self._lanes_through_bodies(static, robot_radius))
+        return out
+
+    def _lanes_through_bodies(self, static: list[Obstacle], robot_radius: float) -> list[SiteError]:
+        """Lane legs that would bring a robot's body within the contact margin of a wall's
+        or a post's body (robots drive along them)."""
+        margin = SafetyConfig().contact_margin_m
+        out = []
+        for i, lane in enumerate(self.lanes):
+            for k, (a, b) in enumerate(itertools.pairwise(lane.points)):
+                for o in static:
+                    d = segments_distance(a, b, (o.x, o.y), o.far_end) - o.body_radius
+                    if d < robot_radius + margin:
+                        what = lane.name or f"lanes[{i}]"
+                        out.append(
+                            SiteError(
+                                f"lane {what}: the leg from point {k} to point {k + 1} passes "
+                                f"{max(d, 0.0):.2f} m from the body of the obstacle at "
+                                f"({o.x:g}, {o.y:g}): a robot needs {robot_radius + margin:g} m",
+                                ("lanes", i, "points", k),
+                            )
+                        )
+                        break
         return out
 
     def _unreachable_bays(self, robot_radius: float, skip: set[str | int]) -> list[SiteError]:
@@ -371,12 +422,13 @@ class Site(_Strict):
             return []
         try:
             from fleet.core.planner.config import PlannerConfig
-            from fleet.core.planner.roadmap import roadmap_of
+            from fleet.core.planner.lanes import route_graph
+            from fleet.core.route import lane_shapes
         except ModuleNotFoundError:  # shapely / networkx: the fleet host's packages
             return []
         config = PlannerConfig()
         clearance = config.route_clearance(robot_radius, SafetyConfig().contact_margin_m)
-        roadmap = roadmap_of(tuple(self.static_obstacles()), clearance)
+        roadmap = route_graph(tuple(self.static_obstacles()), clearance, lane_shapes(self.lanes))
         groups: list[list[int]] = []
         for i, bay in enumerate(self.bays):
             if i in skip:

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 from fleet.core.params import RobotProfile
 from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
+from fleet.core.route import lane_shapes
 from fleet.core.tasks import RobotStatus, Task, TaskStatus
 from fleet.core.types import LAWS, Law
 from fleet.core.wire import Obstacle, RobotState
@@ -147,6 +148,7 @@ def planning_input(
         lead_time_s=lead_time_s,
         control_dt=1.0 / hz,
         zones=tuple(zones),
+        lanes=() if settings.site is None else lane_shapes(settings.site.lanes),
         zone_holders=tuple(
             (zone, robot, how)
             for zone, held in sorted((zone_holders or {}).items())

@@ -12,6 +12,7 @@ from collections.abc import Callable
 
 from fleet.core.goals import Occupied, validate_goal
 from fleet.core.planner.config import PlannerConfig
+from fleet.core.route import lane_shapes
 from fleet.core.tasks import (
     BayTaken,
     GoalRejected,
@@ -103,12 +104,14 @@ class Submission(ServiceState):
             ]
         if not obstacles or not starts:
             return
-        from fleet.core.planner.roadmap import roadmap_of  # the server's packages: first use
+        from fleet.core.planner.lanes import route_graph  # the server's packages: first use
 
         config = PlannerConfig()
         margin = self.settings.safety.contact_margin_m
+        site = self.settings.site
+        lanes = () if site is None else lane_shapes(site.lanes)
         for _, pose, radius in starts:
-            roadmap = roadmap_of(obstacles, config.route_clearance(radius, margin))
+            roadmap = route_graph(obstacles, config.route_clearance(radius, margin), lanes)
             if roadmap.route((pose.x, pose.y), goal.as_tuple(), config.approach_m) is not None:
                 return
         whom = f"robot {starts[0][0]}" if robot_id is not None else f"any of {len(starts)} robots"

@@ -123,7 +123,8 @@ def test_bays_keep_out_zones_and_walls_are_drawn_with_their_state(
     browser_page, console = page
     browser_page.wait_for_function(
         "window.__parkfleet.drawn.bays === 17 && window.__parkfleet.drawn.zones === 3 "
-        "&& window.__parkfleet.drawn.walls === 5 && window.__parkfleet.drawn.singleZones === 1"
+        "&& window.__parkfleet.drawn.walls === 5 && window.__parkfleet.drawn.singleZones === 1 "
+        "&& window.__parkfleet.drawn.lanes === 5"
     )
     assert [z["name"] for z in fleet.http.get("/zones").json()] == ["entrance"]
     canvas = browser_page.locator("#map")

@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from fleet.core.params import Avoidance, Gains, RobotProfile, SafetyConfig, Tolerance
+from fleet.core.route import LaneShape
 from fleet.core.tasks import Direction, RobotStatus, TaskStatus
 from fleet.core.types import Law, Posture
 from fleet.core.wire import DEFAULT_PASS_M, Obstacle
@@ -131,6 +132,8 @@ class PlanningSnapshot:
     #: its pass; None: it stands in the zone)
     zones: tuple[ZoneShape, ...] = ()
     zone_holders: tuple[tuple[str, str, ZonePass | None], ...] = ()
+    #: the site's lanes: routes follow them (:mod:`fleet.core.planner.lanes`)
+    lanes: tuple[LaneShape, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -158,6 +158,16 @@ class Roadmap:
         robot's radius: its body's straight way) from every body."""
         return not self._segment_blocked(a, b, self._bodies + clearance_m)
 
+    def sees(self, point: Point, targets: FloatArray) -> BoolArray:
+        """(N,) which of ``targets`` (N, 2) [m] the straight way from ``point`` reaches
+        keeping, from every body, the clearance ``point`` itself has
+        (:meth:`end_clearance`): a robot standing there may drive to them."""
+        targets = np.asarray(targets, dtype=np.float64).reshape(-1, 2)
+        if len(targets) == 0:
+            return np.zeros(0, dtype=bool)
+        starts = np.broadcast_to(np.array(point, dtype=np.float64), targets.shape)
+        return ~self._blocked(_segments(starts, targets), self._end_need(point))
+
     def end_clearance(self, point: Point) -> float:
         """The clearance [m] a segment ending at ``point`` [m] must keep from every body:
         ``min(clearance_m, point's distance to the nearest body - 0.01)``, never below 0."""

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
+from fleet.core.route import LaneShape
 from fleet.core.simulate import BatchProblem, SimResult, batch_filter, obstacle_columns, simulate
 from fleet.core.types import BoolArray, FloatArray, IntArray
 from fleet.core.wire import DEFAULT_PASS_M, Obstacle
@@ -157,6 +158,8 @@ class World:
     safety: SafetyConfig = field(default_factory=SafetyConfig)
     #: [m] pass-through radius of the robots' via-points (``ParkAssignment.pass_m``).
     pass_m: float = DEFAULT_PASS_M
+    #: the site's lanes: routes follow them (:mod:`fleet.core.planner.lanes`)
+    lanes: tuple[LaneShape, ...] = ()
 
 
 def _bucket(n: int) -> int:

@@ -250,7 +250,7 @@ def build_fleet(
     standing_xy = np.array([r.pose[:2] for r in standing], dtype=np.float64).reshape(-1, 2)
     world = World(
         snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles), snapshot.safety,
-        config.pass_m,
+        config.pass_m, snapshot.lanes,
     )  # fmt: skip
     route = _routes(pose0, goal, limits, world, config, [t.route for t in tasks])
 
@@ -357,11 +357,11 @@ def _routes(
     if not world.obstacles or k == 0:
         return ()
     # shapely and networkx on first use: the fleet service plans with them, a robot never.
-    from fleet.core.planner.roadmap import roadmap_of
+    from fleet.core.planner.lanes import route_graph
 
     radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
     clearance = config.route_clearance(float(radii.max()), world.safety.contact_margin_m)
-    roadmap = roadmap_of(world.obstacles, clearance)
+    roadmap = route_graph(world.obstacles, clearance, world.lanes)
     out = []
     for i in range(k):
         here = (float(pose[i, 0]), float(pose[i, 1]))

@@ -55,6 +55,27 @@ def test_the_shipped_car_park_loads_and_sets_the_yard() -> None:
     assert [b.name for b in site.group("charging")] == ["C1", "C2", "C3"]
     assert {z.name for z in site.keep_out} == {"ramp", "walkway", "hydrant"}
     assert len(site.obstacles) == 4
+    assert [z.name for z in site.zones] == ["entrance"]
+    assert [(lane.name, lane.one_way) for lane in site.lanes] == [
+        ("main", False),
+        ("north", False),
+        ("south", False),
+        ("in", True),
+        ("out", True),
+    ]
+
+
+def test_a_lane_through_a_wall_fails_the_site_naming_its_line(tmp_path: Path) -> None:
+    path = tmp_path / "site.toml"
+    path.write_text(
+        "[yard]\nxmin = -10.0\nxmax = 10.0\nymin = -10.0\nymax = 10.0\n"
+        "[[walls]]\npoints = [[-2.0, 0.0], [2.0, 0.0]]\n"
+        '[[lanes]]\nname = "cut"\npoints = [[0.0, -3.0], [0.0, 3.0]]\n'
+    )
+    with pytest.raises(SiteFileError) as failed:
+        load_site(path, robot_radius=0.2, peer_radius=1.0)
+    ((line, message),) = failed.value.problems
+    assert line == 10 and "lane cut: the leg from point 0 to point 1 passes 0.00 m" in message
 
 
 def test_a_valid_file_parses_in_both_formats() -> None:

@@ -1,0 +1,174 @@
+"""Lanes: the route graph a site's operator draws, one-way or two-way (pure).
+
+A site's lanes (:class:`fleet.core.site.Lane`) are polylines robots drive along; a one-way
+lane only from its first point towards its last. Lanes meet where they share a point. When
+a site has lanes, a robot's route (:meth:`LaneMap.route`) is:
+
+* from where it stands to a point of a lane it sees (its straight way there keeps the
+  clearance it has, :meth:`fleet.core.planner.roadmap.Roadmap.sees`; lanes are taken in
+  steps of ``LANE_STEP_M``, so a robot gets on and off near where it is), along the lanes --
+  with their direction -- to a lane point the pre-bay point sees, then the pre-bay point
+  (``approach_m`` in front of the bay) and the paper's law for the last leg; the shortest
+  such way (metres driven), its via-points where it turns, gets on or gets off;
+* straight to its goal when that way is clear and the goal is nearer than the lane point
+  it would get on at (the lanes would lead it away);
+* where the lanes give no way (a bay no lane point sees, a robot off every lane), the free
+  space's route graph's way (:mod:`fleet.core.planner.roadmap`), so a lane map never makes
+  a reachable bay unreachable.
+
+World frame, metres. Without lanes, :func:`route_graph` is the free space's roadmap itself.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import math
+from collections.abc import Sequence
+from typing import Protocol
+
+import networkx as nx
+import numpy as np
+
+from fleet.core.planner.roadmap import Point, Roadmap, roadmap_of
+from fleet.core.route import LaneShape
+from fleet.core.types import BoolArray, FloatArray
+from fleet.core.wire import Obstacle
+
+#: Lane points closer than this [m] are one junction.
+JUNCTION_M = 1e-3
+#: [m] the longest step between the lane points a robot may get on or off at.
+LANE_STEP_M = 1.0
+_SOURCE, _SINK = (-1, -1), (-2, -2)
+
+
+class RouteGraph(Protocol):
+    """What routing needs of a route graph (:class:`Roadmap`, :class:`LaneMap`)."""
+
+    def route(
+        self, start: Point, goal: tuple[float, float, float], approach_m: float
+    ) -> tuple[Point, ...] | None: ...
+
+    def clear(self, a: Point, b: Point, clearance_m: float) -> bool: ...
+
+
+class LaneMap:
+    """Routes along lanes (see the module docstring); build with :func:`route_graph`."""
+
+    def __init__(self, roadmap: Roadmap, lanes: Sequence[LaneShape]) -> None:
+        self.roadmap = roadmap
+        nodes: list[Point] = []
+        index: dict[tuple[int, int], int] = {}  # junctions: points on one JUNCTION_M cell
+        graph = nx.DiGraph()  # (node, 0): not yet on a lane; (node, 1): driven one leg
+
+        def node(p: Point) -> int:
+            key = (round(p[0] / JUNCTION_M), round(p[1] / JUNCTION_M))
+            if key not in index:
+                index[key] = len(nodes)
+                nodes.append(p)
+            return index[key]
+
+        def leg(a: int, b: int) -> None:
+            length = math.dist(nodes[a], nodes[b])
+            graph.add_edge((a, 0), (b, 1), length=length)
+            graph.add_edge((a, 1), (b, 1), length=length)
+
+        for lane in lanes:
+            ids = [node(p) for p in _stepped(lane.points)]
+            for a, b in itertools.pairwise(ids):
+                leg(a, b)
+                if not lane.one_way:
+                    leg(b, a)
+        self.nodes: FloatArray = np.array(nodes, dtype=np.float64).reshape(-1, 2)
+        self.graph = graph
+
+    def clear(self, a: Point, b: Point, clearance_m: float) -> bool:
+        return self.roadmap.clear(a, b, clearance_m)
+
+    def route(
+        self, start: Point, goal: tuple[float, float, float], approach_m: float
+    ) -> tuple[Point, ...] | None:
+        """Via-points [m] for a robot at ``start`` to park at ``goal`` (x, y, heading
+        [rad]): ``()`` straight, the lanes' way, else the free space's (module docstring);
+        None: no way at all."""
+        free = self.roadmap.route(start, goal, approach_m)
+        s = (float(start[0]), float(start[1]))
+        g = (float(goal[0]), float(goal[1]))
+        h = float(goal[2])
+        p = (g[0] - approach_m * math.cos(h), g[1] - approach_m * math.sin(h))
+        for end in ((p, True), (g, False)) if approach_m > 0.0 else ((g, False),):
+            target, pre_bay = end
+            if pre_bay and not self.roadmap.clear(target, g, self.roadmap.end_clearance(g)):
+                continue
+            via = self._along(s, target)
+            if via is None:
+                continue
+            if free == () and math.dist(s, g) <= math.dist(s, via[0]):
+                return ()  # the goal is nearer than the lanes
+            return (*via, target) if pre_bay else via
+        return free
+
+    def _along(self, s: Point, t: Point) -> tuple[Point, ...] | None:
+        """The lane points [m] of the shortest way from ``s`` onto the lanes, along at least
+        one leg of them (in its direction: a one-way lane is never crossed against it by
+        getting on and off at one point), and off them to ``t`` (both excluded), or None."""
+        if len(self.nodes) == 0:
+            return None
+        on: BoolArray = self.roadmap.sees(s, self.nodes)
+        off: BoolArray = self.roadmap.sees(t, self.nodes)
+        if not on.any() or not off.any():
+            return None
+        graph = self.graph.copy()
+        for k in np.flatnonzero(on):
+            graph.add_edge(_SOURCE, (int(k), 0), length=math.dist(s, tuple(self.nodes[k])))
+        for k in np.flatnonzero(off):
+            graph.add_edge((int(k), 1), _SINK, length=math.dist(t, tuple(self.nodes[k])))
+        try:
+            path = nx.dijkstra_path(graph, _SOURCE, _SINK, weight="length")
+        except nx.NetworkXNoPath:
+            return None
+        points = [(float(self.nodes[n, 0]), float(self.nodes[n, 1])) for n, _ in path[1:-1]]
+        return tuple(_turns(points))
+
+
+def _stepped(points: Sequence[Point]) -> list[Point]:
+    """``points`` with each leg cut into steps of at most ``LANE_STEP_M``."""
+    out = [points[0]]
+    for a, b in itertools.pairwise(points):
+        n = max(1, math.ceil(math.dist(a, b) / LANE_STEP_M - 1e-9))
+        out += [
+            (a[0] + (b[0] - a[0]) * k / n, a[1] + (b[1] - a[1]) * k / n) for k in range(1, n + 1)
+        ]
+    return out
+
+
+def _turns(points: list[Point]) -> list[Point]:
+    """``points`` without those in the middle of a straight stretch (the first and the
+    last are kept: where the robot gets on and off)."""
+    out = points[:1]
+    for k in range(1, len(points) - 1):
+        a, b, c = out[-1], points[k], points[k + 1]
+        cross = (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0])
+        if abs(cross) > 1e-9 * max(1.0, math.dist(a, b) * math.dist(b, c)):
+            out.append(b)
+    return out + points[-1:] if len(points) > 1 else out
+
+
+def route_graph(
+    obstacles: tuple[Obstacle, ...], clearance_m: float, lanes: tuple[LaneShape, ...] = ()
+) -> RouteGraph:
+    """The route graph robots are routed on: the free space's roadmap
+    (:func:`~fleet.core.planner.roadmap.roadmap_of`), along ``lanes`` when there are any."""
+    if not lanes:
+        return roadmap_of(obstacles, clearance_m)
+    return _lane_map(obstacles, clearance_m, lanes)
+
+
+@functools.lru_cache(maxsize=8)
+def _lane_map(
+    obstacles: tuple[Obstacle, ...], clearance_m: float, lanes: tuple[LaneShape, ...]
+) -> LaneMap:
+    return LaneMap(roadmap_of(obstacles, clearance_m), lanes)
+
+
+__all__ = ["LaneMap", "LaneShape", "RouteGraph", "route_graph"]

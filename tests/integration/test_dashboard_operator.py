@@ -8,6 +8,7 @@ serve the module; every test opens its own page and leaves the fleet released an
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,6 +16,8 @@ from typing import TYPE_CHECKING
 
 import pytest
 from chromium import Console, Fleet, console_page, served_fleet
+
+from fleet.core.geometry import segments_distance
 
 if TYPE_CHECKING:
     from playwright.sync_api import Browser, Page
@@ -186,10 +189,19 @@ def test_a_task_behind_a_wall_drives_its_route_and_the_map_draws_it(
                 task_id = created.json()["id"]
                 break
         assert task_id is not None, "no direction with a valid goal"
+        browser_page.wait_for_function(  # planned: the task's route reached the page
+            "id => window.__parkfleet.tasks().some(t => t.id === id && t.route.length > 0)",
+            arg=task_id,
+            timeout=WAIT_MS,
+        )
         browser_page.wait_for_function("window.__parkfleet.drawn.routes >= 1", timeout=WAIT_MS)
         route = fleet.http.get(f"/tasks/{task_id}").json()["route"]
         assert route, "the wall is in the way: the task goes round it"
-        assert max(abs((p["x"] - x) * dy - (p["y"] - y) * dx) for p in route) > 1.5  # an end
+        way = [(x, y), *((p["x"], p["y"]) for p in route), (goal["x"], goal["y"])]
+        ends = ((wall["x"], wall["y"]), tuple(wall["end"]))
+        # round the wall (by one of its ends, or along the site's lanes): no leg comes
+        # within a robot's radius of its body
+        assert min(segments_distance(a, b, *ends) for a, b in itertools.pairwise(way)) > 0.25
         browser_page.wait_for_function(
             f"window.__parkfleet.tasks().find(t => t.id === '{task_id}').status === 'succeeded'",
             timeout=4 * WAIT_MS,

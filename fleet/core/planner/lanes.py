@@ -7,11 +7,16 @@ a site has lanes, a robot's route (:meth:`LaneMap.route`) is:
 * from where it stands to a point of a lane it sees (its straight way there keeps the
   clearance it has, :meth:`fleet.core.planner.roadmap.Roadmap.sees`; lanes are taken in
   steps of ``LANE_STEP_M``, so a robot gets on and off near where it is), along the lanes --
-  with their direction -- to a lane point the pre-bay point sees, then the pre-bay point
+  with their direction (at least one step of a one-way lane, so none is crossed against its
+  flow) -- to a lane point the pre-bay point sees, then the pre-bay point
   (``approach_m`` in front of the bay) and the paper's law for the last leg; the shortest
   such way (metres driven), its via-points where it turns, gets on or gets off;
 * straight to its goal when that way is clear and the goal is nearer than the lane point
-  it would get on at (the lanes would lead it away);
+  it would get on at (the lanes would lead it away). Otherwise the lanes are the way, also
+  when they lead round (a lane a wall was put across is cut there): that is what lanes
+  are for;
+* a lane step that an obstacle now blocks (a wall put across it with ``PUT /obstacles``)
+  is no way;
 * where the lanes give no way (a bay no lane point sees, a robot off every lane), the free
   space's route graph's way (:mod:`fleet.core.planner.roadmap`), so a lane map never makes
   a reachable bay unreachable.
@@ -30,6 +35,7 @@ from typing import Protocol
 import networkx as nx
 import numpy as np
 
+from fleet.core.planner.config import PlannerConfig
 from fleet.core.planner.roadmap import Point, Roadmap, roadmap_of
 from fleet.core.route import LaneShape
 from fleet.core.types import BoolArray, FloatArray
@@ -68,7 +74,12 @@ class LaneMap:
                 nodes.append(p)
             return index[key]
 
+        # the clearance a site's lane must keep (fleet.core.site): the route's, less its slack
+        keep = max(0.0, roadmap.clearance_m - PlannerConfig().route_slack_m)
+
         def leg(a: int, b: int) -> None:
+            if not roadmap.clear(nodes[a], nodes[b], keep):
+                return  # an obstacle put across the lane since (PUT /obstacles): not a way
             length = math.dist(nodes[a], nodes[b])
             graph.add_edge((a, 0), (b, 1), length=length)
             graph.add_edge((a, 1), (b, 1), length=length)
@@ -79,6 +90,9 @@ class LaneMap:
                 leg(a, b)
                 if not lane.one_way:
                     leg(b, a)
+            if not lane.one_way:  # a two-way lane's point may be touched and left at once
+                for a in ids:
+                    graph.add_edge((a, 0), (a, 1), length=0.0)
         self.nodes: FloatArray = np.array(nodes, dtype=np.float64).reshape(-1, 2)
         self.graph = graph
 
@@ -109,9 +123,10 @@ class LaneMap:
         return free
 
     def _along(self, s: Point, t: Point) -> tuple[Point, ...] | None:
-        """The lane points [m] of the shortest way from ``s`` onto the lanes, along at least
-        one leg of them (in its direction: a one-way lane is never crossed against it by
-        getting on and off at one point), and off them to ``t`` (both excluded), or None."""
+        """The lane points [m] of the shortest way from ``s`` onto the lanes, along them (in
+        their direction: a one-way lane only after at least one step along it, so it is
+        never crossed against its flow by touching one point; a two-way lane's point may
+        be touched and left), and off them to ``t`` (both excluded), or None."""
         if len(self.nodes) == 0:
             return None
         on: BoolArray = self.roadmap.sees(s, self.nodes)
@@ -127,7 +142,11 @@ class LaneMap:
             path = nx.dijkstra_path(graph, _SOURCE, _SINK, weight="length")
         except nx.NetworkXNoPath:
             return None
-        points = [(float(self.nodes[n, 0]), float(self.nodes[n, 1])) for n, _ in path[1:-1]]
+        points: list[Point] = []
+        for n, _ in path[1:-1]:  # a point touched and left at once is one via-point
+            p = (float(self.nodes[n, 0]), float(self.nodes[n, 1]))
+            if not points or points[-1] != p:
+                points.append(p)
         return tuple(_turns(points))
 
 

@@ -81,3 +81,15 @@ def test_the_planner_sends_the_lanes_way() -> None:
     )
     (decision,) = plan(snapshot).decisions
     assert decision.route and all(x > 3.9 for x, _ in decision.route[:-1])
+
+
+def test_a_wall_put_across_a_lane_closes_it() -> None:
+    lane = [Lane(points=[(-4, -2), (-4, 2)]), Lane(points=[(4, -2), (4, 2)])]
+    lanes = lane_shapes([*lane, Lane(points=[(-4, -2), (4, -2)]), Lane(points=[(-4, 2), (4, 2)])])
+    start, goal = (0.0, -1.0), (0.0, 1.0, math.pi / 2)
+    east = route_graph(WALL, CLEARANCE, lanes).route(start, goal, 1.0)
+    assert east is not None
+    side = 1.0 if max(x for x, _ in east) > 3.9 else -1.0
+    block = Wall(points=[(side * 3.0, 0.0), (side * 5.0, 0.0)], body=0.05).segments()
+    other = route_graph((*WALL, *block), CLEARANCE, lanes).route(start, goal, 1.0)
+    assert other is not None and all(x * side < 0 for x, _ in other if abs(x) > 3.9)

@@ -30,7 +30,7 @@ import uvicorn
 from fastapi import FastAPI
 
 from api.app import create_app
-from fleet.io.heap import limit_arenas
+from fleet.io.heap import freeze_startup_heap, limit_arenas
 from fleet.io.settings import Settings
 from fleet.service.store_open import check_store
 
@@ -102,6 +102,8 @@ class _Server(uvicorn.Server):
 
     async def startup(self, sockets: list[socket.socket] | None = None) -> None:
         await super().startup(sockets)
+        if self.started:  # the fleet is open: what lives now, lives as long as the server
+            _log.debug("%d objects exempt from collection", freeze_startup_heap())
         if self.started and self._on_ready is not None:
             await self._on_ready(
                 Running(self._app, self._url, list(self._app.state.zenoh_locators))

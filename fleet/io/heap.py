@@ -19,7 +19,7 @@ both do nothing.
 Python's own collector is the other half: a full (generation 2) collection walks every
 container object alive, and stops every thread while it does -- a server that has imported
 numba, scipy, pydantic and FastAPI holds some 260 000 of them before its first request, and
-``bench api`` measured its full collections at 250-450 ms each (most of the 99th
+``bench api`` measured its full collections at 250-620 ms each (most of the 99th
 percentile of ``POST /tasks``; one every second or two under load). :func:`freeze_startup_heap`,
 called once the server is up, moves everything alive then out of the collector's reach
 (``gc.freeze``); what the requests and the fleet make afterwards is collected as before.

@@ -6,6 +6,12 @@
 * SIGINT / SIGTERM stop the server gracefully: open event streams are ended first, then
   in-flight requests finish, then the lifespan closes the fleet service, the store and the
   Zenoh session. The process then exits 0 (a second Ctrl-C forces the exit).
+* The event loop is uvloop's (:func:`run_loop`) and uvicorn parses HTTP with httptools
+  (its ``http="auto"`` picks it when installed; the ``server`` extra brings both): the
+  requests' Python work shares one GIL with the Zenoh callbacks and the service's threads,
+  and a request costs less CPU there than on asyncio's loop and h11 (``bench api``:
+  docs/benchmarks.md). Without them (a platform uvloop does not support) it runs on
+  asyncio's loop and h11, as before.
 """
 
 from __future__ import annotations
@@ -15,19 +21,22 @@ import ipaddress
 import logging
 import signal
 import socket
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass, field
 from types import FrameType
+from typing import Any, TypeVar
 
 import uvicorn
 from fastapi import FastAPI
 
 from api.app import create_app
-from fleet.io.heap import limit_arenas
+from fleet.io.heap import freeze_startup_heap, limit_arenas
 from fleet.io.settings import Settings
 from fleet.service.store_open import check_store
 
 _log = logging.getLogger(__name__)
+
+_T = TypeVar("_T")
 
 
 def is_loopback(host: str) -> bool:
@@ -93,6 +102,8 @@ class _Server(uvicorn.Server):
 
     async def startup(self, sockets: list[socket.socket] | None = None) -> None:
         await super().startup(sockets)
+        if self.started:  # the fleet is open: what lives now, lives as long as the server
+            _log.debug("%d objects exempt from collection", freeze_startup_heap())
         if self.started and self._on_ready is not None:
             await self._on_ready(
                 Running(self._app, self._url, list(self._app.state.zenoh_locators))
@@ -154,6 +165,22 @@ async def serve(
         sock.close()
 
 
+def _loop_factory() -> Callable[[], asyncio.AbstractEventLoop] | None:
+    """uvloop's event loop when installed, else None (asyncio's default)."""
+    try:
+        import uvloop
+    except ImportError:  # not on this platform: asyncio's loop
+        return None
+    return uvloop.new_event_loop
+
+
+def run_loop(main: Coroutine[Any, Any, _T]) -> _T:
+    """Run ``main`` (a server: :func:`serve`, the demo's) to the end on a fresh event loop,
+    uvloop's when installed (the module docstring), as ``asyncio.run`` does."""
+    with asyncio.Runner(loop_factory=_loop_factory()) as runner:
+        return runner.run(main)
+
+
 def run(settings: Settings, **kwargs: object) -> int:
     """``serve`` on a fresh event loop (the CLI's entry)."""
-    return asyncio.run(serve(settings, **kwargs))  # type: ignore[arg-type]
+    return run_loop(serve(settings, **kwargs))  # type: ignore[arg-type]

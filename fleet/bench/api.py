@@ -7,10 +7,16 @@ the service's state path, the planner and the dispatch all run while the request
 and robots drive off to park as tasks are assigned to them. ``concurrency`` clients post
 distinct goals 1.5 m apart (the yard is widened to 200 m x 200 m so thousands fit) and time
 each request from send to the 201.
-Client, server and robots share this machine, so their CPU is part of the numbers; the
-CPU of each (1.0 = one core) is reported. ``--robots 0`` gives the idle-server figure.
-``planners``: where the server plans -- ``thread`` or ``process`` (the default of
-``parkfleet serve``: ``Settings.planner_process``, fleet/service/planner_process.py); both: one
+Timing starts once the planner has made its first plans (after ``warmup`` untimed POSTs):
+a cold cache of compiled code (a fresh checkout) is compiled there, not in the figures;
+the plans made while timing are reported (a planner that never finished one would make
+the server look faster than it is).
+Client, server, its planner and the robots share this machine, so their CPU is part of the
+numbers; the CPU of each (1.0 = one core) is reported. The clients are aiohttp's (one
+connection each): ~0.25 ms of CPU a request here, where httpx's cost ~1.2 ms, CPU taken
+from the server on a 2-core machine. ``--robots 0`` gives the idle-server figure.
+``planners``: where the server plans -- ``process`` (the default, as ``parkfleet serve``'s:
+``Settings.planner_process``, fleet/service/planner_process.py) or ``thread``; both: one
 server each, one after the other in the same run, so their figures compare.
 """
 
@@ -29,6 +35,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import aiohttp
 import httpx
 from pydantic import BaseModel, computed_field
 
@@ -58,47 +65,67 @@ def goals(n: int, start: int = 0) -> list[dict[str, float]]:
     return out
 
 
+class Posted(BaseModel):
+    """What :func:`post_all` measured."""
+
+    latencies: list[float]  # [s], one per request, in completion order
+    statuses: dict[int, int]
+    wall_s: float
+    cpu_s: float  # of this process (the clients) while posting
+
+
 async def post_all(
     url: str, bodies: list[dict[str, Any]], concurrency: int, headers: dict[str, str]
-) -> tuple[list[float], dict[int, int], float]:
+) -> Posted:
     """POST every body from ``concurrency`` clients (one keep-alive connection each, so
-    they do not contend for one pool); latencies [s], status counts, wall time [s]."""
+    they do not contend for one pool)."""
     latencies: list[float] = []
     statuses: dict[int, int] = {}
     todo = iter(bodies)
 
-    async def worker(client: httpx.AsyncClient) -> None:
+    async def worker(client: aiohttp.ClientSession) -> None:
         for body in todo:
             t0 = time.perf_counter()
-            response = await client.post("/tasks", json=body, headers=headers)
+            async with client.post("/tasks", json=body, headers=headers) as response:
+                await response.read()
             latencies.append(time.perf_counter() - t0)
-            statuses[response.status_code] = statuses.get(response.status_code, 0) + 1
+            statuses[response.status] = statuses.get(response.status, 0) + 1
 
-    clients = [httpx.AsyncClient(base_url=url, timeout=30.0) for _ in range(concurrency)]
+    timeout = aiohttp.ClientTimeout(total=30.0)
+    clients = [
+        aiohttp.ClientSession(url, connector=aiohttp.TCPConnector(limit=1), timeout=timeout)
+        for _ in range(concurrency)
+    ]
     try:
         for client in clients:  # connect before the clock starts
-            await client.get("/healthz")
-        t0 = time.perf_counter()
+            async with client.get("/healthz") as response:
+                await response.read()
+        cpu0, t0 = time.process_time(), time.perf_counter()
         await asyncio.gather(*(worker(client) for client in clients))
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     finally:
         for client in clients:
-            await client.aclose()
-    return latencies, statuses, wall
+            await client.close()
+    return Posted(latencies=latencies, statuses=statuses, wall_s=wall, cpu_s=cpu)
 
 
 PLANNERS = ("thread", "process")
 
 
 class BenchResult(BaseModel):
-    planner: str = "thread"  # where the server planned (PLANNERS)
+    planner: str = "process"  # where the server planned (PLANNERS)
     requests: int
     concurrency: int
     robots: int
     robot_rate_hz: float
     robots_busy_at_end: int
-    cpu_server: float
+    cpu_server: float  # the server's process (its planner process is cpu_planner)
+    cpu_planner: float = 0.0
     cpu_robots: float
+    cpu_clients: float = 0.0
+    plans: int = 0  # plans the server made while timing
+    plan_p50_ms: float | None = None  # their latency (the server's window of recent plans)
+    load_average: float = 0.0  # the machine's 1-minute load average at the end
     created: int
     statuses: dict[str, int]
     wall_s: float
@@ -160,13 +187,42 @@ def _wait_for_robots(url: str, robots: int, timeout: float = 60.0) -> None:
             time.sleep(0.2)
 
 
+#: Plans the server must have made before the clock starts (robots assigned, then planned
+#: again under way: the first plans compile what a fresh checkout has not yet cached).
+WARM_PLANS = 2
+
+
+def _planner(url: str) -> dict[str, Any]:
+    with httpx.Client(base_url=url, timeout=10.0) as client:
+        stats: dict[str, Any] = client.get("/healthz").json()["planner"]
+    return stats
+
+
+def _wait_for_plans(url: str, plans: int, timeout: float = 600.0) -> None:
+    """Until the server made ``plans`` plans (compiling a cold cache can take minutes)."""
+    deadline = time.monotonic() + timeout
+    while _planner(url)["plans"] < plans:
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"the server made fewer than {plans} plans in {timeout:.0f} s")
+        time.sleep(0.5)
+
+
+def _planner_pid(server_pid: int) -> int | None:
+    """The server's planner process (the spawned child that is not multiprocessing's
+    resource tracker), if it plans in one."""
+    for child in Path(f"/proc/{server_pid}/task/{server_pid}/children").read_text().split():
+        if "resource_tracker" not in Path(f"/proc/{child}/cmdline").read_text():
+            return int(child)
+    return None
+
+
 def measure(
     requests: int = 3000,
     concurrency: int = 16,
     warmup: int = 200,
     robots: int = ROBOTS,
     rate: float = RATE_HZ,
-    planner: str = "thread",
+    planner: str = "process",
 ) -> BenchResult:
     """Start a server (planning on ``planner``) and its robots, warm up, then time
     ``requests`` POSTs."""
@@ -189,15 +245,22 @@ def measure(
     ):
         _wait_for_robots(server.url, robots)
         asyncio.run(post_all(server.url, bodies[:warmup], concurrency, headers))
-        pids = [server.process.pid] + ([robots_pid] if robots_pid is not None else [])
-        cpu0 = [cpu_seconds(pid) for pid in pids]
-        latencies, statuses, wall = asyncio.run(
-            post_all(server.url, bodies[warmup:], concurrency, headers)
-        )
-        cpu = [(cpu_seconds(pid) - c0) / wall for pid, c0 in zip(pids, cpu0, strict=True)]
+        if robots:
+            _wait_for_plans(server.url, WARM_PLANS)
+        planner_pid = _planner_pid(server.process.pid) if planner == "process" else None
+        pids = [server.process.pid, planner_pid, robots_pid]
+        cpu0 = [0.0 if pid is None else cpu_seconds(pid) for pid in pids]
+        plans0 = _planner(server.url)["plans"]
+        posted = asyncio.run(post_all(server.url, bodies[warmup:], concurrency, headers))
+        wall = posted.wall_s
+        cpu = [
+            0.0 if pid is None else (cpu_seconds(pid) - c0) / wall
+            for pid, c0 in zip(pids, cpu0, strict=True)
+        ]
+        after = _planner(server.url)
         with httpx.Client(base_url=server.url, timeout=10.0) as client:
             busy = sum(r["task_id"] is not None for r in client.get("/robots").json())
-    latencies.sort()
+    latencies, statuses = sorted(posted.latencies), posted.statuses
     q = statistics.quantiles(latencies, n=100, method="inclusive")
     created = statuses.get(201, 0)
     return BenchResult(
@@ -208,7 +271,12 @@ def measure(
         robot_rate_hz=rate,
         robots_busy_at_end=busy,
         cpu_server=cpu[0],
-        cpu_robots=cpu[1] if len(cpu) > 1 else 0.0,
+        cpu_planner=cpu[1],
+        cpu_robots=cpu[2],
+        cpu_clients=posted.cpu_s / wall,
+        plans=after["plans"] - plans0,
+        plan_p50_ms=after["p50_ms"],
+        load_average=os.getloadavg()[0],
         created=created,
         statuses={str(k): v for k, v in sorted(statuses.items())},
         wall_s=wall,
@@ -225,7 +293,7 @@ def run(
     as_json: bool = False,
     robots: int = ROBOTS,
     rate: float = RATE_HZ,
-    planners: Sequence[str] = ("thread",),
+    planners: Sequence[str] = ("process",),
 ) -> int:
     if requests < 2 or concurrency < 1 or robots < 0:
         raise ValueError(
@@ -255,10 +323,15 @@ def run(
             f"  latency     p50 {r.p50_ms:.1f} ms   p99 {r.p99_ms:.1f} ms   max {r.max_ms:.1f} ms"
             f"  (target p99 < {TARGET_P99_MS:.0f} ms: ratio {r.p99_ms / TARGET_P99_MS:.2f})"
         )
+        planner_cpu = f", its planner {r.cpu_planner:.2f}" if r.planner == "process" else ""
         print(
-            f"  load        CPU server {r.cpu_server:.2f}, robots {r.cpu_robots:.2f} cores; "
-            f"{r.robots_busy_at_end} of {robots} robots on a task at the end"
+            f"  load        CPU server {r.cpu_server:.2f}{planner_cpu}, robots "
+            f"{r.cpu_robots:.2f}, clients {r.cpu_clients:.2f} cores (of {os.cpu_count()}; "
+            f"load average {r.load_average:.1f}); {r.robots_busy_at_end} of {robots} robots "
+            "on a task at the end"
         )
+        p50 = "-" if r.plan_p50_ms is None else f"{r.plan_p50_ms:.0f} ms"
+        print(f"  planner     {r.plans} plans while timing (p50 {p50})")
         print(f"  target met: {'yes' if r.meets_target else 'no'}")
     if len(results) == 2:
         a, b = results

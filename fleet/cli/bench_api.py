@@ -27,9 +27,9 @@ def register(commands: Any, bench: Any) -> None:
     b.add_argument(
         "--planner",
         choices=("thread", "process", "both"),
-        default="thread",
-        help="where the server plans: on a thread, in its own process (planner_process, "
-        "serve's default), or both, one server after the other (default thread)",
+        default="process",
+        help="where the server plans: in its own process (planner_process, the default, as "
+        "serve's), on a thread, or both, one server after the other (default process)",
     )
     b.set_defaults(func=run)
 

@@ -180,4 +180,6 @@ def run(args: argparse.Namespace) -> int:
     options = DemoOptions(
         robots=args.robots, time_scale=args.time_scale, spawn=args.spawn, seed=args.seed
     )
-    return asyncio.run(serve_demo(settings, options))
+    from api.server import run_loop
+
+    return run_loop(serve_demo(settings, options))

@@ -43,6 +43,7 @@ EXTRA_OF: dict[str, str] = {
     "uvicorn": "server",
     "prometheus_client": "server",
     "httpx": "bench",
+    "aiohttp": "bench",
     "scipy": "server",
     "matplotlib": "bench",
     "navground": "bench",

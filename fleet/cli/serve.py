@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import asyncio
 from pathlib import Path
 from typing import Any
 
@@ -50,4 +49,4 @@ def run_serve(args: argparse.Namespace) -> int:
             flush=True,
         )
 
-    return asyncio.run(server.serve(settings, on_ready=ready, access_log=args.verbose > 0))
+    return server.run_loop(server.serve(settings, on_ready=ready, access_log=args.verbose > 0))

@@ -16,6 +16,7 @@ from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 from fleet.core.params import RobotProfile
+from fleet.core.planner.assign import plannable
 from fleet.core.planner.model import PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.route import lane_shapes
 from fleet.core.tasks import RobotStatus, Task, TaskStatus
@@ -106,7 +107,10 @@ def planning_input(
     zones: Sequence[ZoneShape] = (),
     zone_holders: Mapping[str, Mapping[str, ZonePass | None]] | None = None,
 ) -> PlanInput:
-    """The planner's snapshot (robots sorted by id, tasks oldest first). ``held``: robots an
+    """The planner's snapshot (robots sorted by id, tasks oldest first): the tasks under
+    way and, of the queued ones, those a plan may pair with the available robots
+    (:func:`~fleet.core.planner.assign.plannable`: as many as there are robots to take
+    them, not the thousands a burst may queue; the plan is the same). ``held``: robots an
     operator holds still (their tasks stand, ``hold``); ``avoided``: queued task -> the
     stuck robot it was taken from; ``acknowledged_s``: task under way -> how long ago [s,
     monotonic] its robot first reported the current revision (so the planner knows how much
@@ -114,6 +118,12 @@ def planning_input(
     stuck recovery chose (the planner may only use it); ``zones``: the single-robot zones,
     ``zone_holders``: zone -> robot -> its pass, the robots holding each."""
     hz = settings.control_rate_hz
+    available = {r.state.robot_id for r in robots if r.available}
+    queued = [t for t in tasks if t.status is TaskStatus.QUEUED]
+    tasks = [t for t in tasks if t.status is not TaskStatus.QUEUED]
+    if available and queued:
+        queued.sort(key=lambda t: t.created_at)
+        tasks += plannable(queued, available, lambda t: t.request.robot_id)
     running = {tid: ago * time_scale for tid, ago in (acknowledged_s or {}).items()}
     robot_snaps = []
     origins: dict[str, float] = {}

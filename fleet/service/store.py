@@ -435,7 +435,7 @@ class SqliteTaskStore:
             if db.execute("SELECT 1 FROM tasks WHERE id = ?", (task.id,)).fetchone():
                 raise ValueError(f"task {task.id} already exists")
             self._upsert(db, task, idempotency_key, "created")
-            return task.model_copy(deep=True)
+            return task  # as written (no copy: a transition makes a new Task, none is changed)
 
         return self._write(insert)
 

@@ -26,6 +26,7 @@ async def test_submit_returns_201_with_the_stored_task(client: httpx.AsyncClient
         "/tasks", json={"goal": {"x": 1.5, "y": -2.0, "theta": 0.5}, "direction": "cw"}
     )
     assert r.status_code == 201
+    assert r.headers["content-type"] == "application/json"
     task = r.json()
     assert task["status"] == "queued"
     assert task["goal"] == {"x": 1.5, "y": -2.0, "theta": 0.5}

@@ -13,6 +13,9 @@ from a stuck robot (``TaskSnapshot.avoid_robot``) avoids that robot the same way
 
 from __future__ import annotations
 
+from collections.abc import Callable, Collection, Iterable
+from typing import TypeVar
+
 import numpy as np
 
 from fleet.core.assignment import TaskSpec, optimal_assignment, predicted_times
@@ -24,6 +27,34 @@ from fleet.core.types import LAWS, BoolArray
 
 #: [s] added to the predicted time of a blocked pair (see the module docstring).
 BLOCKED_S = 300.0
+
+_Queued = TypeVar("_Queued")
+
+
+def plannable(
+    queued: Iterable[_Queued], available: Collection[str], named: Callable[[_Queued], str | None]
+) -> list[_Queued]:
+    """The queued tasks a plan may pair with robots, from ``queued`` oldest first (in that
+    order): for each robot in ``available`` the oldest task that names it, and the
+    ``len(available)`` oldest that name none (``named``: the robot a task names, or None).
+    :func:`pair_queued` pairs no other task, so a snapshot without the others plans the
+    same (the fleet service leaves them out: thousands queued by a burst cost more to copy
+    to the planner than the plan)."""
+    free = set(available)
+    unnamed = len(free)
+    out: list[_Queued] = []
+    for task in queued:
+        if not free and not unnamed:
+            break
+        rid = named(task)
+        if rid is None:
+            if unnamed:
+                out.append(task)
+                unnamed -= 1
+        elif rid in free:
+            free.remove(rid)
+            out.append(task)
+    return out
 
 
 def _blocked(
@@ -62,10 +93,15 @@ def pair_queued(
 ) -> list[tuple[TaskSnapshot, RobotSnapshot]]:
     """(task, robot) pairs for the queued tasks of ``snapshot`` (oldest tasks first);
     unnamed tasks avoid the (task id, robot id) pairs in ``avoid`` if they can."""
-    queued = sorted(
-        (t for t in snapshot.tasks if t.status == TaskStatus.QUEUED), key=lambda t: t.created_at
-    )
     available = {r.robot_id: r for r in snapshot.robots if r.available}
+    queued = plannable(
+        sorted(
+            (t for t in snapshot.tasks if t.status == TaskStatus.QUEUED),
+            key=lambda t: t.created_at,
+        ),
+        available,
+        lambda t: t.named_robot,
+    )
     pairs: list[tuple[TaskSnapshot, RobotSnapshot]] = []
     for task in queued:
         rid = task.named_robot
@@ -101,4 +137,4 @@ def pair_queued(
     return pairs
 
 
-__all__ = ["pair_queued"]
+__all__ = ["pair_queued", "plannable"]

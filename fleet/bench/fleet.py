@@ -59,6 +59,7 @@ from fleet.bench.peers import (
 )
 from fleet.bench.plots import plot_run
 from fleet.bench.scenarios import Scenario, random_yard, swap
+from fleet.bench.zone_floor import zone_floor
 from fleet.core.params import Avoidance, SafetyConfig
 from fleet.core.tasks import (
     Direction,
@@ -131,6 +132,9 @@ class FleetBenchRow(BaseModel):
     planning_sim_s: float | None = None  # every plan's wall time x the time scale [sim s]
     time_scale: float | None = None  # simulated s per wall s of the run (fleet policies)
     disturbance_seed: int = 0  # which of the scenario's disturbance sets (scenario_seed)
+    #: the largest sum over robots of the time each, alone, spends in one single-robot zone
+    #: [sim s]: the floor one-at-a-time zones put under the makespan (zone_floor.py)
+    zone_solo_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -579,9 +583,11 @@ def run_fleet_bench(
     peer_runs = [r for r in runs if r[2] not in FLEET_POLICIES]
     done: dict[tuple[int, str], FleetBenchRow] = {}
 
+    floors = {s.name: zone_floor(s, options.settings) for s in scenarios}
+
     def finish(k: int, scenario: Scenario, policy: str, outcome: Outcome) -> None:
         row = make_row(scenario, policy, outcome).model_copy(
-            update={"disturbance_seed": cases[k][1]}
+            update={"disturbance_seed": cases[k][1], "zone_solo_s": floors[scenario.name]}
         )
         if options.plots is not None:
             name = f"{scenario.name}--{policy}{f'--d{cases[k][1]}' if cases[k][1] else ''}.png"

@@ -140,6 +140,7 @@ def format_row(done: int, total: int, row: FleetBenchRow) -> str:
         f"{row.makespan_s:>8.1f} {_fmt(row.path_ratio, '.2f'):>5} {row.deadlocks:>4} "
         f"{row.obstacle_hits:>4} {plan:>15} {smooth:>9} {_fmt(row.plan_wait_s, '.1f'):>6} "
         f"{row.wall_s:>6.0f}"
+        + ("" if row.zone_solo_s is None else f"  (zones one at a time: {row.zone_solo_s:.0f} s)")
     )
 
 

@@ -5,6 +5,12 @@
 sharing a session (``sim_agent.fleet``): every state is decoded once instead of once per
 agent. Peers are never forgotten: a robot whose state stops arriving stays an obstacle at
 its last pose.
+
+Each peer is kept with its last measured pose and, when its state carried one, the pose it
+predicted for itself (``RobotState.ahead``): :meth:`WorldView.peer_bodies` shows the safety
+filter every peer there, with the radius of :func:`robot_agent.prediction.peer_spread`
+(until it has been silent ``peer_stale_s``: then, as a peer without a prediction, around
+its measured pose with :meth:`~fleet.core.params.SafetyConfig.peer_spread`).
 """
 
 from __future__ import annotations
@@ -17,8 +23,10 @@ import numpy as np
 
 from fleet.core.params import SafetyConfig
 from fleet.core.types import FloatArray
-from fleet.core.wire import Obstacle, ObstacleSet, RobotState
+from fleet.core.wire import Ahead, Obstacle, ObstacleSet, RobotState
+from robot_agent.latency import LatencyWindow
 from robot_agent.logic import obstacle_arrays
+from robot_agent.prediction import measured_spread, peer_spread
 
 
 class WorldView:
@@ -35,7 +43,9 @@ class WorldView:
         self._obstacles: list[Obstacle] = []
         self._obstacle_arrays: FloatArray = obstacle_arrays([])
         self._rows: dict[str, int] = {}  # robot id -> row of _positions
+        self._ids: list[str] = []  # robot id of each row
         self._positions: FloatArray = np.zeros((16, self._COLUMNS))
+        self._ahead: dict[str, tuple[Ahead, float]] = {}  # robot id -> (prediction, heard [s])
 
     def update_state(self, state: RobotState, age_s: float = 0.0) -> None:
         """Keep the newest state of a robot (by ``seq``, so reordering cannot roll back);
@@ -49,6 +59,10 @@ class WorldView:
             self._set_row(
                 state.robot_id, (p.x, p.y, p.theta, state.radius, abs(state.u)), max(age_s, 0.0)
             )
+            if state.ahead is None:
+                self._ahead.pop(state.robot_id, None)
+            else:
+                self._ahead[state.robot_id] = (state.ahead, self._clock() - max(age_s, 0.0))
 
     def update_position(self, robot_id: str, x: float, y: float, theta: float) -> None:
         """A robot's posture as its agent on this session just measured it, before its
@@ -64,6 +78,7 @@ class WorldView:
         row = self._rows.get(robot_id)
         if row is None:
             row = self._rows[robot_id] = len(self._rows)
+            self._ids.append(robot_id)
             if row >= self._positions.shape[0]:
                 self._positions = np.concatenate([self._positions, np.zeros_like(self._positions)])
         self._positions[row, :5] = values
@@ -86,28 +101,54 @@ class WorldView:
 
     def peer_positions(self, exclude: str) -> FloatArray:
         """Last known centres (M, 2) [m] of every robot except ``exclude``."""
-        return self._peer_rows(exclude)[:, :2].copy()
+        return self._peer_rows(exclude)[0][:, :2].copy()
 
-    def _peer_rows(self, exclude: str) -> FloatArray:
+    def _peer_rows(self, exclude: str) -> tuple[FloatArray, list[tuple[Ahead, float] | None]]:
+        """Rows of every robot but ``exclude`` and their predictions (with heard times)."""
         with self._lock:
             n = len(self._rows)
+            ids = list(self._ids)
             own = self._rows.get(exclude)
-            if own is None:
-                return self._positions[:n].copy()
-            return np.delete(self._positions[:n], own, axis=0)
+            rows = self._positions[:n].copy()
+            if own is not None:
+                rows = np.delete(rows, own, axis=0)
+                del ids[own]
+            return rows, [self._ahead.get(robot) for robot in ids]
 
     def peer_bodies(
-        self, exclude: str, safety: SafetyConfig, default_radius: float
+        self,
+        exclude: str,
+        safety: SafetyConfig,
+        default_radius: float,
+        window: LatencyWindow | None = None,
     ) -> tuple[FloatArray, FloatArray]:
         """Every robot but ``exclude`` as the safety filter sees it: postures (3, M) (x, y,
-        theta) and shapes (2, M) (body radius, spread [m], from its speed and silence:
-        :meth:`SafetyConfig.peer_spread`). A robot not yet described by a state (only
-        measured on this session) gets ``default_radius`` [m]."""
-        rows = self._peer_rows(exclude)
+        theta) and shapes (2, M) (body radius, spread [m]).
+
+        With ``window`` (this robot's latency window, its command about to be sent now),
+        a peer whose last state carried its prediction and that has not been silent
+        ``peer_stale_s`` is at that prediction with :func:`~robot_agent.prediction.peer_spread`,
+        or at its last measured pose with :func:`~robot_agent.prediction.measured_spread`,
+        whichever radius is smaller; any other (no prediction, no ``window``, or stale) at its last measured pose with
+        :meth:`SafetyConfig.peer_spread` of its speed and silence. A robot not yet described
+        by a state (only measured on this session) gets ``default_radius`` [m]."""
+        rows, predictions = self._peer_rows(exclude)
         now = self._clock()
+        postures = np.ascontiguousarray(rows[:, :3].T)
         shapes = np.empty((2, rows.shape[0]))
         for k in range(rows.shape[0]):
             radius, speed, heard = rows[k, 3], rows[k, 4], rows[k, 5]
             shapes[0, k] = radius if radius > 0.0 else default_radius
+            prediction = predictions[k]
+            if window is not None and prediction is not None:
+                ahead, heard_at = prediction
+                if now - heard_at <= safety.peer_stale_s:
+                    predicted = peer_spread(ahead, heard_at, now, window, safety)
+                    measured = measured_spread(ahead, heard_at, float(heard), now, window, safety)
+                    if predicted < measured:
+                        postures[0, k], postures[1, k] = ahead.x, ahead.y
+                        postures[2, k] = ahead.theta
+                    shapes[1, k] = min(predicted, measured)
+                    continue
             shapes[1, k] = safety.peer_spread(float(speed), now - float(heard))
-        return np.ascontiguousarray(rows[:, :3].T), shapes
+        return postures, shapes

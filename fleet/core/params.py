@@ -65,17 +65,29 @@ class SafetyConfig(BaseModel):
     """The safety filter every robot runs each tick (docs/safety.md; ``fleet.core.step``).
 
     ``contact_margin_m`` [m]: no body is to come closer than this to another robot's or an
-    obstacle's body. The robot sees itself and each peer with an uncertainty (spread) that
-    assumes: command-to-wheel latency at most ``max_latency_s`` [s]; a peer's state
-    reaching the robot within ``link_delay_s`` [s] of its measurement; pose errors at most
-    ``pose_error_m`` [m]; speeds changing by at most ``max_accel_m_s2`` [m/s^2] (the
-    drive's acceleration limit); every robot running the filter; a robot silent to its
-    peers for ``peer_stale_s`` [s] has stopped (its agent holds when it has heard nothing
-    for its link timeout, which settings keep at most ``peer_stale_s``; its drive stops
-    when its agent dies). So a silent peer's spread grows with the silence for
-    ``peer_stale_s``, after which it is a standing obstacle at its last pose.
-    ``projection_m`` [m]: the point ahead of the axle (at most the half axle);
-    ``barrier_rate`` [1/s]: how fast a clearance may be used up.
+    obstacle's body. ``projection_m`` [m]: the point ahead of the axle (at most the half
+    axle); ``barrier_rate`` [1/s]: how fast a clearance may be used up.
+
+    The robot decides on its pose predicted for the instant its command acts
+    (:mod:`robot_agent.prediction`) and sees each peer around the pose that peer predicted
+    for itself, each with an uncertainty (spread) that assumes:
+
+    * command-to-wheel latency within the window the robot measures
+      (:mod:`robot_agent.latency`), or within [0, ``max_latency_s``] [s] before it has
+      measured one (a measured latency above ``max_latency_s`` is reported, fault
+      ``latency_exceeded``, and used);
+    * a peer's state reaches the robot within ``link_delay_s`` [s] of being sent (its age is
+      taken from the time it arrived: no clock synchronisation is assumed);
+    * position errors of a measured pose at most ``pose_error_m`` [m], heading errors at
+      most ``heading_error_rad`` [rad];
+    * each wheel turning at its commanded speed within a relative ``actuation_error``;
+    * no wheel's rim speed rising faster than ``max_accel_m_s2`` [m/s^2] (every agent caps
+      its commands' speed-ups so; braking and turning away are not limited);
+    * every robot running the filter; a robot silent to its peers for ``peer_stale_s`` [s]
+      has stopped (its agent holds when it has heard nothing for its link timeout, which
+      settings keep at most ``peer_stale_s``; its drive stops when its agent dies): a peer's
+      spread grows with its silence for ``peer_stale_s``, after which it is a standing
+      obstacle at its last pose.
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -89,6 +101,8 @@ class SafetyConfig(BaseModel):
     pose_error_m: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.02
     max_accel_m_s2: Annotated[float, Field(gt=0.0, le=100.0, allow_inf_nan=False)] = 1.0
     peer_stale_s: Annotated[float, Field(gt=0.0, le=60.0, allow_inf_nan=False)] = 3.0
+    heading_error_rad: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.02
+    actuation_error: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.1
 
     def filter_terms(self, spread: float) -> tuple[float, float, float, float]:
         """The compiled step's filter parameters (``fleet.core.step.Safety``: margin,

@@ -139,8 +139,10 @@ class OwnPrediction:
     tv_omega: float
     wheel: float
     rim: float
+    turn: float
     horizon: float
     path: float
+    period: float
 
     def ahead(
         self, right: float, left: float, profile: RobotProfile, safety: SafetyConfig, lead: float
@@ -155,8 +157,12 @@ class OwnPrediction:
         tv_u = self.tv_u + abs(u - u0)
         tv_omega = self.tv_omega + abs(omega - omega0)
         wheel = max(self.wheel, _wheel_speed(right, left, r))
+        turn = max(self.turn, abs(u * omega))
         delta = self.window.half_width
-        heading, centre = _errors(safety, b, delta, tv_u, tv_omega, wheel * self.horizon, self.path)
+        heading, centre = _errors(
+            safety, b, delta, tv_u, tv_omega, wheel * self.horizon, self.path,
+            self.period * self.horizon * turn,
+        )  # fmt: skip
         return Ahead(
             x=self.pose[0],
             y=self.pose[1],
@@ -170,15 +176,15 @@ class OwnPrediction:
 
 def _errors(
     safety: SafetyConfig, half_axle: float, delta: float, tv_u: float, tv_omega: float,
-    wheel_path: float, path: float,
+    wheel_path: float, path: float, euler: float,
 ) -> tuple[float, float]:  # fmt: skip
     """(heading [rad], centre [m]) error bounds of a prediction (docs/safety.md): switches
     mistimed by up to ``delta`` [s] (total variations ``tv_u``, ``tv_omega``), the wheels'
-    relative actuation error over ``wheel_path`` [m], and the heading error rotating the
-    centre's ``path`` [m]."""
+    relative actuation error over ``wheel_path`` [m], the heading error rotating the
+    centre's ``path`` [m], and ``euler`` [m] for the Euler steps against the true arcs."""
     e = safety.actuation_error
     heading = safety.heading_error_rad + delta * tv_omega + e * wheel_path / half_axle
-    centre = safety.pose_error_m + delta * tv_u + e * wheel_path + heading * path
+    centre = safety.pose_error_m + delta * tv_u + e * wheel_path + heading * path + euler
     return heading, centre
 
 
@@ -233,17 +239,22 @@ def predict_own(
 
     # What it cannot know (docs/safety.md): switches mistimed by up to delta, the wheels'
     # actuation error over the wheel path, the heading errors rotating the rest of the way.
-    tv_u = tv_omega = wheel = rim = 0.0
+    tv_u = tv_omega = wheel = rim = turn = 0.0
+    u0 = omega0 = 0.0
     for k, sent in enumerate(commands):
         wheel = max(wheel, _wheel_speed(sent.right, sent.left, r))
         rim = max(rim, r * max(abs(sent.right), abs(sent.left)))
+        u, omega = body_velocities(sent.right, sent.left, r, b)
+        turn = max(turn, abs(u * omega))
         if k > 0:
-            u, omega = body_velocities(sent.right, sent.left, r, b)
-            u0, omega0 = body_velocities(commands[k - 1].right, commands[k - 1].left, r, b)
             tv_u += abs(u - u0)
             tv_omega += abs(omega - omega0)
+        u0, omega0 = u, omega
     horizon = t_hi - start
-    heading, centre = _errors(safety, b, delta, tv_u, tv_omega, wheel * horizon, path)
+    # An Euler step of h on an arc errs by at most |u omega| h^2 / 2 in position: the two
+    # step sequences (prediction, truth) differ by at most h |u omega| per unit of time.
+    euler = period * horizon * turn
+    heading, centre = _errors(safety, b, delta, tv_u, tv_omega, wheel * horizon, path, euler)
     return OwnPrediction(
         pose=(x, y, theta),
         at=t_nom,
@@ -254,8 +265,10 @@ def predict_own(
         tv_omega=tv_omega,
         wheel=wheel,
         rim=rim,
+        turn=turn,
         horizon=horizon,
         path=path,
+        period=period,
     )
 
 

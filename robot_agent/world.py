@@ -129,9 +129,10 @@ class WorldView:
         a peer whose last state carried its prediction and that has not been silent
         ``peer_stale_s`` is at that prediction with :func:`~robot_agent.prediction.peer_spread`,
         or at its last measured pose with :func:`~robot_agent.prediction.measured_spread`,
-        whichever radius is smaller; any other (no prediction, no ``window``, or stale) at its last measured pose with
-        :meth:`SafetyConfig.peer_spread` of its speed and silence. A robot not yet described
-        by a state (only measured on this session) gets ``default_radius`` [m]."""
+        whichever radius is smaller; any other (no prediction, no ``window``, or stale) at
+        its last measured pose with :meth:`SafetyConfig.peer_spread` of its speed and
+        silence. A robot not yet described by a state (only measured on this session) gets
+        ``default_radius`` [m]."""
         rows, predictions = self._peer_rows(exclude)
         now = self._clock()
         postures = np.ascontiguousarray(rows[:, :3].T)

@@ -53,6 +53,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from fleet.core.step import body_velocities
 from fleet.core.wire import (
     CancelAssignment,
     ControlCommand,
@@ -82,7 +83,7 @@ from robot_agent.logic import (
     decide,
 )
 from robot_agent.operator import OperatorLatch
-from robot_agent.prediction import CommandLog, OwnPrediction, predict_own
+from robot_agent.prediction import CommandLog, OwnPrediction, point_speed, predict_own
 from robot_agent.state_streams import StateStreams
 from robot_agent.world import WorldView
 from robot_agent.world_feed import WorldFeed
@@ -169,7 +170,7 @@ class RobotAgent:
             tolerance=2.0 * safety.actuation_error,  # a match: within twice the bound
             resolution_s=2 * self.period,
         )
-        self._last_rim = 0.0  # [m/s] fastest wheel rim speed of the last command sent
+        self._last_speed = 0.0  # [m/s] point_speed of the last command sent
         self._reading: tuple[Pose, float, float] | None = None  # sensed (pose, stamp, now)
         self._failure: tuple[str, str] | None = None  # (phase, message) of a failed sense
         self.tick_errors = 0
@@ -357,10 +358,10 @@ class RobotAgent:
                         mode=RobotMode.HOLDING, task=decision.task, detail=drive_faults[0][1]
                     )
                 self._task = decision.task
-                # No wheel speeds up faster than max_accel_m_s2 (what peers assume of it):
-                # by a control period's worth per command.
-                rim_limit = self._last_rim + safety.max_accel_m_s2 * self.period
-                decision = cap_speed_up(decision, rim_limit, profile.wheel_radius)
+                # No command's point speeds up faster than max_accel_m_s2 (what peers
+                # assume of it): by a control period's worth per command.
+                limit = self._last_speed + safety.max_accel_m_s2 * self.period
+                decision = cap_speed_up(decision, limit, profile.half_axle, safety)
                 phase = "drive_error"
                 release = getattr(self.drive, "release", None)
                 if decision.moving:
@@ -401,7 +402,9 @@ class RobotAgent:
         latency estimate, and for the next command's speed-up cap."""
         self.commands.add(at, right, left)
         self.latency.commanded(at, right, left)
-        self._last_rim = self.settings.profile.wheel_radius * max(abs(right), abs(left))
+        profile = self.settings.profile
+        u, omega = body_velocities(right, left, profile.wheel_radius, profile.half_axle)
+        self._last_speed = point_speed(u, omega, profile.half_axle, self.settings.safety)
 
     def _latency_fault(self, window: LatencyWindow) -> str | None:
         if not window.exceeded:

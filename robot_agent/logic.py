@@ -55,6 +55,7 @@ from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
 from fleet.core.route import route_table
 from fleet.core.types import FloatArray
 from fleet.core.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
+from robot_agent.prediction import point_speed
 
 #: Tolerance [s] on the end of a start delay (the batch simulator uses the same).
 DELAY_EPS = 1e-6
@@ -174,22 +175,24 @@ def filter_of(
     return step.Safety(*safety.filter_terms(spread))
 
 
-def cap_speed_up(result: TickResult, rim_limit: float, wheel_radius: float) -> TickResult:
+def cap_speed_up(
+    result: TickResult, limit: float, half_axle: float, safety: SafetyConfig
+) -> TickResult:
     """``result`` with its command scaled down (u, omega and both wheels by one factor in
-    [0, 1]: the path's curvature kept) so that its fastest wheel's rim speed
-    r max(|right|, |left|) is at most ``rim_limit`` [m/s].
+    [0, 1]: the path's curvature kept) so that its projected point's speed bound
+    (:func:`robot_agent.prediction.point_speed`) is at most ``limit`` [m/s].
 
-    The agent passes its last command's rim speed plus ``max_accel_m_s2`` times the time
-    since it: no wheel speeds up faster than that, which is what peers assume of it
-    (docs/safety.md). Braking is never limited. Scaling keeps the safety filter's
-    guarantee: a command the filter allows, scaled by s in [0, 1], closes every gap by at
-    most s times as much (when it opened one, by less opening), and its second-order terms
-    shrink by s^2.
+    The agent passes its last command's bound plus ``max_accel_m_s2`` times the control
+    period: no command's point speeds up faster than that, which is what peers assume of
+    it (docs/safety.md). Braking and turning are never limited. Scaling keeps the safety
+    filter's guarantee: a command the filter allows, scaled by s in [0, 1], closes every
+    gap by at most s times as much (when it opened one, it opens it by less but still
+    does not close it), and its second-order terms shrink by s^2.
     """
-    rim = wheel_radius * max(abs(result.right), abs(result.left))
-    if rim <= rim_limit or not result.moving:
+    speed = point_speed(result.u, result.omega, half_axle, safety)
+    if speed <= limit or not result.moving:
         return result
-    scale = max(rim_limit, 0.0) / rim
+    scale = max(limit, 0.0) / speed
     return replace(
         result,
         u=result.u * scale,

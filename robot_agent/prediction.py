@@ -16,17 +16,18 @@ around each prediction (derivation: docs/safety.md, "Latency where it lives"):
   rest of the way), and the motion between the nominal and the true instant.
 * **What a robot tells its peers** (:meth:`OwnPrediction.ahead`): that predicted pose, its
   lead over the state's send time, the radius holding the true pose at that nominal
-  instant once the new command is known, the heading error, and the fastest wheel rim
-  speed of its commands in flight and the new one (``fleet.core.wire.Ahead``).
+  instant once the new command is known, the heading error, and how fast its projected
+  point may move under its commands in flight and the new one (:func:`point_speed`,
+  actuation error included; ``fleet.core.wire.Ahead``).
 * **A peer** (:func:`peer_spread`): around the pose the peer predicted for itself, a radius
   that grows with the time between that instant and this robot's window: the state's age
   (its arrival time less the link-delay bound: no clock synchronisation) and the window;
   or, when smaller, around its last measured pose (:func:`measured_spread`: in a lockstep
   simulation a peer's fresh reading is shared before anyone acts).
   A peer's filter may brake or swerve at any tick, so its direction after that instant is
-  not extrapolated; its speed is bounded -- every agent caps its commands' speed-ups at
-  ``max_accel_m_s2`` of wheel rim speed (:func:`robot_agent.logic.cap_speed_up`) -- so the
-  radius grows as v |t| + a t^2 / 2.
+  not extrapolated; its speed is bounded -- every agent caps the speed-ups of its
+  commands' :func:`point_speed` at ``max_accel_m_s2`` (:func:`robot_agent.logic.cap_speed_up`)
+  -- so the radius grows as v |t| + a t^2 / 2.
 
 Frames and units: world frame, metres, radians, seconds on the agent's clock; the
 *projected point* is ``SafetyConfig.projection_m`` ahead of the axle centre (the filter's).
@@ -126,8 +127,9 @@ class OwnPrediction:
     instant the command really acts (the filter's own spread). The rest feeds
     :meth:`ahead`: the last command sent, the total variations of u [m/s] and omega
     [rad/s] over the switches in flight, the fastest wheel speed ``wheel`` [m/s] (r (|right|
-    + |left|) / 2) and rim speed ``rim`` [m/s] in flight, the ``horizon`` [s] from the
-    measurement to the window's end and the centre's ``path`` [m] over it.
+    + |left|) / 2) and :func:`point_speed` ``speed`` [m/s] in flight, the largest |u omega|
+    ``turn``, the ``horizon`` [s] from the measurement to the window's end, the centre's
+    ``path`` [m] over it and the Euler step ``period`` [s].
     """
 
     pose: Posture
@@ -138,7 +140,7 @@ class OwnPrediction:
     tv_u: float
     tv_omega: float
     wheel: float
-    rim: float
+    speed: float
     turn: float
     horizon: float
     path: float
@@ -150,7 +152,7 @@ class OwnPrediction:
         """What peers are told once the new command (``right``, ``left`` [rad/s]) is known:
         the pose at the nominal instant, ``lead`` [s] after the state is sent, with the
         radius [m] and heading error [rad] holding the truth at that instant (the new
-        command's switch mistimed too) and the fastest rim speed [m/s] it may move at."""
+        command's switch mistimed too) and the fastest its projected point may move [m/s]."""
         r, b = profile.wheel_radius, profile.half_axle
         u, omega = body_velocities(right, left, r, b)
         u0, omega0 = body_velocities(self.last.right, self.last.left, r, b)
@@ -170,7 +172,7 @@ class OwnPrediction:
             lead_s=max(lead, 0.0),
             spread_m=centre,
             heading_rad=heading,
-            speed_m_s=max(self.rim, r * max(abs(right), abs(left))),
+            speed_m_s=max(self.speed, point_speed(u, omega, b, safety)),
         )
 
 
@@ -192,6 +194,15 @@ def _wheel_speed(right: float, left: float, wheel_radius: float) -> float:
     """r (|right| + |left|) / 2 [m/s]: bounds |u| and b |omega|, and the speed errors a
     relative wheel error gives (|du| <= e of it, |d omega| <= e of it / b)."""
     return 0.5 * wheel_radius * (abs(right) + abs(left))
+
+
+def point_speed(u: float, omega: float, half_axle: float, safety: SafetyConfig) -> float:
+    """The fastest [m/s] the projected point of a robot commanded (``u`` [m/s], ``omega``
+    [rad/s]) may move: |u| + l |omega| plus what each wheel's relative actuation error e
+    adds (|du| <= e s, |d omega| <= e s / b with s = |u| + b |omega|), l the projection."""
+    ahead, e = safety.projection_m, safety.actuation_error
+    s = abs(u) + half_axle * abs(omega)
+    return abs(u) + ahead * abs(omega) + e * s * (1.0 + ahead / half_axle)
 
 
 def predict_own(
@@ -239,12 +250,12 @@ def predict_own(
 
     # What it cannot know (docs/safety.md): switches mistimed by up to delta, the wheels'
     # actuation error over the wheel path, the heading errors rotating the rest of the way.
-    tv_u = tv_omega = wheel = rim = turn = 0.0
+    tv_u = tv_omega = wheel = fastest = turn = 0.0
     u0 = omega0 = 0.0
     for k, sent in enumerate(commands):
         wheel = max(wheel, _wheel_speed(sent.right, sent.left, r))
-        rim = max(rim, r * max(abs(sent.right), abs(sent.left)))
         u, omega = body_velocities(sent.right, sent.left, r, b)
+        fastest = max(fastest, point_speed(u, omega, b, safety))
         turn = max(turn, abs(u * omega))
         if k > 0:
             tv_u += abs(u - u0)
@@ -264,7 +275,7 @@ def predict_own(
         tv_u=tv_u,
         tv_omega=tv_omega,
         wheel=wheel,
-        rim=rim,
+        speed=fastest,
         turn=turn,
         horizon=horizon,
         path=path,
@@ -290,7 +301,6 @@ def peer_spread(
     back, forward = max(0.0, -early), max(0.0, late)
     v = ahead.speed_m_s
     reach = max(v * back, v * forward + 0.5 * safety.max_accel_m_s2 * forward * forward)
-    reach *= 1.0 + safety.actuation_error
     return ahead.spread_m + safety.projection_m * ahead.heading_rad + reach
 
 
@@ -305,7 +315,7 @@ def measured_spread(
     """Radius [m] around a peer's last *measured* projected point, heard at
     ``measured_heard`` [s] (its state's, or its agent's fresher reading on this session),
     that holds the peer at every instant this robot's command may act: the pose error
-    and the reach, at the fastest rim speed its prediction (``ahead``, heard at
+    and the reach, at the fastest speed its prediction (``ahead``, heard at
     ``state_heard`` [s]) allows by then, from the measurement to the end of this robot's
     window. The smaller of this and :func:`peer_spread` is used (both hold the peer)."""
     delay = safety.link_delay_s
@@ -313,5 +323,5 @@ def measured_spread(
     speed = ahead.speed_m_s + safety.max_accel_m_s2 * max(
         0.0, end - (state_heard - delay + ahead.lead_s)
     )
-    reach = (1.0 + safety.actuation_error) * speed * max(0.0, end - (measured_heard - delay))
+    reach = speed * max(0.0, end - (measured_heard - delay))
     return safety.pose_error_m + safety.projection_m * safety.heading_error_rad + reach

@@ -81,8 +81,9 @@ class SafetyConfig(BaseModel):
     * position errors of a measured pose at most ``pose_error_m`` [m], heading errors at
       most ``heading_error_rad`` [rad];
     * each wheel turning at its commanded speed within a relative ``actuation_error``;
-    * no wheel's rim speed rising faster than ``max_accel_m_s2`` [m/s^2] (every agent caps
-      its commands' speed-ups so; braking and turning away are not limited);
+    * the speed of the point the filter watches (``projection_m`` ahead of the axle; with
+      the actuation error) rising by at most ``max_accel_m_s2`` [m/s^2] (every agent caps
+      its commands' speed-ups so; braking and turning are not limited);
     * every robot running the filter; a robot silent to its peers for ``peer_stale_s`` [s]
       has stopped (its agent holds when it has heard nothing for its link timeout, which
       settings keep at most ``peer_stale_s``; its drive stops when its agent dies): a peer's

@@ -62,7 +62,7 @@ State streams and their encoding (the hot messages):
 Prediction (``RobotState.ahead``, :class:`Ahead`; docs/safety.md "Latency where it lives"):
 a robot tells its peers where it predicts itself when the command of the state acts --
 the posture, that instant as a lead over the state's send, a radius and a heading error
-around it, and the fastest wheel rim speed of its commands in flight -- and its peers'
+around it, and how fast it may move under its commands in flight -- and its peers'
 safety filters see it there. Compatibility rule: one additive field, ``v`` stays 1; in the
 compact layout it is appended as the last element (``0x01`` kept), in JSON an optional key.
 An older receiver ignores it (an unknown key, a trailing element); a state without it (an
@@ -358,9 +358,10 @@ class Ahead(BaseModel):
     ``x``, ``y`` [m], ``theta`` [rad]: the predicted posture (world frame), ``lead_s`` [s]
     after the state was sent (the robot's nominal command latency); ``spread_m`` [m]: a
     radius around the predicted axle centre holding the true one at that instant, and
-    ``heading_rad`` [rad] the heading's; ``speed_m_s`` [m/s]: the fastest wheel rim speed
-    of its commands in flight and this one (a later command's rises by at most the fleet's
-    ``SafetyConfig.max_accel_m_s2`` per second).
+    ``heading_rad`` [rad] the heading's; ``speed_m_s`` [m/s]: how fast the point the safety
+    filter watches (``SafetyConfig.projection_m`` ahead of the axle) may move under its
+    commands in flight and this one, actuation error included (a later command's bound
+    rises by at most the fleet's ``SafetyConfig.max_accel_m_s2`` per second).
     """
 
     model_config = ConfigDict(frozen=True, extra="ignore")

@@ -141,7 +141,9 @@ class RobotAgent:
         self.period = 1.0 / settings.control_rate_hz  # [s]
         self._wall = wall_clock
         self._owns_feed = feed is None
-        self.feed = feed or WorldFeed(WorldView(), self.keys)
+        self.feed = feed or WorldFeed(
+            WorldView(), self.keys, clock_sync_s=settings.safety.clock_sync_s
+        )
         self.world = self.feed.world
         self._owns_link = link is None
         self.link = link or LinkMonitor(
@@ -298,7 +300,7 @@ class RobotAgent:
             phase = "tick_error"
             now = self.clock.now()
             self._pose = pose
-            self.world.update_position(self.robot_id, pose.x, pose.y, pose.theta)
+            self.world.update_position(self.robot_id, pose.x, pose.y, pose.theta, stamp)
             self.feed.follow(self.robot_id, pose.x, pose.y)
             self._reading = (pose, stamp, now)
         except Exception as exc:
@@ -351,6 +353,7 @@ class RobotAgent:
                         safety=safety,
                         period=self.period,
                         own_spread=prediction.spread,
+                        own_heading=prediction.heading,
                     )
                 drive_faults = _drive_faults(self.drive)
                 if drive_faults and override is None and decision.mode not in _AT_REST:
@@ -490,7 +493,8 @@ class RobotAgent:
             ),
         )
         self._seq += 1
-        self.world.update_state(state)  # agents sharing this session see it without Zenoh
+        # Agents sharing this session see it without Zenoh, sent just now.
+        self.world.update_state(state, sent_age_s=(0.0, 0.0))
         try:
             self.streams.publish(state)
         except Exception:

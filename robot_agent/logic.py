@@ -164,15 +164,19 @@ NO_PEERS: tuple[FloatArray, FloatArray] = (np.zeros((3, 0)), np.zeros((2, 0)))
 
 
 def filter_of(
-    safety: SafetyConfig | None, speed: float = 0.0, own_spread: float | None = None
+    safety: SafetyConfig | None,
+    speed: float = 0.0,
+    own_spread: float | None = None,
+    own_heading: float = 0.0,
 ) -> step.Safety:
     """The compiled step's filter parameters for ``safety`` (off when None or disabled):
     the robot's own spread [m] is ``own_spread`` (its prediction's), else that of its last
-    commanded speed ``speed`` [m/s] (:meth:`SafetyConfig.own_spread`)."""
+    commanded speed ``speed`` [m/s] (:meth:`SafetyConfig.own_spread`); ``own_heading``
+    [rad] its heading's uncertainty."""
     if safety is None:
         return step.SAFETY_OFF
     spread = safety.own_spread(speed) if own_spread is None else own_spread
-    return step.Safety(*safety.filter_terms(spread))
+    return step.Safety(*safety.filter_terms(spread), own_heading)
 
 
 def cap_speed_up(
@@ -241,6 +245,7 @@ def decide(
     speed: float = 0.0,
     period: float = 0.0,
     own_spread: float | None = None,
+    own_heading: float = 0.0,
 ) -> TickResult:
     """Decide one control tick.
 
@@ -282,6 +287,8 @@ def decide(
     own_spread : float or None
         This robot's own spread [m] when ``pose`` is its prediction for the instant the
         command acts (:func:`robot_agent.prediction.predict_own`); None: ``speed``'s.
+    own_heading : float
+        Uncertainty [rad] of that pose's heading: the filter widens every cone by it.
     """
     if task is None:
         return _stopped(RobotMode.IDLE, None)
@@ -316,7 +323,7 @@ def decide(
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius,
         min_x_oa=avoid.min_x_oa,
-        safety=filter_of(safety, speed, own_spread),
+        safety=filter_of(safety, speed, own_spread, own_heading),
         dt=period,
     )
     if result.done:  # the stop rule: this step is still applied (see the module docstring)

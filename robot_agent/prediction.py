@@ -21,7 +21,8 @@ around each prediction (derivation: docs/safety.md, "Latency where it lives"):
   actuation error included; ``fleet.core.wire.Ahead``).
 * **A peer** (:func:`peer_spread`): around the pose the peer predicted for itself, a radius
   that grows with the time between that instant and this robot's window: the state's age
-  (its arrival time less the link-delay bound: no clock synchronisation) and the window;
+  (:func:`sent_window`: from its stamp when the clocks are synchronised within
+  ``clock_sync_s``, else its arrival less the link-delay bound) and the window;
   or, when smaller, around its last measured pose (:func:`measured_spread`: in a lockstep
   simulation a peer's fresh reading is shared before anyone acts).
   A peer's filter may brake or swerve at any tick, so its direction after that instant is
@@ -124,7 +125,8 @@ class OwnPrediction:
 
     ``pose`` (x, y [m], theta [rad]): at ``at`` [s, agent clock] = decision time + nominal
     latency; ``spread`` [m]: radius around the projected point holding the true one at the
-    instant the command really acts (the filter's own spread). The rest feeds
+    instant the command really acts (the filter's own spread), and ``heading`` [rad] the
+    heading's uncertainty then (the filter widens its cones by it). The rest feeds
     :meth:`ahead`: the last command sent, the total variations of u [m/s] and omega
     [rad/s] over the switches in flight, the fastest wheel speed ``wheel`` [m/s] (r (|right|
     + |left|) / 2) and :func:`point_speed` ``speed`` [m/s] in flight, the largest |u omega|
@@ -135,6 +137,7 @@ class OwnPrediction:
     pose: Posture
     at: float
     spread: float
+    heading: float
     window: LatencyWindow
     last: Sent
     tv_u: float
@@ -232,13 +235,18 @@ def predict_own(
     x, y, theta = pose
     path = 0.0  # centre path length over [start, t_hi]
     before = after = 0.0  # projected point's path over [t_lo, t_nom] and [t_nom, t_hi]
+    before_turn = after_turn = 0.0  # heading turned over the same [rad]
     t = start
     for duration, sent in _segments(commands, lam, start, t_hi):
         u, omega = body_velocities(sent.right, sent.left, r, b)
         speed = math.hypot(u, ahead * omega)
         end = t + duration
-        before += speed * max(0.0, min(end, t_nom) - max(t, t_lo))
-        after += speed * max(0.0, min(end, t_hi) - max(t, t_nom))
+        early = max(0.0, min(end, t_nom) - max(t, t_lo))
+        late = max(0.0, min(end, t_hi) - max(t, t_nom))
+        before += speed * early
+        after += speed * late
+        before_turn += abs(omega) * early
+        after_turn += abs(omega) * late
         path += abs(u) * duration
         if t < t_nom:  # integrate up to the nominal instant only
             span = min(end, t_nom) - t
@@ -270,6 +278,7 @@ def predict_own(
         pose=(x, y, theta),
         at=t_nom,
         spread=centre + ahead * heading + max(before, after),
+        heading=heading + max(before_turn, after_turn),
         window=window,
         last=commands[-1],
         tv_u=tv_u,
@@ -285,19 +294,21 @@ def predict_own(
 
 # -- peers --------------------------------------------------------------------------------------
 def peer_spread(
-    ahead: Ahead, heard: float, now: float, window: LatencyWindow, safety: SafetyConfig
+    ahead: Ahead,
+    sent: tuple[float, float],
+    now: float,
+    window: LatencyWindow,
+    safety: SafetyConfig,
 ) -> float:
     """Radius [m] around a peer's predicted projected point (its ``ahead`` posture) that
     holds the peer's true one at every instant this robot's command may act.
 
-    The state carrying ``ahead`` arrived at ``heard`` [s, this robot's clock], so it was sent
-    within ``link_delay_s`` before; the peer's nominal instant is ``lead_s`` after that.
-    ``now`` [s]: this robot's decision time, ``window``: its latency window.
+    The state carrying ``ahead`` was sent within ``sent`` (earliest, latest) [s, this
+    robot's clock] (:func:`sent_window`); the peer's nominal instant is ``lead_s`` after
+    that. ``now`` [s]: this robot's decision time, ``window``: its latency window.
     """
-    sent_hi = heard
-    sent_lo = heard - safety.link_delay_s
-    early = now + window.lo - (sent_hi + ahead.lead_s)  # < 0: before the peer's instant
-    late = now + window.hi - (sent_lo + ahead.lead_s)
+    early = now + window.lo - (sent[1] + ahead.lead_s)  # < 0: before the peer's instant
+    late = now + window.hi - (sent[0] + ahead.lead_s)
     back, forward = max(0.0, -early), max(0.0, late)
     v = ahead.speed_m_s
     reach = max(v * back, v * forward + 0.5 * safety.max_accel_m_s2 * forward * forward)
@@ -306,22 +317,30 @@ def peer_spread(
 
 def measured_spread(
     ahead: Ahead,
-    state_heard: float,
-    measured_heard: float,
+    sent: tuple[float, float],
+    measured_at: float,
     now: float,
     window: LatencyWindow,
     safety: SafetyConfig,
 ) -> float:
-    """Radius [m] around a peer's last *measured* projected point, heard at
-    ``measured_heard`` [s] (its state's, or its agent's fresher reading on this session),
-    that holds the peer at every instant this robot's command may act: the pose error
-    and the reach, at the fastest speed its prediction (``ahead``, heard at
-    ``state_heard`` [s]) allows by then, from the measurement to the end of this robot's
-    window. The smaller of this and :func:`peer_spread` is used (both hold the peer)."""
-    delay = safety.link_delay_s
+    """Radius [m] around a peer's projected point as measured at ``measured_at`` [s, this
+    robot's clock] (its agent's reading on this session, a lockstep simulation's), that
+    holds the peer at every instant this robot's command may act: the pose errors and
+    the reach, at the fastest speed the peer's last prediction (``ahead``, its state sent
+    within ``sent``) allows by then. The smaller of this and :func:`peer_spread` is used
+    (both hold the peer)."""
     end = now + window.hi
-    speed = ahead.speed_m_s + safety.max_accel_m_s2 * max(
-        0.0, end - (state_heard - delay + ahead.lead_s)
-    )
-    reach = speed * max(0.0, end - (measured_heard - delay))
+    speed = ahead.speed_m_s + safety.max_accel_m_s2 * max(0.0, end - (sent[0] + ahead.lead_s))
+    reach = speed * max(0.0, end - measured_at)
     return safety.pose_error_m + safety.projection_m * safety.heading_error_rad + reach
+
+
+def sent_window(
+    heard: float, sent_age: tuple[float, float] | None, safety: SafetyConfig
+) -> tuple[float, float]:
+    """When [s] (earliest, latest) a state heard at ``heard`` [s] was sent: ``sent_age`` [s]
+    (most, least) before it when known (synchronised clocks, a simulated link), else
+    within ``link_delay_s`` before its arrival."""
+    if sent_age is None:
+        return heard - safety.link_delay_s, heard
+    return heard - sent_age[0], heard - sent_age[1]

@@ -15,6 +15,7 @@ its measured pose with :meth:`~fleet.core.params.SafetyConfig.peer_spread`).
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -26,15 +27,21 @@ from fleet.core.types import FloatArray
 from fleet.core.wire import Ahead, Obstacle, ObstacleSet, RobotState
 from robot_agent.latency import LatencyWindow
 from robot_agent.logic import obstacle_arrays
-from robot_agent.prediction import measured_spread, peer_spread
+from robot_agent.prediction import measured_spread, peer_spread, sent_window
+
+#: A peer's prediction as kept: the ``ahead`` of its newest state, when that state was
+#: heard [s, the view's clock] and how long before that it was sent (most, least) [s], if
+#: known (None: within the link-delay bound).
+Prediction = tuple[Ahead, float, tuple[float, float] | None]
 
 
 class WorldView:
     """Thread-safe table of peer states (by robot id) and the static obstacle set."""
 
-    #: Columns of a peer row: x, y, theta [m, m, rad], body radius [m], |u| [m/s], and when
-    #: it was heard [s, ``clock``].
-    _COLUMNS = 6
+    #: Columns of a peer row: x, y, theta [m, m, rad], body radius [m], |u| [m/s], when it
+    #: was heard [s, ``clock``], and when that pose was measured if it is an agent's own
+    #: reading on this session (:meth:`update_position`; NaN when it came with a state).
+    _COLUMNS = 7
 
     def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
         self._lock = threading.Lock()
@@ -45,11 +52,16 @@ class WorldView:
         self._rows: dict[str, int] = {}  # robot id -> row of _positions
         self._ids: list[str] = []  # robot id of each row
         self._positions: FloatArray = np.zeros((16, self._COLUMNS))
-        self._ahead: dict[str, tuple[Ahead, float]] = {}  # robot id -> (prediction, heard [s])
+        self._ahead: dict[str, Prediction] = {}  # robot id -> its newest prediction
 
-    def update_state(self, state: RobotState, age_s: float = 0.0) -> None:
+    def update_state(
+        self, state: RobotState, age_s: float = 0.0, sent_age_s: tuple[float, float] | None = None
+    ) -> None:
         """Keep the newest state of a robot (by ``seq``, so reordering cannot roll back);
-        ``age_s`` [s]: how long before now it was heard (a state replayed by the service)."""
+        ``age_s`` [s]: how long before now it was heard (a state replayed by the service);
+        ``sent_age_s`` [s]: how long before it was heard it was sent, at most and at least,
+        when that is known (synchronised clocks, a simulated link, this session's own
+        agents); None: anywhere within the link-delay bound."""
         with self._lock:
             old = self._states.get(state.robot_id)
             if old is not None and state.seq <= old.seq and state.stamp <= old.stamp:
@@ -62,15 +74,21 @@ class WorldView:
             if state.ahead is None:
                 self._ahead.pop(state.robot_id, None)
             else:
-                self._ahead[state.robot_id] = (state.ahead, self._clock() - max(age_s, 0.0))
+                heard = self._clock() - max(age_s, 0.0)
+                self._ahead[state.robot_id] = (state.ahead, heard, sent_age_s)
 
-    def update_position(self, robot_id: str, x: float, y: float, theta: float) -> None:
-        """A robot's posture as its agent on this session just measured it, before its
-        state (with mode and speeds) is published: peers deciding now see it."""
+    def update_position(
+        self, robot_id: str, x: float, y: float, theta: float, measured_at: float | None = None
+    ) -> None:
+        """A robot's posture as its agent on this session measured it at ``measured_at`` [s,
+        the view's clock; None: now], before its state (with mode and speeds) is published:
+        peers deciding now see it."""
         with self._lock:
             row = self._rows.get(robot_id)
             radius, speed = (0.0, 0.0) if row is None else self._positions[row, 3:5]
             self._set_row(robot_id, (x, y, theta, float(radius), float(speed)), 0.0)
+            row = self._rows[robot_id]
+            self._positions[row, 6] = self._clock() if measured_at is None else measured_at
 
     def _set_row(
         self, robot_id: str, values: tuple[float, float, float, float, float], age_s: float
@@ -83,6 +101,7 @@ class WorldView:
                 self._positions = np.concatenate([self._positions, np.zeros_like(self._positions)])
         self._positions[row, :5] = values
         self._positions[row, 5] = self._clock() - age_s
+        self._positions[row, 6] = math.nan
 
     def set_obstacles(self, obstacles: ObstacleSet) -> None:
         arrays = obstacle_arrays(obstacles.obstacles)
@@ -103,7 +122,7 @@ class WorldView:
         """Last known centres (M, 2) [m] of every robot except ``exclude``."""
         return self._peer_rows(exclude)[0][:, :2].copy()
 
-    def _peer_rows(self, exclude: str) -> tuple[FloatArray, list[tuple[Ahead, float] | None]]:
+    def _peer_rows(self, exclude: str) -> tuple[FloatArray, list[Prediction | None]]:
         """Rows of every robot but ``exclude`` and their predictions (with heard times)."""
         with self._lock:
             n = len(self._rows)
@@ -125,13 +144,15 @@ class WorldView:
         """Every robot but ``exclude`` as the safety filter sees it: postures (3, M) (x, y,
         theta) and shapes (2, M) (body radius, spread [m]).
 
-        With ``window`` (this robot's latency window, its command about to be sent now),
-        a peer whose last state carried its prediction and that has not been silent
-        ``peer_stale_s`` is at that prediction with :func:`~robot_agent.prediction.peer_spread`,
-        or at its last measured pose with :func:`~robot_agent.prediction.measured_spread`,
-        whichever radius is smaller; any other (no prediction, no ``window``, or stale) at
-        its last measured pose with :meth:`SafetyConfig.peer_spread` of its speed and
-        silence. A robot not yet described by a state (only measured on this session) gets
+        With ``window`` (this robot's latency window, its command about to be sent now), a
+        peer whose last state carried its prediction and that has not been silent
+        ``peer_stale_s`` is at that prediction with
+        :func:`~robot_agent.prediction.peer_spread`, or, when its agent's reading on this
+        session gives a smaller radius, at that reading with
+        :func:`~robot_agent.prediction.measured_spread`; any other (no prediction, no
+        ``window``, or stale) at its last measured pose with
+        :meth:`SafetyConfig.peer_spread` of its speed and silence. A robot not yet described
+        by a state (only measured on this session) gets
         ``default_radius`` [m]."""
         rows, predictions = self._peer_rows(exclude)
         now = self._clock()
@@ -142,14 +163,19 @@ class WorldView:
             shapes[0, k] = radius if radius > 0.0 else default_radius
             prediction = predictions[k]
             if window is not None and prediction is not None:
-                ahead, heard_at = prediction
+                ahead, heard_at, sent_age = prediction
                 if now - heard_at <= safety.peer_stale_s:
-                    predicted = peer_spread(ahead, heard_at, now, window, safety)
-                    measured = measured_spread(ahead, heard_at, float(heard), now, window, safety)
-                    if predicted < measured:
-                        postures[0, k], postures[1, k] = ahead.x, ahead.y
-                        postures[2, k] = ahead.theta
-                    shapes[1, k] = min(predicted, measured)
+                    sent = sent_window(heard_at, sent_age, safety)
+                    spread = peer_spread(ahead, sent, now, window, safety)
+                    measured_at = float(rows[k, 6])
+                    if not math.isnan(measured_at):  # a fresh reading on this session
+                        measured = measured_spread(ahead, sent, measured_at, now, window, safety)
+                        if measured <= spread:
+                            shapes[1, k] = measured
+                            continue
+                    postures[0, k], postures[1, k] = ahead.x, ahead.y
+                    postures[2, k] = ahead.theta
+                    shapes[1, k] = spread
                     continue
             shapes[1, k] = safety.peer_spread(float(speed), now - float(heard))
         return postures, shapes

@@ -76,8 +76,9 @@ class SafetyConfig(BaseModel):
       (:mod:`robot_agent.latency`), or within [0, ``max_latency_s``] [s] before it has
       measured one (a measured latency above ``max_latency_s`` is reported, fault
       ``latency_exceeded``, and used);
-    * a peer's state reaches the robot within ``link_delay_s`` [s] of being sent (its age is
-      taken from the time it arrived: no clock synchronisation is assumed);
+    * a peer's state reaches the robot within ``link_delay_s`` [s] of being sent; its send
+      time is taken from its arrival less that bound, or, with ``clock_sync_s`` [s] set
+      (the robots' wall clocks agree within it: chrony, PTP), from its stamp;
     * position errors of a measured pose at most ``pose_error_m`` [m], heading errors at
       most ``heading_error_rad`` [rad];
     * each wheel turning at its commanded speed within a relative ``actuation_error``;
@@ -103,7 +104,8 @@ class SafetyConfig(BaseModel):
     max_accel_m_s2: Annotated[float, Field(gt=0.0, le=100.0, allow_inf_nan=False)] = 1.0
     peer_stale_s: Annotated[float, Field(gt=0.0, le=60.0, allow_inf_nan=False)] = 3.0
     heading_error_rad: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.02
-    actuation_error: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.1
+    actuation_error: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.05
+    clock_sync_s: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] | None = None
 
     def filter_terms(self, spread: float) -> tuple[float, float, float, float]:
         """The compiled step's filter parameters (``fleet.core.step.Safety``: margin,

@@ -20,6 +20,7 @@ from robot_agent.prediction import (
     peer_spread,
     point_speed,
     predict_own,
+    sent_window,
 )
 from sim_agent.disturbances import Disturbances, DisturbedDrive
 
@@ -276,8 +277,10 @@ def test_a_peer_s_radius_holds_it_whenever_this_robot_s_command_may_act(
     now = heard + float(p["silence"])  # type: ignore[arg-type]
     instant = now + own.lo + float(p["instant"]) * (own.hi - own.lo)  # type: ignore[arg-type]
     truth = _drive_through(start, 0.0, schedule, instant)
-    radius = peer_spread(ahead, heard, now, own, SAFETY)
     centre = (ahead.x, ahead.y, ahead.theta)
-    assert math.dist(_projected(truth), _projected(centre)) <= radius + 1e-9
-    measured = measured_spread(ahead, heard, heard, now, own, SAFETY)
-    assert math.dist(_projected(truth), _projected(true_then)) <= measured + 1e-9
+    for sent_age in (None, (heard - sent, heard - sent)):  # by the link bound; by the stamp
+        sent_within = sent_window(heard, sent_age, SAFETY)
+        radius = peer_spread(ahead, sent_within, now, own, SAFETY)
+        assert math.dist(_projected(truth), _projected(centre)) <= radius + 1e-9
+        measured = measured_spread(ahead, sent_within, sent, now, own, SAFETY)
+        assert math.dist(_projected(truth), _projected(true_then)) <= measured + 1e-9

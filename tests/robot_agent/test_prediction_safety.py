@@ -6,7 +6,8 @@ bodies, or a body and an obstacle's body, within the margin.
 The model: Euler steps of the control period; each robot's commands act a whole number of
 steps after they are sent, a number unknown to it but within its latency window; its wheels
 turn within the actuation error of its commands; its pose is measured within the pose and
-heading errors; its state reaches each peer one to ``link_delay_s`` later, or is lost; every
+heading errors; its state reaches each peer one to ``link_delay_s`` later, or is lost (its
+send time known from its stamp, synchronised clocks, or only within that bound); every
 robot runs the agent's pure pieces: :func:`robot_agent.prediction.predict_own`, a
 :class:`~robot_agent.world.WorldView` (``peer_bodies`` with its window), the filter (the
 reference step, equal to the compiled one bit for bit: test_reference.py) and
@@ -90,6 +91,7 @@ def scenes(draw: st.DrawFn) -> dict[str, object]:
         "loss": draw(st.sampled_from([0.0, 0.2])),
         "rate": draw(st.sampled_from([5.0, 20.0, 50.0])),
         "jitter": draw(st.booleans()),
+        "synced": draw(st.booleans()),
     }
 
 
@@ -131,6 +133,7 @@ def run_model(scene: dict[str, object], seconds: float = 4.0) -> list[float]:
     avoidance = ref.Avoidance(float(scene["k_avoid"]), 1.0, 0.05, RADIUS)  # type: ignore[arg-type]
     rate = float(scene["rate"])  # type: ignore[arg-type]
     jitter = bool(scene.get("jitter", False))
+    synced = bool(scene.get("synced", False))
     last_due = [0] * n
     true = [tuple(map(float, s)) for s in starts]
     clearances: list[float] = []
@@ -139,7 +142,8 @@ def run_model(scene: dict[str, object], seconds: float = 4.0) -> list[float]:
     for k in range(round(seconds / DT)):
         now = clock.now()
         for receiver, state in in_transit.pop(k, []):
-            views[receiver].update_state(state)
+            age = now - state.stamp  # stamps on the one clock: synchronised
+            views[receiver].update_state(state, sent_age_s=(age, age) if synced else None)
         decided = []
         for i in range(n):
             x, y, theta = true[i]
@@ -160,7 +164,9 @@ def run_model(scene: dict[str, object], seconds: float = 4.0) -> list[float]:
                 result = ref.step(
                     prediction.pose, goals[i], (1.0, 3.0, 1.0), laws[i] == "cw", DT, LIMIT,
                     avoidance=avoidance, peers=peers, obstacles=obstacles,
-                    safety=ref.Safety(MARGIN, PROJECTION, rate, prediction.spread),
+                    safety=ref.Safety(
+                        MARGIN, PROJECTION, rate, prediction.spread, prediction.heading
+                    ),
                 )  # fmt: skip
                 right, left = wheel_speeds(result.u, result.omega, *WHEEL_GEOMETRY)
                 tick = TickResult(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from typing import Any
 
@@ -283,3 +284,76 @@ def test_at_rest_the_drive_is_released_held_it_is_stopped_every_tick() -> None:
     drive.jumped = None
     snap = agent.tick()
     assert snap is not None and snap.mode is not RobotMode.HOLDING and not snap.errors
+
+
+class LaggingDrive(FakeDrive):
+    """A drive whose wheels turn at each command ``lag`` ticks after it was sent, measured
+    by ``wheel_speeds()``; the pose stays put (the agent's prediction is what is tested)."""
+
+    def __init__(self, clock: SteppedClock, lag: int) -> None:
+        super().__init__(clock)
+        self.lag = lag
+        self.sent: list[tuple[float, float, float]] = [(-1.0, 0.0, 0.0)]
+
+    def command_wheels(self, right_rad_s: float, left_rad_s: float) -> None:
+        super().command_wheels(right_rad_s, left_rad_s)
+        self.sent.append((self.clock.now(), right_rad_s, left_rad_s))
+
+    def stop(self) -> None:
+        super().stop()
+        self.sent.append((self.clock.now(), 0.0, 0.0))
+
+    def wheel_speeds(self) -> tuple[float, float, float]:
+        now = self.clock.now()
+        turning = [(r, le) for at, r, le in self.sent if at + self.lag * 0.02 <= now + 1e-9]
+        right, left = turning[-1] if turning else (0.0, 0.0)
+        return right, left, now
+
+
+def _agent_on(drive: FakeDrive, clock: SteppedClock, **safety: object) -> RobotAgent:
+    settings = load_settings(safety=safety) if safety else load_settings()
+    return RobotAgent("r1", drive, None, settings, clock=clock)
+
+
+def test_the_agent_tells_peers_where_it_will_be_and_caps_its_speed_ups() -> None:
+    """Every state carries the prediction for the instant its command acts; no command's
+    point speed rises by more than max_accel_m_s2 per period."""
+    from fleet.core.step import body_velocities
+    from robot_agent.prediction import point_speed
+
+    clock = SteppedClock()
+    drive = FakeDrive(clock)
+    agent = _agent_on(drive, clock)
+    agent.submit(ASSIGNMENT)
+    safety, profile = agent.settings.safety, agent.settings.profile
+    speeds = [0.0]
+    for _ in range(30):
+        agent.tick()
+        state = agent.world.states()["r1"]
+        assert state.ahead is not None
+        # no wheel measurements: the configured window, predicted at its middle
+        assert state.ahead.lead_s == pytest.approx(safety.max_latency_s / 2)
+        right, left = drive.commands[-1]
+        u, omega = body_velocities(right, left, profile.wheel_radius, profile.half_axle)
+        speeds.append(point_speed(u, omega, profile.half_axle, safety))
+        assert state.ahead.speed_m_s >= speeds[-1]
+        clock.advance(0.02)
+    rises = [b - a for a, b in itertools.pairwise(speeds)]
+    assert max(rises) <= safety.max_accel_m_s2 * 0.02 + 1e-12
+    assert speeds[-1] > 0.5  # it did speed up, steadily
+
+
+def test_a_drive_slower_than_the_configured_latency_is_reported_and_measured() -> None:
+    clock = SteppedClock()
+    drive = LaggingDrive(clock, lag=15)  # 300 ms, twice max_latency_s
+    agent = _agent_on(drive, clock)
+    agent.submit(ASSIGNMENT.model_copy(update={"goal": Pose(x=-3.0, y=2.0, theta=1.0)}))
+    for _ in range(400):
+        snap = agent.tick()
+        clock.advance(0.02)
+    assert snap is not None
+    window = agent.latency.window()
+    assert window.exceeded and window.hi >= 0.3 - 0.01
+    fault = [e for e in snap.errors if e.code == "latency_exceeded"]
+    assert fault and fault[0].level.value == "warning"
+    assert snap.mode is not RobotMode.HOLDING  # it drives on, with the measured latency

@@ -85,7 +85,7 @@ class SafetyConfig(BaseModel):
     * the speed of the point the filter watches (``projection_m`` ahead of the axle; with
       the actuation error) rising by at most ``max_accel_m_s2`` [m/s^2] (every agent caps
       its commands' speed-ups so; braking and turning are not limited);
-    * every robot running the filter; a robot silent to its peers for ``peer_stale_s`` [s]
+    * every robot running the agent; a robot silent to its peers for ``peer_stale_s`` [s]
       has stopped (its agent holds when it has heard nothing for its link timeout, which
       settings keep at most ``peer_stale_s``; its drive stops when its agent dies): a peer's
       spread grows with its silence for ``peer_stale_s``, after which it is a standing
@@ -120,8 +120,11 @@ class SafetyConfig(BaseModel):
         return abs(speed) * seconds + 0.5 * self.max_accel_m_s2 * seconds * seconds
 
     def own_spread(self, speed: float) -> float:
-        """This robot's uncertainty [m] at the instant its command acts: pose error plus
-        the motion of up to ``max_latency_s`` of its commands in flight."""
+        """This robot's uncertainty [m] at the instant its command acts when it decides on
+        its *measured* pose (no prediction: ``robot_agent.logic.decide`` without
+        ``own_spread``): pose error plus the motion of up to ``max_latency_s`` of its
+        commands in flight. The agent decides on its prediction instead
+        (``robot_agent.prediction.predict_own``: a smaller spread)."""
         return self.pose_error_m + self.reach(speed, self.max_latency_s)
 
     def batch_spread(self) -> float:
@@ -131,10 +134,12 @@ class SafetyConfig(BaseModel):
         return self.pose_error_m + self.reach(0.0, self.link_delay_s + self.max_latency_s)
 
     def peer_spread(self, speed: float, silent_s: float) -> float:
-        """A peer's uncertainty [m] (reported ``speed`` [m/s], heard ``silent_s`` [s] ago):
-        its pose error and the motion it may make from its measurement until this robot's
-        command acts. The silence counts until ``peer_stale_s``; a peer silent longer has
-        stopped (class docstring) and is a standing obstacle with a standing robot's spread."""
+        """A peer's uncertainty [m] around its measured pose (reported ``speed`` [m/s],
+        heard ``silent_s`` [s] ago) when its state carries no prediction (an older release)
+        or it is stale: its pose error and the motion it may make from its measurement
+        until this robot's command acts (``robot_agent.prediction.peer_spread`` otherwise).
+        The silence counts until ``peer_stale_s``; a peer silent longer has stopped (class
+        docstring) and is a standing obstacle with a standing robot's spread."""
         if silent_s > self.peer_stale_s:
             return self.pose_error_m + self.reach(0.0, self.link_delay_s + self.max_latency_s)
         seconds = self.link_delay_s + self.max_latency_s + max(silent_s, 0.0)

@@ -312,7 +312,11 @@ def test_compiled_entry_points_refuse_other_types_instead_of_compiling() -> None
     ),
     st.sampled_from([0.05, 4.0]),
     st.sampled_from(
-        [step.SAFETY_OFF, step.Safety(0.05, 0.03, 5.0, 0.02), step.Safety(0.05, 0.03, 5.0, 0.0, 0.1)]
+        [
+            step.SAFETY_OFF,
+            step.Safety(0.05, 0.03, 5.0, 0.02),
+            step.Safety(0.05, 0.03, 5.0, 0.0, 0.1),
+        ]
     ),
 )
 def test_one_robot_step_equals_its_row_of_the_batch_step(

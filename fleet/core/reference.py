@@ -106,7 +106,7 @@ def _body_half_planes(
     wide = distance <= 0.0
     if heading > 0.0 and not wide:
         phi = math.asin(min(max(spread, 0.0) / distance, 1.0)) + heading
-        wide = phi >= 0.25 * math.pi
+        wide = phi >= 0.5 * math.pi  # the edges and the middle hold any cone below 90 deg
         sin_phi, cos_phi = math.sin(phi), math.cos(phi)
     elif not wide:
         wide = spread >= _SQRT_HALF * distance

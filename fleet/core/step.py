@@ -51,10 +51,12 @@ along every direction within E of the estimated one to at most share * rate * (C
 share 1/2 for a peer (the peer takes the other half: every robot runs this filter), 1 for
 a static body; C_lo = C - E (a lower bound of the true clearance); the cone is widened
 by the robot's own heading uncertainty ``heading`` (its velocity may point that far off: a
-predicted heading, docs/safety.md), beyond 45 degrees every direction counts; eps [m] the
-allowance for the second-order terms (the projected point's rotation within a step and the drive's
-arc), eps = (l W^2 + V W) dt / rate with V = (1 + ``SIDE_STEP``) |v0| the longest the
-result can be and W the turn-rate bound (wheel limit, or V / l). With rate * dt <= 1 the
+predicted heading, docs/safety.md; such a cone counts as every direction only from 90
+degrees on: its two edges and its middle, n . v <= bound cos phi, hold the cone below
+that); eps [m] the allowance for the second-order terms (the projected point's rotation
+within a step and the drive's arc), eps = (l W^2 + V W) dt / rate with V = (1 +
+``SIDE_STEP``) |v0| the longest the result can be and W the turn-rate bound (wheel limit,
+or V / l). With rate * dt <= 1 the
 clearance of every pair then never falls below 0 from one step to the next:
 C' >= (1 - rate dt) C (derivation in the docs/safety.md).
 The constraints are half-planes a . v <= c with unit a; the command is the point of
@@ -389,7 +391,7 @@ def _add_body(
     wide = distance <= 0.0
     if heading > 0.0 and not wide:
         phi = math.asin(min(max(spread, 0.0) / distance, 1.0)) + heading
-        wide = phi >= 0.25 * math.pi
+        wide = phi >= 0.5 * math.pi  # the edges and the middle hold any cone below 90 deg
         sin_phi, cos_phi = math.sin(phi), math.cos(phi)
     elif not wide:
         wide = spread >= _SQRT_HALF * distance

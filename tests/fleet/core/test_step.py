@@ -41,7 +41,8 @@ safety_st = st.sampled_from(
         reference.Safety(0.05, 0.03, 5.0, 0.0),
         reference.Safety(0.1, 0.05, 2.0, 0.02),
         reference.Safety(0.05, 0.03, 5.0, 0.03, 0.05),  # a predicted heading's uncertainty
-        reference.Safety(0.05, 0.03, 20.0, 0.0, 0.6),  # beyond 45 degrees: any direction
+        reference.Safety(0.05, 0.03, 20.0, 0.0, 0.9),  # a cone wider than 45 degrees
+        reference.Safety(0.05, 0.03, 5.0, 0.02, 1.6),  # beyond 90 degrees: any direction
     ]
 )
 limits = st.sampled_from([math.inf, 4.0, 20.0])

@@ -173,6 +173,7 @@ class RobotAgent:
             resolution_s=2 * self.period,
         )
         self._last_speed = 0.0  # [m/s] point_speed of the last command sent
+        self._last_u = 0.0  # [m/s] bound on |u| in flight (own spread without prediction)
         self._reading: tuple[Pose, float, float] | None = None  # sensed (pose, stamp, now)
         self._failure: tuple[str, str] | None = None  # (phase, message) of a failed sense
         self.tick_errors = 0
@@ -326,6 +327,7 @@ class RobotAgent:
                 link_ok = self.link.ok()
                 safety, profile = self.settings.safety, self.settings.profile
                 sent_at = self.clock.now()
+                predicting = safety.prediction
                 prediction = predict_own(
                     pose.as_tuple(), stamp, sent_at, self.commands, window, profile, safety,
                     self.period,
@@ -337,13 +339,14 @@ class RobotAgent:
                     )
                 else:
                     active = self._task is not None and self._task.status is AgentTaskStatus.ACTIVE
+                    peers = self.world.peer_bodies(
+                        self.robot_id, safety, profile.radius, window if predicting else None
+                    )
                     decision = decide(
-                        prediction.pose,
+                        prediction.pose if predicting else pose.as_tuple(),
                         pose_age,
                         self._task,
-                        self.world.peer_bodies(self.robot_id, safety, profile.radius, window)
-                        if active
-                        else NO_PEERS,
+                        peers if active else NO_PEERS,
                         self.world.obstacles(),
                         profile,
                         self.settings.avoidance,
@@ -351,9 +354,10 @@ class RobotAgent:
                         link_ok=link_ok if active else True,
                         now=now,
                         safety=safety,
+                        speed=self._last_u,
                         period=self.period,
-                        own_spread=prediction.spread,
-                        own_heading=prediction.heading,
+                        own_spread=prediction.spread if predicting else None,
+                        own_heading=prediction.heading if predicting else 0.0,
                     )
                 drive_faults = _drive_faults(self.drive)
                 if drive_faults and override is None and decision.mode not in _AT_REST:
@@ -361,10 +365,15 @@ class RobotAgent:
                         mode=RobotMode.HOLDING, task=decision.task, detail=drive_faults[0][1]
                     )
                 self._task = decision.task
-                # No command's point speeds up faster than max_accel_m_s2 (what peers
-                # assume of it): by a control period's worth per command.
-                limit = self._last_speed + safety.max_accel_m_s2 * self.period
-                decision = cap_speed_up(decision, limit, profile.half_axle, safety)
+                if predicting:  # no command's point speeds up faster than max_accel_m_s2
+                    # (what peers assume of it): by a control period's worth per command.
+                    limit = self._last_speed + safety.max_accel_m_s2 * self.period
+                    decision = cap_speed_up(decision, limit, profile.half_axle, safety)
+                else:
+                    prediction = None  # peers see it as before: no prediction on the wire
+                # A bound on the speed of the commands in flight (falls at the drive's limit).
+                fall = safety.max_accel_m_s2 * self.period
+                self._last_u = max(abs(decision.u) if decision.moving else 0.0, self._last_u - fall)
                 phase = "drive_error"
                 release = getattr(self.drive, "release", None)
                 if decision.moving:

@@ -68,9 +68,11 @@ class SafetyConfig(BaseModel):
     obstacle's body. ``projection_m`` [m]: the point ahead of the axle (at most the half
     axle); ``barrier_rate`` [1/s]: how fast a clearance may be used up.
 
-    The robot decides on its pose predicted for the instant its command acts
-    (:mod:`robot_agent.prediction`) and sees each peer around the pose that peer predicted
-    for itself, each with an uncertainty (spread) that assumes:
+    With ``prediction`` (off by default: docs/safety.md, "Latency where it lives") the robot
+    decides on its pose predicted for the instant its command acts
+    (:mod:`robot_agent.prediction`), sees each peer around the pose that peer predicted for
+    itself, and caps its speed-ups; without it, on its measured pose with :meth:`own_spread`
+    and its peers with :meth:`peer_spread`. The spreads assume:
 
     * command-to-wheel latency within the window the robot measures
       (:mod:`robot_agent.latency`), or within [0, ``max_latency_s``] [s] before it has
@@ -106,6 +108,7 @@ class SafetyConfig(BaseModel):
     heading_error_rad: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.02
     actuation_error: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.05
     clock_sync_s: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] | None = None
+    prediction: bool = False
 
     def filter_terms(self, spread: float) -> tuple[float, float, float, float]:
         """The compiled step's filter parameters (``fleet.core.step.Safety``: margin,

@@ -286,30 +286,6 @@ def test_at_rest_the_drive_is_released_held_it_is_stopped_every_tick() -> None:
     assert snap is not None and snap.mode is not RobotMode.HOLDING and not snap.errors
 
 
-class LaggingDrive(FakeDrive):
-    """A drive whose wheels turn at each command ``lag`` ticks after it was sent, measured
-    by ``wheel_speeds()``; the pose stays put (the agent's prediction is what is tested)."""
-
-    def __init__(self, clock: SteppedClock, lag: int) -> None:
-        super().__init__(clock)
-        self.lag = lag
-        self.sent: list[tuple[float, float, float]] = [(-1.0, 0.0, 0.0)]
-
-    def command_wheels(self, right_rad_s: float, left_rad_s: float) -> None:
-        super().command_wheels(right_rad_s, left_rad_s)
-        self.sent.append((self.clock.now(), right_rad_s, left_rad_s))
-
-    def stop(self) -> None:
-        super().stop()
-        self.sent.append((self.clock.now(), 0.0, 0.0))
-
-    def wheel_speeds(self) -> tuple[float, float, float]:
-        now = self.clock.now()
-        turning = [(r, le) for at, r, le in self.sent if at + self.lag * 0.02 <= now + 1e-9]
-        right, left = turning[-1] if turning else (0.0, 0.0)
-        return right, left, now
-
-
 def _agent_on(drive: FakeDrive, clock: SteppedClock, **safety: object) -> RobotAgent:
     settings = load_settings(safety=safety) if safety else load_settings()
     return RobotAgent("r1", drive, None, settings, clock=clock)
@@ -323,7 +299,7 @@ def test_the_agent_tells_peers_where_it_will_be_and_caps_its_speed_ups() -> None
 
     clock = SteppedClock()
     drive = FakeDrive(clock)
-    agent = _agent_on(drive, clock)
+    agent = _agent_on(drive, clock, prediction=True)
     agent.submit(ASSIGNMENT)
     safety, profile = agent.settings.safety, agent.settings.profile
     speeds = [0.0]
@@ -343,10 +319,28 @@ def test_the_agent_tells_peers_where_it_will_be_and_caps_its_speed_ups() -> None
     assert speeds[-1] > 0.5  # it did speed up, steadily
 
 
-def test_a_drive_slower_than_the_configured_latency_is_reported_and_measured() -> None:
+def test_without_prediction_the_agent_decides_as_before_and_publishes_none() -> None:
+    """prediction off (the default): the measured pose, the reach spreads, no cap, and no
+    prediction on the wire (peers then see the robot as before)."""
     clock = SteppedClock()
-    drive = LaggingDrive(clock, lag=15)  # 300 ms, twice max_latency_s
+    drive = FakeDrive(clock)
     agent = _agent_on(drive, clock)
+    assert not agent.settings.safety.prediction
+    agent.submit(ASSIGNMENT)
+    agent.tick()
+    assert agent.world.states()["r1"].ahead is None
+    right, left = drive.commands[-1]
+    assert max(abs(right), abs(left)) * agent.settings.profile.wheel_radius > 0.5  # uncapped
+
+
+def test_a_drive_slower_than_the_configured_latency_is_reported_and_measured() -> None:
+    from sim_agent.disturbances import Disturbances, DisturbedDrive
+
+    clock = SteppedClock()
+    lagging = Disturbances(latency_s=(0.3, 0.3))  # twice max_latency_s
+    profile = load_settings().profile
+    drive = DisturbedDrive((0.0, 0.0, 0.0), profile, clock, lagging, np.random.default_rng(0))
+    agent = RobotAgent("r1", drive, None, load_settings(), clock=clock)
     agent.submit(ASSIGNMENT.model_copy(update={"goal": Pose(x=-3.0, y=2.0, theta=1.0)}))
     for _ in range(400):
         snap = agent.tick()
@@ -356,4 +350,4 @@ def test_a_drive_slower_than_the_configured_latency_is_reported_and_measured() -
     assert window.exceeded and window.hi >= 0.3 - 0.01
     fault = [e for e in snap.errors if e.code == "latency_exceeded"]
     assert fault and fault[0].level.value == "warning"
-    assert snap.mode is not RobotMode.HOLDING  # it drives on, with the measured latency
+    assert snap.mode is not RobotMode.HOLDING  # it drives on

@@ -107,6 +107,7 @@ def test_a_lockstep_fleet_among_peers_is_the_batch_simulation_of_the_same_scene(
         "max_latency_s": 0.0,
         "link_delay_s": 0.0,
         "max_accel_m_s2": 100.0,
+        "prediction": True,
     }
     settings = load_settings(avoidance={"k_avoid": 0.05}, safety=exact)
     avoid, period = settings.avoidance, 1.0 / settings.control_rate_hz

@@ -328,10 +328,12 @@ class RobotAgent:
                 safety, profile = self.settings.safety, self.settings.profile
                 sent_at = self.clock.now()
                 predicting = safety.prediction
-                prediction = predict_own(
-                    pose.as_tuple(), stamp, sent_at, self.commands, window, profile, safety,
-                    self.period,
-                )  # fmt: skip
+                measured = pose.as_tuple()
+                if predicting:
+                    prediction = predict_own(
+                        measured, stamp, sent_at, self.commands, window, profile, safety,
+                        self.period,
+                    )  # fmt: skip
                 override = self.operator.mode
                 if override is not None:  # an operator's pause or e-stop: stand still, keep task
                     decision = TickResult(
@@ -343,7 +345,7 @@ class RobotAgent:
                         self.robot_id, safety, profile.radius, window if predicting else None
                     )
                     decision = decide(
-                        prediction.pose if predicting else pose.as_tuple(),
+                        prediction.pose if prediction is not None else measured,
                         pose_age,
                         self._task,
                         peers if active else NO_PEERS,
@@ -356,8 +358,8 @@ class RobotAgent:
                         safety=safety,
                         speed=self._last_u,
                         period=self.period,
-                        own_spread=prediction.spread if predicting else None,
-                        own_heading=prediction.heading if predicting else 0.0,
+                        own_spread=None if prediction is None else prediction.spread,
+                        own_heading=0.0 if prediction is None else prediction.heading,
                     )
                 drive_faults = _drive_faults(self.drive)
                 if drive_faults and override is None and decision.mode not in _AT_REST:
@@ -369,8 +371,6 @@ class RobotAgent:
                     # (what peers assume of it): by a control period's worth per command.
                     limit = self._last_speed + safety.max_accel_m_s2 * self.period
                     decision = cap_speed_up(decision, limit, profile.half_axle, safety)
-                else:
-                    prediction = None  # peers see it as before: no prediction on the wire
                 # A bound on the speed of the commands in flight (falls at the drive's limit).
                 fall = safety.max_accel_m_s2 * self.period
                 self._last_u = max(abs(decision.u) if decision.moving else 0.0, self._last_u - fall)

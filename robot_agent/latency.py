@@ -20,7 +20,8 @@ from the command before it, so the measurements saw it start) it becomes a *samp
 (contradictory bounds, lo > hi, are dropped). The window runs from the ``trim`` quantile of
 the samples' lo to the 1 - ``trim`` quantile of their hi, over the last ``max_samples``:
 the extremes of what was sampled less a few outliers (a measurement whose noise exceeds the
-tolerance can match the wrong command). It is *assumed* to hold the commands to come: the
+tolerance can match the wrong command), widened by half the resolution each way (the
+rarest latencies may not be among the samples). It is *assumed* to hold the commands to come: the
 latency's distribution does not drift faster than the samples follow. Until
 ``min_samples`` samples are in, or without measurements at all, the window is the
 configured [0, ``fallback_s``] (``SafetyConfig.max_latency_s``); a measured window is
@@ -35,7 +36,8 @@ latency certainly above ``fallback_s`` (their lo), the configured bound is wrong
 and the window then reaches at least as far as those latencies, measured or not.
 
 Memory is bounded: at most ``max_pending`` commands awaiting a verdict, ``max_samples``
-samples and ``max_samples`` verdicts on the bound.
+samples and ``max_samples`` verdicts on the bound. The window is recomputed every ten
+verdicts (a fifth of a second at 50 Hz) once there are samples enough.
 """
 
 from __future__ import annotations
@@ -117,6 +119,7 @@ class LatencyEstimator:
         self._samples: deque[tuple[float, float]] = deque(maxlen=max_samples)
         self._over: deque[float] = deque(maxlen=max_samples)  # lo of each verdict [s]
         self._window = LatencyWindow(0.0, self.fallback_s)
+        self._stale = 0  # verdicts since the window was computed (it is every 10: cheap)
         self.unmatched = 0  # measurements that matched no command (noise beyond tolerance)
 
     # -- inputs -----------------------------------------------------------------------------
@@ -166,7 +169,10 @@ class LatencyEstimator:
             if entry.hi - entry.lo <= self.resolution:
                 self._samples.append((entry.lo, entry.hi))
         if changed:
-            self._window = self._compute()
+            self._stale += 1
+            if self._stale >= 10 or len(self._samples) < 2 * self.min_samples:
+                self._stale = 0
+                self._window = self._compute()
 
     # -- output -----------------------------------------------------------------------------
     def _compute(self) -> LatencyWindow:
@@ -177,7 +183,11 @@ class LatencyEstimator:
             los = sorted(s[0] for s in self._samples)
             his = sorted(s[1] for s in self._samples)
             k = int(len(los) * self.trim)
-            lo, hi, measured = max(0.0, los[k]), his[len(his) - 1 - k], True
+            # Half the resolution (a control period) more each way: the rarest latencies
+            # (a command held up behind the one before acts late; a fast one is rare)
+            # may not be among the samples.
+            margin = 0.5 * self.resolution
+            lo, hi, measured = max(0.0, los[k] - margin), his[len(his) - 1 - k] + margin, True
         else:
             lo, hi, measured = 0.0, self.fallback_s, False
         if exceeded:  # at least as far as the latencies known to be above the bound

@@ -160,6 +160,35 @@ def test_world_feed_decodes_samples_and_rejects_ids_not_matching_the_key() -> No
     assert np.array_equal(world.obstacles(), [[1.0], [2.0], [0.5], [0.1], [1.0], [2.0]])
 
 
+def test_with_synchronised_clocks_a_peer_s_prediction_is_placed_by_its_stamp() -> None:
+    """clock_sync_s: a state stamped 0.05 s ago (wall) was sent 0.05 s +- the sync bound
+    before it arrived, not anywhere within link_delay_s: the peer's radius is smaller; a
+    stamp further ahead than the clocks may disagree is counted and not trusted."""
+    from fleet.core.params import SafetyConfig
+    from fleet.core.wire import Ahead
+    from robot_agent.latency import LatencyWindow
+
+    keys, clock = Keys(), SteppedClock(100.0)
+    wall = [1000.0]
+    ahead = Ahead(x=1.0, y=0.0, theta=0.0, lead_s=0.1, spread_m=0.02, heading_rad=0.01,
+                  speed_m_s=1.0)  # fmt: skip
+    safety = SafetyConfig(clock_sync_s=0.005)
+    window = LatencyWindow(0.05, 0.15, measured=True)
+    radii = {}
+    for sync in (None, 0.005):
+        world = WorldView(clock.now)
+        feed = WorldFeed(world, keys, clock_sync_s=sync, wall_clock=lambda: wall[0])
+        state = RobotState(robot_id="a", seq=1, stamp=wall[0] - 0.05, pose=Pose(x=1.0, y=0.0),
+                           ahead=ahead)  # fmt: skip
+        feed._on_state(FakeSample(keys.peer_state("a", (0, 0)), Payload(encode(state))))
+        radii[sync] = world.peer_bodies("me", safety, 0.2, window)[1][1, 0]
+        if sync is not None:
+            ahead_of_us = state.model_copy(update={"seq": 2, "stamp": wall[0] + 1.0})
+            feed._on_state(FakeSample(keys.peer_state("a", (0, 0)), Payload(encode(ahead_of_us))))
+            assert feed.decoder.dropped.get("stamp_ahead") == 1
+    assert radii[0.005] < radii[None] - 0.1  # 150 ms of link-delay doubt gone at 1 m/s
+
+
 def test_callback_guard_counts_exceptions() -> None:
     guard = CallbackGuard("test")
 

@@ -295,7 +295,7 @@ class RobotAgent:
             phase = "drive_error"
             pose, stamp = self.drive.read_pose()
             wheel_speeds = getattr(self.drive, "wheel_speeds", None)
-            if wheel_speeds is not None:
+            if wheel_speeds is not None and self.settings.safety.prediction:
                 right, left, measured = wheel_speeds()
                 self.latency.measured(measured, right, left)
             phase = "tick_error"
@@ -411,7 +411,10 @@ class RobotAgent:
 
     def _sent(self, at: float, right: float, left: float) -> None:
         """Remember a wheel command sent at ``at`` [s]: in flight for the prediction, for the
-        latency estimate, and for the next command's speed-up cap."""
+        latency estimate, and for the next command's speed-up cap (with ``prediction`` on;
+        off, the agent keeps nothing of it: it decides as before, at the same cost)."""
+        if not self.settings.safety.prediction:
+            return
         self.commands.add(at, right, left)
         self.latency.commanded(at, right, left)
         profile = self.settings.profile

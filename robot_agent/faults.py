@@ -15,7 +15,8 @@ Codes (stable, for scripts and dashboards):
   re-aligned (any code a drive's optional ``faults()`` reports is passed on like this);
 * ``latency_exceeded`` (warning) -- the drive's measured command-to-wheel latency is above
   ``SafetyConfig.max_latency_s``: an assumption of the safety filter is broken; the robot
-  drives on, its filter using the measured latency (:mod:`robot_agent.latency`).
+  drives on, its filter using the measured latency (:mod:`robot_agent.latency`; measured
+  with ``SafetyConfig.prediction`` on).
 """
 
 from __future__ import annotations

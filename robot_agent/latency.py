@@ -33,7 +33,8 @@ U(50, 150) ms gives about [40, 180] ms, a constant 80 ms [40, 120] ms, none [0, 
 **A broken assumption.** When more than ``exceed_share`` of the recent verdicts have a
 latency certainly above ``fallback_s`` (their lo), the configured bound is wrong:
 :attr:`LatencyWindow.exceeded` says so (the agent reports the fault ``latency_exceeded``)
-and the window then reaches at least as far as those latencies, measured or not.
+and the window then reaches at least as far as the slowest latency ever certainly seen,
+measured or not.
 
 Memory is bounded: at most ``max_pending`` commands awaiting a verdict, ``max_samples``
 samples and ``max_samples`` verdicts on the bound. The window is recomputed every ten
@@ -71,13 +72,16 @@ class LatencyWindow:
         return 0.5 * (self.hi - self.lo)
 
 
-@dataclass
+@dataclass(slots=True)
 class _Pending:
-    """A command awaiting its verdict: sent [s], wheels [rad/s], latency bounds (lo, hi] [s]."""
+    """A command awaiting its verdict: sent [s], wheels [rad/s], their match tolerances
+    [rad/s], latency bounds (lo, hi] [s]."""
 
     sent: float
     right: float
     left: float
+    tol_right: float
+    tol_left: float
     lo: float = 0.0
     hi: float = math.inf
 
@@ -118,6 +122,7 @@ class LatencyEstimator:
         self._pending: deque[_Pending] = deque(maxlen=max_pending)
         self._samples: deque[tuple[float, float]] = deque(maxlen=max_samples)
         self._over: deque[float] = deque(maxlen=max_samples)  # lo of each verdict [s]
+        self._worst = 0.0  # [s] the largest latency certainly seen (a lo), ever
         self._window = LatencyWindow(0.0, self.fallback_s)
         self._stale = 0  # verdicts since the window was computed (it is every 10: cheap)
         self.unmatched = 0  # measurements that matched no command (noise beyond tolerance)
@@ -125,12 +130,10 @@ class LatencyEstimator:
     # -- inputs -----------------------------------------------------------------------------
     def commanded(self, sent: float, right: float, left: float) -> None:
         """The agent sent wheel speeds ``right``, ``left`` [rad/s] at ``sent`` [s]."""
-        self._pending.append(_Pending(float(sent), float(right), float(left)))
-
-    def _matches(self, entry: _Pending, right: float, left: float) -> bool:
-        tol_r = self.tolerance * abs(entry.right) + self.floor
-        tol_l = self.tolerance * abs(entry.left) + self.floor
-        return abs(right - entry.right) <= tol_r and abs(left - entry.left) <= tol_l
+        right, left = float(right), float(left)
+        tol_right = self.tolerance * abs(right) + self.floor
+        tol_left = self.tolerance * abs(left) + self.floor
+        self._pending.append(_Pending(float(sent), right, left, tol_right, tol_left))
 
     def measured(self, at: float, right: float, left: float) -> None:
         """The wheels turned at ``right``, ``left`` [rad/s] at ``at`` [s, agent clock]."""
@@ -141,7 +144,10 @@ class LatencyEstimator:
         for k, entry in enumerate(pending):
             if entry.sent > at:
                 break  # sent after the measurement: cannot be the one turning
-            if self._matches(entry, right, left):
+            if (
+                abs(right - entry.right) <= entry.tol_right
+                and abs(left - entry.left) <= entry.tol_left
+            ):
                 if first < 0:
                     first = k
                 last = k
@@ -166,6 +172,7 @@ class LatencyEstimator:
             if entry.lo > entry.hi:  # contradictory (a match beyond the tolerance): no verdict
                 continue
             self._over.append(entry.lo)
+            self._worst = max(self._worst, entry.lo)
             if entry.hi - entry.lo <= self.resolution:
                 self._samples.append((entry.lo, entry.hi))
         if changed:
@@ -190,8 +197,8 @@ class LatencyEstimator:
             lo, hi, measured = max(0.0, los[k] - margin), his[len(his) - 1 - k] + margin, True
         else:
             lo, hi, measured = 0.0, self.fallback_s, False
-        if exceeded:  # at least as far as the latencies known to be above the bound
-            hi = max(hi, over[min(cut, len(over) - 1)] + self.resolution)
+        if exceeded:  # at least as far as the slowest latency ever certainly seen
+            hi = max(hi, self._worst + self.resolution)
         else:  # the configured bound holds until a latency above it is measured
             lo, hi = min(lo, self.fallback_s), min(hi, self.fallback_s)
         return LatencyWindow(lo, hi, measured, exceeded)

@@ -369,7 +369,8 @@ def test_a_drive_slower_than_the_configured_latency_is_reported_and_measured() -
     lagging = Disturbances(latency_s=(0.3, 0.3))  # twice max_latency_s
     profile = load_settings().profile
     drive = DisturbedDrive((0.0, 0.0, 0.0), profile, clock, lagging, np.random.default_rng(0))
-    agent = RobotAgent("r1", drive, None, load_settings(), clock=clock)
+    settings = load_settings(safety={"prediction": True})  # it measures the latency then
+    agent = RobotAgent("r1", drive, None, settings, clock=clock)
     agent.submit(ASSIGNMENT.model_copy(update={"goal": Pose(x=-3.0, y=2.0, theta=1.0)}))
     for _ in range(400):
         snap = agent.tick()

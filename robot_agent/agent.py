@@ -1,9 +1,14 @@
 """``RobotAgent``: one robot's control loop on Zenoh, over a :class:`~robot_agent.drive.Drive`.
 
 Each tick (default 50 Hz, ``Settings.control_rate_hz``, on the agent's monotonic clock) has
-two phases: :meth:`RobotAgent.sense` reads the pose and applies pending assignment
-messages; :meth:`RobotAgent.act` decides with the pure :func:`robot_agent.logic.decide`,
-commands the wheels and publishes ``RobotState`` (stamped with the wall clock) through
+two phases: :meth:`RobotAgent.sense` reads the pose (and, from a drive that measures them,
+the wheel speeds: :mod:`robot_agent.latency` learns the command-to-wheel latency from
+them) and applies pending assignment messages; :meth:`RobotAgent.act` predicts the pose for
+the instant its command will act (:func:`robot_agent.prediction.predict_own`, through the
+commands in flight), decides on it with the pure :func:`robot_agent.logic.decide` (peers
+where they predicted themselves, :meth:`robot_agent.world.WorldView.peer_bodies`), caps
+the command's speed-up (:func:`robot_agent.logic.cap_speed_up`), commands the wheels and
+publishes ``RobotState`` (stamped with the wall clock, with its prediction ``ahead``) through
 :class:`~robot_agent.state_streams.StateStreams`: every tick on its grid cell's peer key,
 and at the fleet rate (and on every change) on ``keys.state(id)``. Zenoh edges:
 
@@ -48,6 +53,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from fleet.core.step import body_velocities
 from fleet.core.wire import (
     CancelAssignment,
     ControlCommand,
@@ -65,6 +71,7 @@ from fleet.io.settings import RobotSettings
 from robot_agent.clock import Clock, MonotonicClock, run_periodic
 from robot_agent.drive import Drive
 from robot_agent.faults import FaultBook, current_faults
+from robot_agent.latency import LatencyEstimator, LatencyWindow
 from robot_agent.link import LinkMonitor
 from robot_agent.logic import (
     NO_PEERS,
@@ -72,9 +79,11 @@ from robot_agent.logic import (
     AgentTaskStatus,
     TickResult,
     apply_assignment,
+    cap_speed_up,
     decide,
 )
 from robot_agent.operator import OperatorLatch
+from robot_agent.prediction import CommandLog, OwnPrediction, point_speed, predict_own
 from robot_agent.state_streams import StateStreams
 from robot_agent.world import WorldView
 from robot_agent.world_feed import WorldFeed
@@ -132,7 +141,9 @@ class RobotAgent:
         self.period = 1.0 / settings.control_rate_hz  # [s]
         self._wall = wall_clock
         self._owns_feed = feed is None
-        self.feed = feed or WorldFeed(WorldView(), self.keys)
+        self.feed = feed or WorldFeed(
+            WorldView(), self.keys, clock_sync_s=settings.safety.clock_sync_s
+        )
         self.world = self.feed.world
         self._owns_link = link is None
         self.link = link or LinkMonitor(
@@ -153,7 +164,16 @@ class RobotAgent:
         self.faults = FaultBook()
         self._seq = 0
         self._pose = Pose(x=0.0, y=0.0, theta=0.0)
-        self._last_u = 0.0  # [m/s] last commanded forward speed (own spread: in flight)
+        safety = settings.safety
+        #: The commands in flight (the prediction) and the latency learnt from the drive.
+        self.commands = CommandLog(span_s=max(1.0, 4.0 * safety.max_latency_s))
+        self.latency = LatencyEstimator(
+            safety.max_latency_s,
+            tolerance=2.0 * safety.actuation_error,  # a match: within twice the bound
+            resolution_s=2 * self.period,
+        )
+        self._last_speed = 0.0  # [m/s] point_speed of the last command sent
+        self._last_u = 0.0  # [m/s] bound on |u| in flight (own spread without prediction)
         self._reading: tuple[Pose, float, float] | None = None  # sensed (pose, stamp, now)
         self._failure: tuple[str, str] | None = None  # (phase, message) of a failed sense
         self.tick_errors = 0
@@ -274,30 +294,46 @@ class RobotAgent:
             self._apply_inbox(self.clock.now())
             phase = "drive_error"
             pose, stamp = self.drive.read_pose()
+            wheel_speeds = getattr(self.drive, "wheel_speeds", None)
+            if wheel_speeds is not None and self.settings.safety.prediction:
+                right, left, measured = wheel_speeds()
+                self.latency.measured(measured, right, left)
             phase = "tick_error"
             now = self.clock.now()
             self._pose = pose
-            self.world.update_position(self.robot_id, pose.x, pose.y, pose.theta)
+            self.world.update_position(self.robot_id, pose.x, pose.y, pose.theta, stamp)
             self.feed.follow(self.robot_id, pose.x, pose.y)
             self._reading = (pose, stamp, now)
         except Exception as exc:
             self._failure = self._tick_failed(phase, exc)
 
     def act(self) -> AgentSnapshot | None:
-        """Second phase of a tick: decide on the sensed pose (an operator's pause or e-stop
-        overrides the decision), command the wheels, publish the state and its faults."""
+        """Second phase of a tick: predict the pose for the instant the command acts, decide
+        on it (an operator's pause or e-stop overrides the decision), cap its speed-up,
+        command the wheels and publish the state, its prediction and its faults."""
         reading, self._reading = self._reading, None
         failure = self._failure
         pose_age = float("nan")
         link_ok = True
         drive_faults: list[tuple[str, str]] = []
         decision: TickResult | None = None
+        prediction: OwnPrediction | None = None
+        window = self.latency.window()
         if reading is not None:
             pose, stamp, now = reading
             pose_age = now - stamp
             phase = "tick_error"
             try:
                 link_ok = self.link.ok()
+                safety, profile = self.settings.safety, self.settings.profile
+                sent_at = self.clock.now()
+                predicting = safety.prediction
+                measured = pose.as_tuple()
+                if predicting:
+                    prediction = predict_own(
+                        measured, stamp, sent_at, self.commands, window, profile, safety,
+                        self.period,
+                    )  # fmt: skip
                 override = self.operator.mode
                 if override is not None:  # an operator's pause or e-stop: stand still, keep task
                     decision = TickResult(
@@ -305,24 +341,25 @@ class RobotAgent:
                     )
                 else:
                     active = self._task is not None and self._task.status is AgentTaskStatus.ACTIVE
+                    peers = self.world.peer_bodies(
+                        self.robot_id, safety, profile.radius, window if predicting else None
+                    )
                     decision = decide(
-                        pose.as_tuple(),
+                        prediction.pose if prediction is not None else measured,
                         pose_age,
                         self._task,
-                        self.world.peer_bodies(
-                            self.robot_id, self.settings.safety, self.settings.profile.radius
-                        )
-                        if active
-                        else NO_PEERS,
+                        peers if active else NO_PEERS,
                         self.world.obstacles(),
-                        self.settings.profile,
+                        profile,
                         self.settings.avoidance,
                         self.settings.pose_stale_s,
                         link_ok=link_ok if active else True,
                         now=now,
-                        safety=self.settings.safety,
+                        safety=safety,
                         speed=self._last_u,
                         period=self.period,
+                        own_spread=None if prediction is None else prediction.spread,
+                        own_heading=0.0 if prediction is None else prediction.heading,
                     )
                 drive_faults = _drive_faults(self.drive)
                 if drive_faults and override is None and decision.mode not in _AT_REST:
@@ -330,21 +367,29 @@ class RobotAgent:
                         mode=RobotMode.HOLDING, task=decision.task, detail=drive_faults[0][1]
                     )
                 self._task = decision.task
+                if predicting:  # no command's point speeds up faster than max_accel_m_s2
+                    # (what peers assume of it): by a control period's worth per command.
+                    limit = self._last_speed + safety.max_accel_m_s2 * self.period
+                    decision = cap_speed_up(decision, limit, profile.half_axle, safety)
                 # A bound on the speed of the commands in flight (falls at the drive's limit).
-                fall = self.settings.safety.max_accel_m_s2 * self.period
+                fall = safety.max_accel_m_s2 * self.period
                 self._last_u = max(abs(decision.u) if decision.moving else 0.0, self._last_u - fall)
                 phase = "drive_error"
                 release = getattr(self.drive, "release", None)
                 if decision.moving:
                     self.drive.command_wheels(decision.right, decision.left)
+                    self._sent(sent_at, decision.right, decision.left)
                 elif decision.mode in _AT_REST and release is not None:
                     release()  # nothing to do: the drive may fall silent (teleop)
+                    self._sent(sent_at, 0.0, 0.0)
                 else:
                     self.drive.stop()  # held stopped for a reason: zero every tick
+                    self._sent(sent_at, 0.0, 0.0)
             except Exception as exc:
                 failure = self._tick_failed(phase, exc)
                 decision = None
         if decision is None:  # sensing or acting failed (counted, logged, robot stopped)
+            prediction = None
             drive_failed = failure is not None and failure[0] == "drive_error"
             what = "drive error" if drive_failed else "tick error"
             decision = TickResult(
@@ -359,9 +404,31 @@ class RobotAgent:
             estop=self.operator.detail if self.operator.estop else None,
             failure=failure,
             drive=drive_faults,
+            latency=self._latency_fault(window),
         )
         wall = self._wall()
-        return self._publish(decision, self.faults.update(faults, wall), wall)
+        return self._publish(decision, self.faults.update(faults, wall), wall, prediction)
+
+    def _sent(self, at: float, right: float, left: float) -> None:
+        """Remember a wheel command sent at ``at`` [s]: in flight for the prediction, for the
+        latency estimate, and for the next command's speed-up cap (with ``prediction`` on;
+        off, the agent keeps nothing of it: it decides as before, at the same cost)."""
+        if not self.settings.safety.prediction:
+            return
+        self.commands.add(at, right, left)
+        self.latency.commanded(at, right, left)
+        profile = self.settings.profile
+        u, omega = body_velocities(right, left, profile.wheel_radius, profile.half_axle)
+        self._last_speed = point_speed(u, omega, profile.half_axle, self.settings.safety)
+
+    def _latency_fault(self, window: LatencyWindow) -> str | None:
+        if not window.exceeded:
+            return None
+        bound = self.settings.safety.max_latency_s
+        return (
+            f"command latency measured up to {window.hi:.3f} s, above max_latency_s "
+            f"{bound:g} s: the filter uses the measured window"
+        )
 
     def _tick_failed(self, phase: str, exc: Exception) -> tuple[str, str]:
         """Count and log an exception of a tick, stop the robot; the fault to report."""
@@ -395,7 +462,11 @@ class RobotAgent:
                 self._task = apply_assignment(self._task, message, now)
 
     def _publish(
-        self, decision: TickResult, errors: list[RobotError], wall: float
+        self,
+        decision: TickResult,
+        errors: list[RobotError],
+        wall: float,
+        prediction: OwnPrediction | None = None,
     ) -> AgentSnapshot | None:
         task = decision.task
         a = task.assignment if task is not None else None
@@ -423,9 +494,19 @@ class RobotAgent:
             radius=self.settings.profile.radius,
             detail=decision.detail,
             errors=errors,
+            ahead=None
+            if prediction is None
+            else prediction.ahead(
+                decision.right,
+                decision.left,
+                self.settings.profile,
+                self.settings.safety,
+                lead=prediction.at - self.clock.now(),
+            ),
         )
         self._seq += 1
-        self.world.update_state(state)  # agents sharing this session see it without Zenoh
+        # Agents sharing this session see it without Zenoh, sent just now.
+        self.world.update_state(state, sent_age_s=(0.0, 0.0))
         try:
             self.streams.publish(state)
         except Exception:
@@ -436,6 +517,7 @@ class RobotAgent:
     def _safe_stop(self) -> None:
         try:
             self.drive.stop()
+            self._sent(self.clock.now(), 0.0, 0.0)
         except Exception:
             _log.exception("%s: drive.stop() failed", self.robot_id)
 

@@ -20,7 +20,14 @@ A ``Drive`` connects :class:`robot_agent.agent.RobotAgent` to one robot's hardwa
   nothing to do (idle, arrived): a drive may stop commanding (the ros2 drive falls silent
   so an operator can teleop). Optional ``faults()`` -- ``(code, message)`` pairs of the
   drive's own faults; while any is reported the agent holds and lists it in
-  ``RobotState.errors`` (the ros2 drive's ``pose_jump``).
+  ``RobotState.errors`` (the ros2 drive's ``pose_jump``). Optional ``wheel_speeds()`` --
+  the right and left wheel speeds [rad/s] the wheels were *measured* turning at (encoders,
+  or odometry's twist by Eq. 2), and when, on the agent's clock: ``(right, left, at)``
+  (:data:`WheelReading`). The agent reads it every tick and measures its command-to-wheel
+  latency from it (:mod:`robot_agent.latency`): without it the latency is taken to be
+  anywhere in [0, ``SafetyConfig.max_latency_s``], which widens the robot's own spread.
+  Report what turns, not what was commanded: a drive that echoes its last command
+  measures no latency (the simulated drives report the wheels actually turning).
 
 Calls come from one thread (the agent's control loop), never concurrently. Methods should
 return quickly (well under one control period); raise an exception on a hardware fault,
@@ -58,6 +65,10 @@ from fleet.core.wire import Pose
 
 PoseReading = tuple[Pose, float]
 """A world-frame pose and the time [s, agent clock] it was measured."""
+
+WheelReading = tuple[float, float, float]
+"""Measured right and left wheel speeds [rad/s] and the time [s, agent clock] they were
+measured (the optional ``wheel_speeds()``)."""
 
 
 @runtime_checkable

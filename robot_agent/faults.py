@@ -12,7 +12,11 @@ Codes (stable, for scripts and dashboards):
 * ``drive_error`` (error) -- the drive raised on the last tick (the robot was stopped);
 * ``tick_error`` (error) -- the agent's own tick failed (the robot was stopped);
 * ``pose_jump`` (error) -- the ros2 drive's odometry jumped or reset: holding until
-  re-aligned (any code a drive's optional ``faults()`` reports is passed on like this).
+  re-aligned (any code a drive's optional ``faults()`` reports is passed on like this);
+* ``latency_exceeded`` (warning) -- the drive's measured command-to-wheel latency is above
+  ``SafetyConfig.max_latency_s``: an assumption of the safety filter is broken; the robot
+  drives on, its filter using the measured latency (:mod:`robot_agent.latency`; measured
+  with ``SafetyConfig.prediction`` on).
 """
 
 from __future__ import annotations
@@ -33,11 +37,13 @@ def current_faults(
     estop: str | None = None,
     failure: tuple[str, str] | None = None,
     drive: Iterable[tuple[str, str]] = (),
+    latency: str | None = None,
 ) -> list[Fault]:
     """Faults of one tick.
 
     ``pose_age`` [s] of the drive's pose (NaN if unknown), ``estop`` the operator latch's
-    detail when e-stopped, ``failure`` ``(code, message)`` when the tick raised.
+    detail when e-stopped, ``failure`` ``(code, message)`` when the tick raised,
+    ``latency`` what is wrong with the measured latency (None: within its bound).
     """
     faults: list[Fault] = []
     if estop is not None:
@@ -51,6 +57,8 @@ def current_faults(
     faults.extend((code, ErrorLevel.ERROR, message) for code, message in drive)
     if not link_ok:
         faults.append(("link_lost", ErrorLevel.ERROR, "link to the fleet network lost: holding"))
+    if latency is not None:
+        faults.append(("latency_exceeded", ErrorLevel.WARNING, latency))
     return faults
 
 

@@ -55,6 +55,7 @@ from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
 from fleet.core.route import route_table
 from fleet.core.types import FloatArray
 from fleet.core.wire import CancelAssignment, Obstacle, ParkAssignment, RobotMode
+from robot_agent.prediction import point_speed
 
 #: Tolerance [s] on the end of a start delay (the batch simulator uses the same).
 DELAY_EPS = 1e-6
@@ -162,12 +163,47 @@ def obstacle_arrays(obstacles: Sequence[Obstacle]) -> FloatArray:
 NO_PEERS: tuple[FloatArray, FloatArray] = (np.zeros((3, 0)), np.zeros((2, 0)))
 
 
-def filter_of(safety: SafetyConfig | None, speed: float = 0.0) -> step.Safety:
-    """The compiled step's filter parameters for ``safety`` (off when None or disabled);
-    ``speed`` [m/s]: the robot's last commanded speed, for its own spread."""
+def filter_of(
+    safety: SafetyConfig | None,
+    speed: float = 0.0,
+    own_spread: float | None = None,
+    own_heading: float = 0.0,
+) -> step.Safety:
+    """The compiled step's filter parameters for ``safety`` (off when None or disabled):
+    the robot's own spread [m] is ``own_spread`` (its prediction's), else that of its last
+    commanded speed ``speed`` [m/s] (:meth:`SafetyConfig.own_spread`); ``own_heading``
+    [rad] its heading's uncertainty."""
     if safety is None:
         return step.SAFETY_OFF
-    return step.Safety(*safety.filter_terms(safety.own_spread(speed)))
+    spread = safety.own_spread(speed) if own_spread is None else own_spread
+    return step.Safety(*safety.filter_terms(spread), own_heading)
+
+
+def cap_speed_up(
+    result: TickResult, limit: float, half_axle: float, safety: SafetyConfig
+) -> TickResult:
+    """``result`` with its command scaled down (u, omega and both wheels by one factor in
+    [0, 1]: the path's curvature kept) so that its projected point's speed bound
+    (:func:`robot_agent.prediction.point_speed`) is at most ``limit`` [m/s].
+
+    The agent passes its last command's bound plus ``max_accel_m_s2`` times the control
+    period: no command's point speeds up faster than that, which is what peers assume of
+    it (docs/safety.md). Braking and turning are never limited. Scaling keeps the safety
+    filter's guarantee: a command the filter allows, scaled by s in [0, 1], closes every
+    gap by at most s times as much (when it opened one, it opens it by less but still
+    does not close it), and its second-order terms shrink by s^2.
+    """
+    speed = point_speed(result.u, result.omega, half_axle, safety)
+    if speed <= limit or not result.moving:
+        return result
+    scale = max(limit, 0.0) / speed
+    return replace(
+        result,
+        u=result.u * scale,
+        omega=result.omega * scale,
+        right=result.right * scale,
+        left=result.left * scale,
+    )
 
 
 def _step_params(task: AgentTask, profile: RobotProfile, limit: float) -> FloatArray:
@@ -208,6 +244,8 @@ def decide(
     safety: SafetyConfig | None = None,
     speed: float = 0.0,
     period: float = 0.0,
+    own_spread: float | None = None,
+    own_heading: float = 0.0,
 ) -> TickResult:
     """Decide one control tick.
 
@@ -242,9 +280,15 @@ def decide(
     safety : SafetyConfig or None
         The safety filter (None or ``enabled=False``: off, the paper's model).
     speed : float
-        The robot's last commanded forward speed [m/s] (its own spread: commands in flight).
+        The robot's last commanded forward speed [m/s]: its own spread without a
+        prediction (:meth:`SafetyConfig.own_spread`, commands in flight as a reach).
     period : float
         Control period [s]: the filter's step.
+    own_spread : float or None
+        This robot's own spread [m] when ``pose`` is its prediction for the instant the
+        command acts (:func:`robot_agent.prediction.predict_own`); None: ``speed``'s.
+    own_heading : float
+        Uncertainty [rad] of that pose's heading: the filter widens every cone by it.
     """
     if task is None:
         return _stopped(RobotMode.IDLE, None)
@@ -279,7 +323,7 @@ def decide(
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius,
         min_x_oa=avoid.min_x_oa,
-        safety=filter_of(safety, speed),
+        safety=filter_of(safety, speed, own_spread, own_heading),
         dt=period,
     )
     if result.done:  # the stop rule: this step is still applied (see the module docstring)

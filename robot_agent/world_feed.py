@@ -19,6 +19,7 @@ import logging
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable
 from typing import Any
 
 from fleet.core.wire import Cell, Keys, ObstacleSet, RobotState, cells_around, parse_age
@@ -38,8 +39,14 @@ class WorldFeed:
         decoder: Decoder | None = None,
         *,
         upstream: WorldFeed | None = None,
+        clock_sync_s: float | None = None,
+        wall_clock: Callable[[], float] = time.time,
     ) -> None:
         self.world = world
+        #: [s] robots' wall clocks agree within this (``SafetyConfig.clock_sync_s``): a
+        #: state's send time is then its stamp, give or take that; None: unknown.
+        self.clock_sync_s = clock_sync_s
+        self._wall = wall_clock
         self.upstream = upstream  # a shared feed that subscribes for this one (never attached)
         self.keys = keys
         self.decoder = decoder or Decoder("world")
@@ -141,7 +148,20 @@ class WorldFeed:
         state = self._state_of(sample)
         if state is not None:
             self.last_heard = time.monotonic()
-            self.world.update_state(state)
+            self.world.update_state(state, sent_age_s=self._sent_age(state))
+
+    def _sent_age(self, state: RobotState) -> tuple[float, float] | None:
+        """How long ago [s] (most, least) ``state`` was sent, from its stamp when the clocks
+        are synchronised; None when not, or when the stamp lies further ahead than the
+        clocks may disagree (then the link-delay bound applies; counted)."""
+        sync = self.clock_sync_s
+        if sync is None:
+            return None
+        age = self._wall() - state.stamp
+        if age + sync < 0.0:
+            self.decoder.drop("stamp_ahead", f"{state.robot_id}: stamp {-age:.3f} s ahead")
+            return None
+        return age + sync, max(age - sync, 0.0)
 
     def _on_state_reply(self, reply: Any) -> None:
         """A robot's last state replayed by the service, heard ``age`` [s] ago."""

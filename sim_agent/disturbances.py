@@ -11,6 +11,9 @@ Wraps a simulated drive (seeded, reproducible) and adds, between the agent and t
 * **command latency** -- a command (``stop`` included) takes effect ``d ~ U(latency_s)``
   seconds after it is sent, in the order sent (a later command never overtakes an earlier
   one); the robot keeps its previous wheel speeds meanwhile;
+* **encoders** -- :meth:`DisturbedDrive.wheel_speeds` reports the wheel speeds actually
+  turning (after the latency and the actuation noise), each with Gaussian noise of std
+  ``encoder_noise_rad_s`` [rad/s] (0 in :data:`REALISTIC`);
 * **link disturbances** (:class:`LinkDisturbances`, :class:`DelayedLink`) -- between robots
   (robot to robot over Wi-Fi): every copy of a peer's state reaches each other robot
   ``d ~ U(delay_s)`` seconds after it was sent, or never (probability ``loss``), each copy
@@ -34,7 +37,7 @@ import numpy as np
 from fleet.core.params import RobotProfile
 from fleet.core.wire import Pose
 from robot_agent.clock import Clock, SteppedClock
-from robot_agent.drive import PoseReading
+from robot_agent.drive import PoseReading, WheelReading
 from sim_agent.drive import SimDrive
 
 
@@ -45,7 +48,8 @@ class Disturbances:
     ``pose_noise_m`` [m] and ``heading_noise_rad`` [rad]: std of the reported pose's error;
     ``actuation_noise`` and ``actuation_bias``: relative std of each wheel command's error
     (fresh per command) and of a constant per-wheel gain error (per robot);
-    ``latency_s``: command latency drawn uniformly in [min, max] [s].
+    ``latency_s``: command latency drawn uniformly in [min, max] [s];
+    ``encoder_noise_rad_s`` [rad/s]: std of the measured wheel speeds' error.
     """
 
     pose_noise_m: float = 0.0
@@ -53,9 +57,11 @@ class Disturbances:
     actuation_noise: float = 0.0
     actuation_bias: float = 0.0
     latency_s: tuple[float, float] = (0.0, 0.0)
+    encoder_noise_rad_s: float = 0.0
 
     def __post_init__(self) -> None:
-        stds = (self.pose_noise_m, self.heading_noise_rad, self.actuation_noise)
+        stds = (self.pose_noise_m, self.heading_noise_rad, self.actuation_noise,
+                self.encoder_noise_rad_s)  # fmt: skip
         if not all(math.isfinite(s) and s >= 0 for s in (*stds, self.actuation_bias)):
             raise ValueError("noise standard deviations must be finite and >= 0")
         low, high = self.latency_s
@@ -232,6 +238,17 @@ class DisturbedDrive:
         if d.heading_noise_rad:
             theta += float(self.rng.normal(0.0, d.heading_noise_rad))
         return Pose(x=x, y=y, theta=theta), stamp
+
+    def wheel_speeds(self) -> WheelReading:
+        """The wheel speeds [rad/s] turning now (commands due by now applied), with the
+        encoders' noise, and now [s] (the optional Drive method)."""
+        self._catch_up()
+        right, left, now = self.inner.wheel_speeds()
+        noise = self.disturbances.encoder_noise_rad_s
+        if noise:
+            right += float(self.rng.normal(0.0, noise))
+            left += float(self.rng.normal(0.0, noise))
+        return right, left, now
 
     def command_wheels(self, right_rad_s: float, left_rad_s: float) -> None:
         """Noisy command, clipped to the wheel limit; a command already beyond the limit (an

@@ -25,7 +25,7 @@ from fleet.core.step import integrate_wheels
 from fleet.core.wire import Pose
 from fleet.io.settings import RobotSettings
 from robot_agent.clock import Clock, MonotonicClock
-from robot_agent.drive import PoseReading
+from robot_agent.drive import PoseReading, WheelReading
 
 #: Cap on the Euler steps of one catch-up (a stalled process moves the robot in bigger steps).
 MAX_SUBSTEPS = 200
@@ -89,6 +89,12 @@ class SimDrive:
             y += float(self.rng.normal(0.0, sy)) if sy else 0.0
             theta += float(self.rng.normal(0.0, st)) if st else 0.0
         return Pose(x=x, y=y, theta=theta), now
+
+    def wheel_speeds(self) -> WheelReading:
+        """The wheel speeds [rad/s] turning now, and now [s] (the optional Drive method)."""
+        with self._lock:
+            now = self._advance()
+            return self.right, self.left, now
 
     def command_wheels(self, right_rad_s: float, left_rad_s: float) -> None:
         limit = self.profile.max_wheel_speed

@@ -10,15 +10,17 @@ Spawn layouts (:func:`spawn_layout`): ``random`` (uniform in the yard, kept apar
 ``grid`` (rows centred on the origin), or a JSON file ``[{"id", "x", "y", "theta"}, ...]``.
 
 Options for benchmarks: ``disturbances`` wraps every drive in a seeded
-:class:`~sim_agent.disturbances.DisturbedDrive` (pose and actuation noise, command
-latency); ``link`` (:class:`~sim_agent.disturbances.LinkDisturbances`) delays and drops the
-robots' states between them: each agent then has a view of its own, fed only by the copies
-of its peers' states the :class:`~sim_agent.disturbances.DelayedLink` delivers at the start
-of a tick (no more sharing of the poses just sensed); obstacles and states of robots in
-other processes still reach every view at once. Drives and link come from
-:class:`~sim_agent.robots.SimRobots` (the same robots as the bench's navground peers for
-the same seed). ``trace`` (a file path, :mod:`fleet.io.trace` format) receives every robot's true
-pose and mode once per lockstep tick, after all agents ticked at the same simulated time
+:class:`~sim_agent.disturbances.DisturbedDrive` (pose and actuation noise, command latency);
+``link`` (:class:`~sim_agent.disturbances.LinkDisturbances`) delays and drops the robots'
+states between them: each agent then has a view of its own, fed only by the copies of its
+peers' states the :class:`~sim_agent.disturbances.DelayedLink` delivers at the start of a
+tick (no more sharing of the poses just sensed), each with the simulated time it was sent
+(the robots share one clock: synchronised clocks, ``SafetyConfig.clock_sync_s`` 0);
+obstacles and states of robots in other processes still reach every view at once. Drives and
+link come from :class:`~sim_agent.robots.SimRobots` (the same robots as the bench's
+navground peers for the same seed). ``trace`` (a file path, :mod:`fleet.io.trace` format)
+receives every robot's true pose and mode once per lockstep tick, after all agents ticked at
+the same simulated time
 (streamed: constant memory; flushed and closed by :meth:`SimFleet.close`).
 """
 
@@ -126,10 +128,12 @@ class _HubView(WorldView):
         super().__init__(clock.now)
         self.views: list[WorldView] = []
 
-    def update_state(self, state: RobotState, age_s: float = 0.0) -> None:
-        super().update_state(state, age_s)
+    def update_state(
+        self, state: RobotState, age_s: float = 0.0, sent_age_s: tuple[float, float] | None = None
+    ) -> None:
+        super().update_state(state, age_s, sent_age_s)
         for view in self.views:
-            view.update_state(state, age_s)
+            view.update_state(state, age_s, sent_age_s)
 
     def set_obstacles(self, obstacles: ObstacleSet) -> None:
         super().set_obstacles(obstacles)
@@ -141,14 +145,22 @@ class _LinkedView(WorldView):
     """One agent's own view under link disturbances: its own states leave through the link
     (one copy per peer), its peers' arrive only from it."""
 
-    def __init__(self, owner: str, index: int, link: DelayedLink[RobotState], clock: SteppedClock):
+    def __init__(
+        self,
+        owner: str,
+        index: int,
+        link: DelayedLink[tuple[RobotState, float]],
+        clock: SteppedClock,
+    ):
         super().__init__(clock.now)  # peers' silence in simulated seconds
         self.owner, self.index, self.link, self.clock = owner, index, link, clock
 
-    def update_state(self, state: RobotState, age_s: float = 0.0) -> None:
-        super().update_state(state, age_s)
-        if state.robot_id == self.owner:
-            self.link.send(self.index, state, self.clock.now())
+    def update_state(
+        self, state: RobotState, age_s: float = 0.0, sent_age_s: tuple[float, float] | None = None
+    ) -> None:
+        super().update_state(state, age_s, sent_age_s)
+        if state.robot_id == self.owner:  # with its send time: the robots share one clock
+            self.link.send(self.index, (state, self.clock.now()), self.clock.now())
 
 
 class SimFleet:
@@ -247,8 +259,9 @@ class SimFleet:
     def _deliver(self) -> None:
         """Hand every agent the copies of its peers' states due by now (disturbed link)."""
         if self.robot_link is not None:
-            for receiver, state in self.robot_link.deliver(self.clock.now()):
-                self.views[receiver].update_state(state)
+            now = self.clock.now()
+            for receiver, (state, sent) in self.robot_link.deliver(now):
+                self.views[receiver].update_state(state, sent_age_s=(now - sent, now - sent))
 
     def tick(self) -> None:
         """One control period in two phases: every agent senses its pose at sim time t

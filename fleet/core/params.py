@@ -65,17 +65,33 @@ class SafetyConfig(BaseModel):
     """The safety filter every robot runs each tick (docs/safety.md; ``fleet.core.step``).
 
     ``contact_margin_m`` [m]: no body is to come closer than this to another robot's or an
-    obstacle's body. The robot sees itself and each peer with an uncertainty (spread) that
-    assumes: command-to-wheel latency at most ``max_latency_s`` [s]; a peer's state
-    reaching the robot within ``link_delay_s`` [s] of its measurement; pose errors at most
-    ``pose_error_m`` [m]; speeds changing by at most ``max_accel_m_s2`` [m/s^2] (the
-    drive's acceleration limit); every robot running the filter; a robot silent to its
-    peers for ``peer_stale_s`` [s] has stopped (its agent holds when it has heard nothing
-    for its link timeout, which settings keep at most ``peer_stale_s``; its drive stops
-    when its agent dies). So a silent peer's spread grows with the silence for
-    ``peer_stale_s``, after which it is a standing obstacle at its last pose.
-    ``projection_m`` [m]: the point ahead of the axle (at most the half axle);
-    ``barrier_rate`` [1/s]: how fast a clearance may be used up.
+    obstacle's body. ``projection_m`` [m]: the point ahead of the axle (at most the half
+    axle); ``barrier_rate`` [1/s]: how fast a clearance may be used up.
+
+    With ``prediction`` (off by default: docs/safety.md, "Latency where it lives") the robot
+    decides on its pose predicted for the instant its command acts
+    (:mod:`robot_agent.prediction`), sees each peer around the pose that peer predicted for
+    itself, and caps its speed-ups; without it, on its measured pose with :meth:`own_spread`
+    and its peers with :meth:`peer_spread`. The spreads assume:
+
+    * command-to-wheel latency within the window the robot measures
+      (:mod:`robot_agent.latency`), or within [0, ``max_latency_s``] [s] before it has
+      measured one (a measured latency above ``max_latency_s`` is reported, fault
+      ``latency_exceeded``, and used);
+    * a peer's state reaches the robot within ``link_delay_s`` [s] of being sent; its send
+      time is taken from its arrival less that bound, or, with ``clock_sync_s`` [s] set
+      (the robots' wall clocks agree within it: chrony, PTP), from its stamp;
+    * position errors of a measured pose at most ``pose_error_m`` [m], heading errors at
+      most ``heading_error_rad`` [rad];
+    * each wheel turning at its commanded speed within a relative ``actuation_error``;
+    * the speed of the point the filter watches (``projection_m`` ahead of the axle; with
+      the actuation error) rising by at most ``max_accel_m_s2`` [m/s^2] (every agent caps
+      its commands' speed-ups so; braking and turning are not limited);
+    * every robot running the agent; a robot silent to its peers for ``peer_stale_s`` [s]
+      has stopped (its agent holds when it has heard nothing for its link timeout, which
+      settings keep at most ``peer_stale_s``; its drive stops when its agent dies): a peer's
+      spread grows with its silence for ``peer_stale_s``, after which it is a standing
+      obstacle at its last pose.
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -89,6 +105,10 @@ class SafetyConfig(BaseModel):
     pose_error_m: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.02
     max_accel_m_s2: Annotated[float, Field(gt=0.0, le=100.0, allow_inf_nan=False)] = 1.0
     peer_stale_s: Annotated[float, Field(gt=0.0, le=60.0, allow_inf_nan=False)] = 3.0
+    heading_error_rad: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.02
+    actuation_error: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.05
+    clock_sync_s: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] | None = None
+    prediction: bool = False
 
     def filter_terms(self, spread: float) -> tuple[float, float, float, float]:
         """The compiled step's filter parameters (``fleet.core.step.Safety``: margin,
@@ -103,8 +123,11 @@ class SafetyConfig(BaseModel):
         return abs(speed) * seconds + 0.5 * self.max_accel_m_s2 * seconds * seconds
 
     def own_spread(self, speed: float) -> float:
-        """This robot's uncertainty [m] at the instant its command acts: pose error plus
-        the motion of up to ``max_latency_s`` of its commands in flight."""
+        """This robot's uncertainty [m] at the instant its command acts when it decides on
+        its *measured* pose (no prediction: ``robot_agent.logic.decide`` without
+        ``own_spread``): pose error plus the motion of up to ``max_latency_s`` of its
+        commands in flight. The agent decides on its prediction instead
+        (``robot_agent.prediction.predict_own``: a smaller spread)."""
         return self.pose_error_m + self.reach(speed, self.max_latency_s)
 
     def batch_spread(self) -> float:
@@ -114,10 +137,12 @@ class SafetyConfig(BaseModel):
         return self.pose_error_m + self.reach(0.0, self.link_delay_s + self.max_latency_s)
 
     def peer_spread(self, speed: float, silent_s: float) -> float:
-        """A peer's uncertainty [m] (reported ``speed`` [m/s], heard ``silent_s`` [s] ago):
-        its pose error and the motion it may make from its measurement until this robot's
-        command acts. The silence counts until ``peer_stale_s``; a peer silent longer has
-        stopped (class docstring) and is a standing obstacle with a standing robot's spread."""
+        """A peer's uncertainty [m] around its measured pose (reported ``speed`` [m/s],
+        heard ``silent_s`` [s] ago) when its state carries no prediction (an older release)
+        or it is stale: its pose error and the motion it may make from its measurement
+        until this robot's command acts (``robot_agent.prediction.peer_spread`` otherwise).
+        The silence counts until ``peer_stale_s``; a peer silent longer has stopped (class
+        docstring) and is a standing obstacle with a standing robot's spread."""
         if silent_s > self.peer_stale_s:
             return self.pose_error_m + self.reach(0.0, self.link_delay_s + self.max_latency_s)
         seconds = self.link_delay_s + self.max_latency_s + max(silent_s, 0.0)

@@ -48,12 +48,13 @@ class Avoidance:
 @dataclass(frozen=True)
 class Safety:
     """The safety filter (``fleet.core.step.Safety``): margin [m] between bodies, projection
-    l [m], barrier rate [1/s], own spread [m]."""
+    l [m], barrier rate [1/s], own spread [m], own heading uncertainty [rad]."""
 
     margin: float
     projection: float
     rate: float
     spread: float = 0.0
+    heading: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -91,26 +92,36 @@ _TOL = 1e-12
 
 
 def _body_half_planes(
-    dx: float, dy: float, c: float, s: float, gap: float, spread: float, share_rate: float,
-    reach: float,
+    dx: float, dy: float, c: float, s: float, gap: float, spread: float, heading: float,
+    share_rate: float, reach: float,
 ) -> list[tuple[float, float, float]] | None:  # fmt: skip
     """The half-planes (a1, a2, bound) in (u, l omega) that keep one body clear, [] when
-    they cannot bind, None when only a standstill is safe."""
+    they cannot bind, None when only a standstill is safe; the cone of directions within
+    ``spread`` [m] of the body is widened by the own ``heading`` uncertainty [rad]."""
     bound = share_rate * (gap - spread)
     if bound >= reach:
         return []
     distance = math.sqrt(dx * dx + dy * dy)
-    if distance <= 0.0 or spread >= _SQRT_HALF * distance:
+    sin_phi = cos_phi = 0.0
+    wide = distance <= 0.0
+    if heading > 0.0 and not wide:
+        phi = math.asin(min(max(spread, 0.0) / distance, 1.0)) + heading
+        wide = phi >= 0.5 * math.pi  # the edges and the middle hold any cone below 90 deg
+        sin_phi, cos_phi = math.sin(phi), math.cos(phi)
+    elif not wide:
+        wide = spread >= _SQRT_HALF * distance
+    if wide:
         if bound <= 0.0:
             return None
         inner = bound * _SQRT_HALF
         return [(1.0, 0.0, inner), (-1.0, 0.0, inner), (0.0, 1.0, inner), (0.0, -1.0, inner)]
     mx, my = dx / distance, dy / distance
     a1, a2 = c * mx + s * my, c * my - s * mx
-    if spread <= 0.0:
-        return [(a1, a2, bound)]
-    sin_phi = spread / distance
-    cos_phi = math.sqrt(1.0 - sin_phi * sin_phi)
+    if heading <= 0.0:
+        if spread <= 0.0:
+            return [(a1, a2, bound)]
+        sin_phi = spread / distance
+        cos_phi = math.sqrt(1.0 - sin_phi * sin_phi)
     planes = [
         (a1 * cos_phi - a2 * sin_phi, a2 * cos_phi + a1 * sin_phi, bound),
         (a1 * cos_phi + a2 * sin_phi, a2 * cos_phi - a1 * sin_phi, bound),
@@ -188,13 +199,14 @@ def safety_filter(
         dx = peer.x + ahead * math.cos(peer.theta) - px
         dy = peer.y + ahead * math.sin(peer.theta) - py
         gap = math.sqrt(dx * dx + dy * dy) - own - peer.radius - ahead
-        more = _body_half_planes(dx, dy, c, s, gap, safety.spread + peer.spread, 0.5 * rate, reach)
+        spread = safety.spread + peer.spread
+        more = _body_half_planes(dx, dy, c, s, gap, spread, safety.heading, 0.5 * rate, reach)
         stop = stop or more is None
         planes += more or []
     for obstacle in obstacles:
         dx, dy = obstacle_offset(obstacle, px, py)
         gap = math.sqrt(dx * dx + dy * dy) - own - obstacle[3]
-        more = _body_half_planes(dx, dy, c, s, gap, safety.spread, rate, reach)
+        more = _body_half_planes(dx, dy, c, s, gap, safety.spread, safety.heading, rate, reach)
         stop = stop or more is None
         planes += more or []
     if stop:

@@ -49,10 +49,14 @@ clearance, as for a point), with clearance
 C = |p_i - p_j| - (R_i + l) - (R_j + l) - margin, the robot keeps its *closing speed*
 along every direction within E of the estimated one to at most share * rate * (C_lo - eps):
 share 1/2 for a peer (the peer takes the other half: every robot runs this filter), 1 for
-a static body; C_lo = C - E (a lower bound of the true clearance); eps [m] the allowance
-for the second-order terms (the projected point's rotation within a step and the drive's
-arc), eps = (l W^2 + V W) dt / rate with V = (1 + ``SIDE_STEP``) |v0| the longest the
-result can be and W the turn-rate bound (wheel limit, or V / l). With rate * dt <= 1 the
+a static body; C_lo = C - E (a lower bound of the true clearance); the cone is widened
+by the robot's own heading uncertainty ``heading`` (its velocity may point that far off: a
+predicted heading, docs/safety.md; such a cone counts as every direction only from 90
+degrees on: its two edges and its middle, n . v <= bound cos phi, hold the cone below
+that); eps [m] the allowance for the second-order terms (the projected point's rotation
+within a step and the drive's arc), eps = (l W^2 + V W) dt / rate with V = (1 +
+``SIDE_STEP``) |v0| the longest the result can be and W the turn-rate bound (wheel limit,
+or V / l). With rate * dt <= 1 the
 clearance of every pair then never falls below 0 from one step to the next:
 C' >= (1 - rate dt) C (derivation in the docs/safety.md).
 The constraints are half-planes a . v <= c with unit a; the command is the point of
@@ -338,17 +342,20 @@ class Safety(NamedTuple):
     """Safety filter parameters (module docstring): ``margin`` [m] between bodies (< 0: the
     filter is off, the paper's model), ``projection`` l [m] of the point ahead of the axle,
     ``rate`` [1/s] of the barrier (clearance may shrink by at most rate dt per step; capped
-    at 1 / dt) and ``spread`` [m], this robot's own pose uncertainty at the instant its
-    command acts (pose error, latency prediction)."""
+    at 1 / dt), ``spread`` [m], this robot's own pose uncertainty at the instant its
+    command acts (pose error, latency prediction), and ``heading`` [rad], its heading's:
+    its velocity may point that far from where the step thinks, so every body's cone of
+    directions is widened by it."""
 
     margin: float
     projection: float
     rate: float
     spread: float
+    heading: float = 0.0
 
 
 #: The paper's model: no filter.
-SAFETY_OFF = Safety(-1.0, 0.0, 0.0, 0.0)
+SAFETY_OFF = Safety(-1.0, 0.0, 0.0, 0.0, 0.0)
 #: Half-planes one filter call may hold (3 per body; beyond: standstill, which is safe).
 MAX_CONSTRAINTS = 48
 _SQRT_HALF = math.sqrt(0.5)
@@ -369,18 +376,26 @@ def _add_half_plane(cons: FloatArray, n: int, a1: float, a2: float, bound: float
 @njit(inline="always", error_model="numpy")
 def _add_body(
     cons: FloatArray, n: int, dx: float, dy: float, c: float, s: float, gap: float,
-    spread: float, share_rate: float, reach: float,
+    spread: float, heading: float, share_rate: float, reach: float,
 ) -> tuple[int, bool]:  # fmt: skip
     """The half-planes of one body at (dx, dy) [m] from the own projected point (heading
     cos c, sin s): closing speed <= share_rate (gap - spread) in every direction within
-    ``spread`` of the estimated one. ``gap`` = |(dx, dy)| - radii - margin - eps [m].
-    Returns the new count and whether only a standstill is safe. Skipped when it cannot
-    bind (its bound >= ``reach`` = |v0|)."""
+    ``spread`` of the estimated one, widened by the own ``heading`` uncertainty [rad].
+    ``gap`` = |(dx, dy)| - radii - margin - eps [m]. Returns the new count and whether only
+    a standstill is safe. Skipped when it cannot bind (its bound >= ``reach`` = |v0|)."""
     bound = share_rate * (gap - spread)
     if bound >= reach:
         return n, False
     distance = math.sqrt(dx * dx + dy * dy)
-    if distance <= 0.0 or spread >= _SQRT_HALF * distance:
+    sin_phi = cos_phi = 0.0
+    wide = distance <= 0.0
+    if heading > 0.0 and not wide:
+        phi = math.asin(min(max(spread, 0.0) / distance, 1.0)) + heading
+        wide = phi >= 0.5 * math.pi  # the edges and the middle hold any cone below 90 deg
+        sin_phi, cos_phi = math.sin(phi), math.cos(phi)
+    elif not wide:
+        wide = spread >= _SQRT_HALF * distance
+    if wide:
         # Any direction (or too uncertain a one for the cone): |v| <= bound.
         if bound <= 0.0:
             return n, True
@@ -392,11 +407,12 @@ def _add_body(
         return n, n < 0
     mx, my = dx / distance, dy / distance
     a1, a2 = c * mx + s * my, c * my - s * mx  # towards the body, in (u, l omega)
-    if spread <= 0.0:
-        n = _add_half_plane(cons, n, a1, a2, bound)
-        return n, n < 0
-    sin_phi = spread / distance
-    cos_phi = math.sqrt(1.0 - sin_phi * sin_phi)
+    if heading <= 0.0:
+        if spread <= 0.0:
+            n = _add_half_plane(cons, n, a1, a2, bound)
+            return n, n < 0
+        sin_phi = spread / distance
+        cos_phi = math.sqrt(1.0 - sin_phi * sin_phi)
     n = _add_half_plane(cons, n, a1 * cos_phi - a2 * sin_phi, a2 * cos_phi + a1 * sin_phi, bound)
     n = _add_half_plane(cons, n, a1 * cos_phi + a2 * sin_phi, a2 * cos_phi - a1 * sin_phi, bound)
     if bound > 0.0:
@@ -468,11 +484,11 @@ def closest_feasible(cons: FloatArray, n: int, u0: float, w0: float) -> tuple[fl
 def safety_filter(
     x: float, y: float, c: float, s: float, u0: float, omega0: float, params: FloatArray,
     i: int, positions: FloatArray, shapes: FloatArray, peer_lo: int, peer_hi: int, skip: int,
-    obstacles: FloatArray, safety: tuple[float, float, float, float], dt: float,
+    obstacles: FloatArray, safety: tuple[float, float, float, float, float], dt: float,
 ) -> tuple[float, float, bool]:  # fmt: skip
     """(u, omega) closest to the nominal (u0, omega0) that keeps every body clear (module
     docstring), and whether it differs from the nominal. Heading cos c, sin s."""
-    margin, ahead, rate, own_spread = safety
+    margin, ahead, rate, own_spread, own_heading = safety
     if dt > 0.0:
         rate = min(rate, 1.0 / dt)
     w0 = ahead * omega0
@@ -499,12 +515,13 @@ def safety_filter(
         dx = positions[0, j] + ahead * math.cos(th) - px
         dy = positions[1, j] + ahead * math.sin(th) - py
         gap = math.sqrt(dx * dx + dy * dy) - own - shapes[0, j] - ahead
-        n, hold = _add_body(cons, n, dx, dy, c, s, gap, own_spread + shapes[1, j], half, reach)
+        spread = own_spread + shapes[1, j]
+        n, hold = _add_body(cons, n, dx, dy, c, s, gap, spread, own_heading, half, reach)
         stop |= hold
     for j in range(obstacles.shape[1]):
         dx, dy = obstacle_offset(obstacles, j, px, py)
         gap = math.sqrt(dx * dx + dy * dy) - own - obstacles[3, j]
-        n, hold = _add_body(cons, n, dx, dy, c, s, gap, own_spread, rate, reach)
+        n, hold = _add_body(cons, n, dx, dy, c, s, gap, own_spread, own_heading, rate, reach)
         stop |= hold
     if stop or n < 0:
         return 0.0, 0.0, True
@@ -653,7 +670,7 @@ def robot_step(
     k_avoid: float,
     peer_radius: float,
     min_x_oa: float,
-    safety: tuple[float, float, float, float],
+    safety: tuple[float, float, float, float, float],
     dt: float,
 ) -> tuple[float, float, float, bool, float, float, float, float, float, bool, float, float, float]:
     """One closed-loop step of robot ``params[i]`` at (x, y, theta) (see the module docstring).
@@ -710,7 +727,7 @@ _STEP_RESULT = "Tuple((float64, float64, float64, boolean, float64, float64, flo
 @njit(
     _STEP_RESULT + "(float64, float64, float64, float64[:, ::1], boolean, float64[:, ::1], "
     "float64[:, ::1], float64[:, ::1], float64, float64, float64, "
-    "UniTuple(float64, 4), float64)",
+    "UniTuple(float64, 5), float64)",
     cache=True,
     error_model="numpy",
 )
@@ -726,7 +743,7 @@ def _step_robot(
     k_avoid: float,
     peer_radius: float,
     min_x_oa: float,
-    safety: tuple[float, float, float, float],
+    safety: tuple[float, float, float, float, float],
     dt: float,
 ) -> tuple[float, float, float, bool, float, float, float, float, float, bool, float, float, float]:
     return robot_step(
@@ -759,7 +776,8 @@ def step_robot(
         *_step_robot(
             float(pose[0]), float(pose[1]), float(pose[2]), params, hold, peers, shapes,
             obstacles, k_avoid, peer_radius, min_x_oa,
-            (float(safety[0]), float(safety[1]), float(safety[2]), float(safety[3])), dt,
+            (float(safety[0]), float(safety[1]), float(safety[2]), float(safety[3]),
+             float(safety[4])), dt,
         )
     )  # fmt: skip
 
@@ -842,7 +860,7 @@ class Interaction(NamedTuple):
     k_avoid: float
     peer_radius: float
     min_x_oa: float
-    safety: tuple[float, float, float, float] = SAFETY_OFF
+    safety: tuple[float, float, float, float, float] = SAFETY_OFF
 
 
 @njit("boolean(int64, float64, float64, float64)", cache=True, error_model="numpy")
@@ -887,7 +905,7 @@ def _advance_robot(
     k_avoid: float,
     peer_radius: float,
     min_x_oa: float,
-    safety: tuple[float, float, float, float],
+    safety: tuple[float, float, float, float, float],
     dt: float,
     record: FloatArray,
     row: int,
@@ -1035,7 +1053,7 @@ def _advance_chunks_in_parallel(chunk: int, n: int, *args: Any) -> int:
     ) = args
     # The threads get scalars and arrays only (parfors take no named tuples).
     group, k_avoid, peer_radius, min_x_oa, safety = interaction
-    margin, ahead, rate, spread = safety  # scalars: parfors take no tuples
+    margin, ahead, rate, spread, heading = safety  # scalars: parfors take no tuples
     dt, first_step, max_steps, record_every = schedule
     chunks = (n + chunk - 1) // chunk
     taken = np.zeros(chunks, dtype=np.int64)
@@ -1043,7 +1061,9 @@ def _advance_chunks_in_parallel(chunk: int, n: int, *args: Any) -> int:
         taken[c] = advance_chunk(
             c * chunk, min(n, (c + 1) * chunk), pose, spare, params, done_step, metrics,
             obstacles,
-            Interaction(group, k_avoid, peer_radius, min_x_oa, (margin, ahead, rate, spread)),
+            Interaction(
+                group, k_avoid, peer_radius, min_x_oa, (margin, ahead, rate, spread, heading)
+            ),
             Schedule(dt, first_step, max_steps, record_every), record, pairs, route, leg,
         )  # fmt: skip
     most = 0

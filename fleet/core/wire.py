@@ -59,6 +59,16 @@ State streams and their encoding (the hot messages):
   at the fleet rate, and upgraded robots do not see it on their cells -- upgrade a
   fleet's robots together.
 
+Prediction (``RobotState.ahead``, :class:`Ahead`; docs/safety.md "Latency where it lives"):
+a robot tells its peers where it predicts itself when the command of the state acts --
+the posture, that instant as a lead over the state's send, a radius and a heading error
+around it, and how fast it may move under its commands in flight -- and its peers'
+safety filters see it there. Compatibility rule: one additive field, ``v`` stays 1; in the
+compact layout it is appended as the last element (``0x01`` kept), in JSON an optional key.
+An older receiver ignores it (an unknown key, a trailing element); a state without it (an
+older robot, or a robot that could not sense this tick) is seen around its measured pose
+with the spread of before (``SafetyConfig.peer_spread``).
+
 Protocol between the fleet service and a robot agent:
 
 * A robot publishes ``RobotState`` at its control rate; ``task_id`` names the task it is
@@ -338,6 +348,39 @@ class _Message(BaseModel):
     v: Literal[1] = 1  # SCHEMA_VERSION
 
 
+NonNegative = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
+
+
+class Ahead(BaseModel):
+    """A robot's prediction of itself (``RobotState.ahead``; docs/safety.md): where it
+    will be when the command of this state (``u``, ``omega``) acts.
+
+    ``x``, ``y`` [m], ``theta`` [rad]: the predicted posture (world frame), ``lead_s`` [s]
+    after the state was sent (the robot's nominal command latency); ``spread_m`` [m]: a
+    radius around the predicted axle centre holding the true one at that instant, and
+    ``heading_rad`` [rad] the heading's; ``speed_m_s`` [m/s]: how fast the point the safety
+    filter watches (``SafetyConfig.projection_m`` ahead of the axle) may move under its
+    commands in flight and this one, actuation error included (a later command's bound
+    rises by at most the fleet's ``SafetyConfig.max_accel_m_s2`` per second).
+    """
+
+    model_config = ConfigDict(frozen=True, extra="ignore")
+
+    x: FiniteFloat
+    y: FiniteFloat
+    theta: FiniteFloat
+    lead_s: NonNegative
+    spread_m: NonNegative
+    heading_rad: NonNegative
+    speed_m_s: NonNegative
+
+    def as_tuple(self) -> tuple[float, float, float, float, float, float, float]:
+        return (
+            self.x, self.y, self.theta, self.lead_s, self.spread_m, self.heading_rad,
+            self.speed_m_s,
+        )  # fmt: skip
+
+
 class RobotState(_Message):
     """State a robot publishes at its control rate on ``robot/<id>/state``."""
 
@@ -360,12 +403,16 @@ class RobotState(_Message):
     errors: Annotated[list[RobotError], Field(max_length=MAX_ROBOT_ERRORS)] = Field(
         default_factory=list
     )
+    #: Where the robot predicts itself when this state's command acts (None: no prediction,
+    #: a robot of an older release; peers then see it around its measured pose).
+    ahead: Ahead | None = None
 
 
 #: First byte of a compact state: its layout version (module docstring).
 COMPACT_STATE_V1 = 0x01
 _JSON_START = frozenset(b"{ \t\r\n")
 _Finite = Annotated[float, msgspec.Meta(ge=-1e300, le=1e300)]  # rejects NaN and inf
+_NonNegative = Annotated[float, msgspec.Meta(ge=0.0, le=1e300)]
 
 
 class ErrorFrame(msgspec.Struct, array_like=True, frozen=True):
@@ -398,6 +445,11 @@ class StateFrame(msgspec.Struct, array_like=True, frozen=True):
     radius: Annotated[float, msgspec.Meta(gt=0, le=1e300)] = 0.2
     detail: Annotated[str, msgspec.Meta(max_length=200)] | None = None
     errors: Annotated[list[ErrorFrame], msgspec.Meta(max_length=MAX_ROBOT_ERRORS)] = []
+    #: :class:`Ahead` as ``[x, y, theta, lead_s, spread_m, heading_rad, speed_m_s]``.
+    ahead: (
+        tuple[_Finite, _Finite, _Finite, _NonNegative, _NonNegative, _NonNegative, _NonNegative]
+        | None
+    ) = None
 
 
 _frame_encoder = msgspec.msgpack.Encoder()
@@ -405,6 +457,7 @@ _frame_decoder = msgspec.msgpack.Decoder(StateFrame)
 _STATE_FIELDS = frozenset(RobotState.model_fields)
 _POSE_FIELDS = frozenset(Pose.model_fields)
 _ERROR_FIELDS = frozenset(RobotError.model_fields)
+_AHEAD_FIELDS = frozenset(Ahead.model_fields)
 _set = object.__setattr__
 
 
@@ -448,6 +501,7 @@ def encode_state(state: RobotState) -> bytes:
         state.mode, state.task_id, state.revision, state.law,
         None if g is None else (g.x, g.y, g.theta), state.radius, state.detail,
         [ErrorFrame(e.code, e.level, e.message, e.since) for e in state.errors],
+        None if state.ahead is None else state.ahead.as_tuple(),
     )  # fmt: skip
     return b"\x01" + bytes(_frame_encoder.encode(frame))
 
@@ -467,9 +521,20 @@ def _from_frame(f: StateFrame) -> RobotState:
         "stamp": f.stamp, "pose": _pose(f.x, f.y, f.theta), "u": f.u, "omega": f.omega,
         "mode": f.mode, "task_id": f.task_id, "revision": f.revision, "law": f.law,
         "goal": None if g is None else _pose(*g), "radius": f.radius, "detail": f.detail,
-        "errors": errors,
+        "errors": errors, "ahead": None if f.ahead is None else _ahead(*f.ahead),
     }  # fmt: skip
     return _trusted(RobotState, fields, _STATE_FIELDS)
+
+
+def _ahead(
+    x: float, y: float, theta: float, lead_s: float, spread_m: float, heading_rad: float,
+    speed_m_s: float,
+) -> Ahead:  # fmt: skip
+    fields: dict[str, object] = {
+        "x": x, "y": y, "theta": theta, "lead_s": lead_s, "spread_m": spread_m,
+        "heading_rad": heading_rad, "speed_m_s": speed_m_s,
+    }  # fmt: skip
+    return _trusted(Ahead, fields, _AHEAD_FIELDS)
 
 
 def parse_state(payload: Payload) -> RobotState | Rejected:

@@ -12,6 +12,9 @@ The fleet side needs no ROS installation: the drive speaks the ROS 2 wire format
   arrived, :meth:`Ros2Drive.release`) the zero is sent :data:`ZERO_REPEATS` times after
   motion, then the drive falls silent so an operator may teleop it. This is **not** a
   hardware stop (docs/robots.md "Where the two links go").
+* **Measured wheels** -- :meth:`Ros2Drive.wheel_speeds`: the odometry's twist (the
+  robot's measured u and omega) as wheel speeds by Eq. (2), at the odometry's stamp: the
+  agent learns the robot's command-to-wheel latency from it (``robot_agent.latency``).
 * **Pose** -- ``nav_msgs/msg/Odometry`` on ``odom`` or a localiser's
   ``geometry_msgs/msg/PoseWithCovarianceStamped`` (e.g. ``amcl_pose``) carried forward
   by the odometry (:mod:`robot_agent.drives.ros2_pose`), moved into the fleet's world
@@ -53,6 +56,7 @@ control), ``rmw_subscription_data.cpp`` (samples without an attachment are dropp
 from __future__ import annotations
 
 import logging
+import math
 import re
 import threading
 import time
@@ -65,6 +69,7 @@ import zenoh.ext
 
 from fleet.core.control import body_velocities
 from fleet.core.params import RobotProfile
+from fleet.core.step import wheel_speeds
 from fleet.core.wire import MAX_PAYLOAD_BYTES, Pose, Rejected
 from fleet.io.decoder import CallbackGuard, Decoder
 from fleet.io.settings import RobotSettings, Ros2Settings
@@ -176,6 +181,8 @@ class Ros2Drive:
             clock_step_s=config.clock_step_s,
         )
         self._odometry_measured = float("-inf")  # [s, monotonic] of the newest odometry
+        #: The newest odometry's twist as (right, left) wheel speeds [rad/s] and its time.
+        self._wheels: tuple[float, float, float] = (math.nan, math.nan, math.nan)
         self._reading: PoseReading | None = None
         self._has_pose = threading.Event()
         self._sequence = 1  # rmw_zenoh numbers a publisher's messages from 1
@@ -337,6 +344,11 @@ class Ros2Drive:
                 self._odometry_measured = measured
                 self.poses_received += 1
                 self._refresh()
+                if math.isfinite(pose.u) and math.isfinite(pose.omega):
+                    right, left = wheel_speeds(
+                        pose.u, pose.omega, self.profile.wheel_radius, self.profile.half_axle
+                    )
+                    self._wheels = (float(right), float(left), measured)
         self._count(rejected, self.odometry)
 
     def _on_localiser(self, sample: Any) -> None:
@@ -394,6 +406,12 @@ class Ros2Drive:
         if reading is None:
             raise RuntimeError("no pose from the robot yet (see Ros2Drive.wait_for_pose)")
         return reading
+
+    def wheel_speeds(self) -> tuple[float, float, float]:
+        """The wheel speeds [rad/s] of the newest odometry's twist and the monotonic time of
+        its stamp [s] (NaN before any: the latency estimator ignores it)."""
+        with self._lock:
+            return self._wheels
 
     def command_wheels(self, right_rad_s: float, left_rad_s: float) -> None:
         """Send the (u, omega) of these wheel speeds (Eq. 2) as the robot's velocity command."""

@@ -44,13 +44,17 @@ class MalformedMessage(ValueError):
 class StampedPose:
     """A planar pose read from a message: x, y [m] and yaw [rad] of the robot in
     ``frame_id``, measured at ``stamp_s`` (ROS time: seconds since the Unix epoch; as a
-    float64 it resolves ~0.24 us today, far below any staleness that matters)."""
+    float64 it resolves ~0.24 us today, far below any staleness that matters). An
+    Odometry's twist (in its child frame, the robot's base) gives ``u`` [m/s] and
+    ``omega`` [rad/s], measured at the same stamp (NaN when the message has none)."""
 
     x: float
     y: float
     theta: float
     stamp_s: float
     frame_id: str
+    u: float = math.nan
+    omega: float = math.nan
 
 
 def stamp_seconds(sec: int, nanosec: int) -> float:
@@ -132,9 +136,13 @@ class Ros2Messages:
             message = t[ros_type](header=header, pose=with_covariance)
         elif ros_type == ODOMETRY:
             vector = t["geometry_msgs/msg/Vector3"]
-            rest = vector(x=0.0, y=0.0, z=0.0)
+            u = pose.u if math.isfinite(pose.u) else 0.0
+            omega = pose.omega if math.isfinite(pose.omega) else 0.0
             twist = t["geometry_msgs/msg/TwistWithCovariance"](
-                twist=t[TWIST](linear=rest, angular=rest), covariance=np.zeros(36)
+                twist=t[TWIST](
+                    linear=vector(x=u, y=0.0, z=0.0), angular=vector(x=0.0, y=0.0, z=omega)
+                ),
+                covariance=np.zeros(36),
             )
             message = t[ros_type](
                 header=header, child_frame_id=child_frame_id, pose=with_covariance, twist=twist
@@ -162,10 +170,16 @@ class Ros2Messages:
         if q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w < 1e-6:
             raise MalformedMessage(f"{ros_type}: orientation is not a rotation {values[2:]}")
         stamp = message.header.stamp
+        u = omega = math.nan
+        if ros_type == ODOMETRY:  # the measured velocity, in the robot's base frame
+            twist = message.twist.twist
+            u, omega = float(twist.linear.x), float(twist.angular.z)
         return StampedPose(
             x=float(p.x),
             y=float(p.y),
             theta=yaw_of(q.x, q.y, q.z, q.w),
             stamp_s=stamp_seconds(stamp.sec, stamp.nanosec),
             frame_id=str(message.header.frame_id),
+            u=u,
+            omega=omega,
         )

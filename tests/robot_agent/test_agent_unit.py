@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from typing import Any
 
@@ -159,6 +160,35 @@ def test_world_feed_decodes_samples_and_rejects_ids_not_matching_the_key() -> No
     assert np.array_equal(world.obstacles(), [[1.0], [2.0], [0.5], [0.1], [1.0], [2.0]])
 
 
+def test_with_synchronised_clocks_a_peer_s_prediction_is_placed_by_its_stamp() -> None:
+    """clock_sync_s: a state stamped 0.05 s ago (wall) was sent 0.05 s +- the sync bound
+    before it arrived, not anywhere within link_delay_s: the peer's radius is smaller; a
+    stamp further ahead than the clocks may disagree is counted and not trusted."""
+    from fleet.core.params import SafetyConfig
+    from fleet.core.wire import Ahead
+    from robot_agent.latency import LatencyWindow
+
+    keys, clock = Keys(), SteppedClock(100.0)
+    wall = [1000.0]
+    ahead = Ahead(x=1.0, y=0.0, theta=0.0, lead_s=0.1, spread_m=0.02, heading_rad=0.01,
+                  speed_m_s=1.0)  # fmt: skip
+    safety = SafetyConfig(clock_sync_s=0.005)
+    window = LatencyWindow(0.05, 0.15, measured=True)
+    radii = {}
+    for sync in (None, 0.005):
+        world = WorldView(clock.now)
+        feed = WorldFeed(world, keys, clock_sync_s=sync, wall_clock=lambda: wall[0])
+        state = RobotState(robot_id="a", seq=1, stamp=wall[0] - 0.05, pose=Pose(x=1.0, y=0.0),
+                           ahead=ahead)  # fmt: skip
+        feed._on_state(FakeSample(keys.peer_state("a", (0, 0)), Payload(encode(state))))
+        radii[sync] = world.peer_bodies("me", safety, 0.2, window)[1][1, 0]
+        if sync is not None:
+            ahead_of_us = state.model_copy(update={"seq": 2, "stamp": wall[0] + 1.0})
+            feed._on_state(FakeSample(keys.peer_state("a", (0, 0)), Payload(encode(ahead_of_us))))
+            assert feed.decoder.dropped.get("stamp_ahead") == 1
+    assert radii[0.005] < radii[None] - 0.1  # 150 ms of link-delay doubt gone at 1 m/s
+
+
 def test_callback_guard_counts_exceptions() -> None:
     guard = CallbackGuard("test")
 
@@ -283,3 +313,71 @@ def test_at_rest_the_drive_is_released_held_it_is_stopped_every_tick() -> None:
     drive.jumped = None
     snap = agent.tick()
     assert snap is not None and snap.mode is not RobotMode.HOLDING and not snap.errors
+
+
+def _agent_on(drive: FakeDrive, clock: SteppedClock, **safety: object) -> RobotAgent:
+    settings = load_settings(safety=safety) if safety else load_settings()
+    return RobotAgent("r1", drive, None, settings, clock=clock)
+
+
+def test_the_agent_tells_peers_where_it_will_be_and_caps_its_speed_ups() -> None:
+    """Every state carries the prediction for the instant its command acts; no command's
+    point speed rises by more than max_accel_m_s2 per period."""
+    from fleet.core.step import body_velocities
+    from robot_agent.prediction import point_speed
+
+    clock = SteppedClock()
+    drive = FakeDrive(clock)
+    agent = _agent_on(drive, clock, prediction=True)
+    agent.submit(ASSIGNMENT)
+    safety, profile = agent.settings.safety, agent.settings.profile
+    speeds = [0.0]
+    for _ in range(30):
+        agent.tick()
+        state = agent.world.states()["r1"]
+        assert state.ahead is not None
+        # no wheel measurements: the configured window, predicted at its middle
+        assert state.ahead.lead_s == pytest.approx(safety.max_latency_s / 2)
+        right, left = drive.commands[-1]
+        u, omega = body_velocities(right, left, profile.wheel_radius, profile.half_axle)
+        speeds.append(point_speed(u, omega, profile.half_axle, safety))
+        assert state.ahead.speed_m_s >= speeds[-1]
+        clock.advance(0.02)
+    rises = [b - a for a, b in itertools.pairwise(speeds)]
+    assert max(rises) <= safety.max_accel_m_s2 * 0.02 + 1e-12
+    assert speeds[-1] > 0.5  # it did speed up, steadily
+
+
+def test_without_prediction_the_agent_decides_as_before_and_publishes_none() -> None:
+    """prediction off (the default): the measured pose, the reach spreads, no cap, and no
+    prediction on the wire (peers then see the robot as before)."""
+    clock = SteppedClock()
+    drive = FakeDrive(clock)
+    agent = _agent_on(drive, clock)
+    assert not agent.settings.safety.prediction
+    agent.submit(ASSIGNMENT)
+    agent.tick()
+    assert agent.world.states()["r1"].ahead is None
+    right, left = drive.commands[-1]
+    assert max(abs(right), abs(left)) * agent.settings.profile.wheel_radius > 0.5  # uncapped
+
+
+def test_a_drive_slower_than_the_configured_latency_is_reported_and_measured() -> None:
+    from sim_agent.disturbances import Disturbances, DisturbedDrive
+
+    clock = SteppedClock()
+    lagging = Disturbances(latency_s=(0.3, 0.3))  # twice max_latency_s
+    profile = load_settings().profile
+    drive = DisturbedDrive((0.0, 0.0, 0.0), profile, clock, lagging, np.random.default_rng(0))
+    settings = load_settings(safety={"prediction": True})  # it measures the latency then
+    agent = RobotAgent("r1", drive, None, settings, clock=clock)
+    agent.submit(ASSIGNMENT.model_copy(update={"goal": Pose(x=-3.0, y=2.0, theta=1.0)}))
+    for _ in range(400):
+        snap = agent.tick()
+        clock.advance(0.02)
+    assert snap is not None
+    window = agent.latency.window()
+    assert window.exceeded and window.hi >= 0.3 - 0.01
+    fault = [e for e in snap.errors if e.code == "latency_exceeded"]
+    assert fault and fault[0].level.value == "warning"
+    assert snap.mode is not RobotMode.HOLDING  # it drives on

@@ -98,8 +98,17 @@ def test_a_lockstep_fleet_among_peers_is_the_batch_simulation_of_the_same_scene(
     same time t. The moving robots a, c and d pass within each other's influence radius;
     a weak repulsion lets a reach the idle robot b next to its goal, where only the safety
     filter holds it off. The filter sees every peer exactly (no latency, link or pose error
-    in this scene), as the batch does."""
-    exact = {"pose_error_m": 0.0, "max_latency_s": 0.0, "link_delay_s": 0.0}
+    in this scene), as the batch does: each agent predicts its pose zero seconds ahead and
+    sees its peers at their fresh readings; no speed-up is capped (the batch has no
+    acceleration limit)."""
+    exact = {
+        "pose_error_m": 0.0,
+        "heading_error_rad": 0.0,
+        "max_latency_s": 0.0,
+        "link_delay_s": 0.0,
+        "max_accel_m_s2": 100.0,
+        "prediction": True,
+    }
     settings = load_settings(avoidance={"k_avoid": 0.05}, safety=exact)
     avoid, period = settings.avoidance, 1.0 / settings.control_rate_hz
     spawns = [

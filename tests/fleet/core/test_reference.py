@@ -226,7 +226,12 @@ def test_mismatched_lengths_are_rejected() -> None:
     ),
     st.lists(st.sampled_from([0.0, 0.1, 0.5]), min_size=5, max_size=5),
     st.sampled_from(
-        [None, reference.Safety(0.05, 0.03, 5.0, 0.0), reference.Safety(0.05, 0.03, 5.0, 0.04)]
+        [
+            None,
+            reference.Safety(0.05, 0.03, 5.0, 0.0),
+            reference.Safety(0.05, 0.03, 5.0, 0.04),
+            reference.Safety(0.05, 0.03, 5.0, 0.04, 0.1),
+        ]
     ),
 )
 def test_batch_with_peers_obstacles_and_delays_equals_the_reference_fleet_loop(
@@ -252,7 +257,7 @@ def test_batch_with_peers_obstacles_and_delays_equals_the_reference_fleet_loop(
         obstacle_end=[o[4:6] for o in obstacles], k_avoid=k_avoid,
         peer_radius=peer_radius, min_x_oa=0.05, start_delay=delays[:n],
         safety=step.SAFETY_OFF if safety is None else step.Safety(
-            safety.margin, safety.projection, safety.rate, safety.spread
+            safety.margin, safety.projection, safety.rate, safety.spread, safety.heading
         ),
     )  # fmt: skip
     batch = simulate(problem, dt=0.02, max_time=2.0)

@@ -36,7 +36,14 @@ obstacles_st = st.lists(
     max_size=3,
 )
 safety_st = st.sampled_from(
-    [None, reference.Safety(0.05, 0.03, 5.0, 0.0), reference.Safety(0.1, 0.05, 2.0, 0.02)]
+    [
+        None,
+        reference.Safety(0.05, 0.03, 5.0, 0.0),
+        reference.Safety(0.1, 0.05, 2.0, 0.02),
+        reference.Safety(0.05, 0.03, 5.0, 0.03, 0.05),  # a predicted heading's uncertainty
+        reference.Safety(0.05, 0.03, 20.0, 0.0, 0.9),  # a cone wider than 45 degrees
+        reference.Safety(0.05, 0.03, 5.0, 0.02, 1.6),  # beyond 90 degrees: any direction
+    ]
 )
 limits = st.sampled_from([math.inf, 4.0, 20.0])
 avoidance_st = st.builds(
@@ -90,7 +97,9 @@ class Situation:
             min_x_oa=self.avoidance.min_x_oa,
             safety=step.SAFETY_OFF
             if safety is None
-            else step.Safety(safety.margin, safety.projection, safety.rate, safety.spread),
+            else step.Safety(
+                safety.margin, safety.projection, safety.rate, safety.spread, safety.heading
+            ),
             dt=0.02,
         )
 
@@ -303,7 +312,13 @@ def test_compiled_entry_points_refuse_other_types_instead_of_compiling() -> None
         )
     ),
     st.sampled_from([0.05, 4.0]),
-    st.sampled_from([step.SAFETY_OFF, step.Safety(0.05, 0.03, 5.0, 0.02)]),
+    st.sampled_from(
+        [
+            step.SAFETY_OFF,
+            step.Safety(0.05, 0.03, 5.0, 0.02),
+            step.Safety(0.05, 0.03, 5.0, 0.0, 0.1),
+        ]
+    ),
 )
 def test_one_robot_step_equals_its_row_of_the_batch_step(
     fleet: tuple[list[Posture], list[Posture], list[Law]], k_avoid: float, safety: step.Safety

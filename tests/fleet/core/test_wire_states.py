@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from fleet.core.wire import (
     COMPACT_STATE_V1,
+    Ahead,
     Keys,
     Pose,
     Rejected,
@@ -55,6 +56,17 @@ states = st.builds(
     radius=st.floats(0.01, 5.0),
     detail=st.none() | st.text(max_size=50),
     errors=st.lists(errors, max_size=3),
+    ahead=st.none()
+    | st.builds(
+        Ahead,
+        x=finite,
+        y=finite,
+        theta=finite,
+        lead_s=st.floats(0.0, 1.0),
+        spread_m=st.floats(0.0, 1.0),
+        heading_rad=st.floats(0.0, 1.0),
+        speed_m_s=st.floats(0.0, 5.0),
+    ),
 )
 
 
@@ -87,13 +99,13 @@ def _frame(*fields: object) -> bytes:
 
 
 #: A whole layout-0x01 state with defaults: id, seq, stamp, x, y, theta, u, omega, mode,
-#: task, revision, law, goal, radius, detail, errors.
+#: task, revision, law, goal, radius, detail, errors, ahead.
 FULL: list[object] = ["r1", 1, 10.0, 1.0, 2.0, 0.5, 0.1, 0.0, "driving", None, 0, None, None,
-                      0.2, None, []]  # fmt: skip
+                      0.2, None, [], None]  # fmt: skip
 
 
 def _full(**changes: object) -> bytes:
-    names = "id seq stamp x y theta u omega mode task revision law goal radius detail errors"
+    names = "id seq stamp x y theta u omega mode task revision law goal radius detail errors ahead"
     fields = dict(zip(names.split(), FULL, strict=True)) | changes
     return _frame(*fields.values())
 
@@ -105,6 +117,24 @@ def test_appended_fields_of_a_newer_sender_are_ignored_missing_ones_default() ->
     short = parse_state(_frame("r1", 1, 10.0, 1.0, 2.0, 0.5))
     assert isinstance(short, RobotState)
     assert (short.u, short.mode, short.errors, short.radius) == (0.0, RobotMode.IDLE, [], 0.2)
+    older = parse_state(_frame(*FULL[:-1]))  # a sender from before the prediction
+    assert isinstance(older, RobotState) and older.ahead is None
+
+
+def test_a_prediction_travels_in_both_encodings_and_an_older_receiver_skips_it() -> None:
+    ahead = Ahead(x=1.0, y=2.0, theta=0.5, lead_s=0.1, spread_m=0.03, heading_rad=0.02,
+                  speed_m_s=0.8)  # fmt: skip
+    state = RobotState(robot_id="r1", seq=3, stamp=1.0, pose=Pose(x=1.0, y=2.0), ahead=ahead)
+    assert parse_state(encode_state(state)) == state == parse_state(encode(state))
+
+    class OlderFrame(msgspec.Struct, array_like=True):  # layout 0x01 before the prediction
+        robot_id: str
+        seq: int
+        stamp: float
+
+    older = msgspec.msgpack.decode(encode_state(state)[1:], type=OlderFrame)
+    assert (older.robot_id, older.seq) == ("r1", 3)
+    assert RobotState.model_validate_json(encode(state)).ahead == ahead
 
 
 @pytest.mark.parametrize(
@@ -118,6 +148,9 @@ def test_appended_fields_of_a_newer_sender_are_ignored_missing_ones_default() ->
         (_frame("r1", -1, 10.0, 1.0, 2.0, 0.5), "invalid"),  # negative seq
         (_frame("r1", 1, 10.0, math.nan, 2.0, 0.5), "invalid"),
         (_frame("r1", 1, 10.0, 1.0, math.inf, 0.5), "invalid"),
+        (_full(ahead=[1.0, 2.0, 0.5, 0.1, -0.03, 0.0, 0.5]), "invalid"),  # negative spread
+        (_full(ahead=[1.0, 2.0, math.nan, 0.1, 0.03, 0.0, 0.5]), "invalid"),
+        (_full(ahead=[1.0, 2.0, 0.5]), "invalid"),  # truncated prediction
         (_frame("r1", 1, 10.0, 1.0, 2.0, 0.5, 0, 0, "flying"), "invalid"),  # unknown mode
         (_frame("r1", 1, 10.0, 1.0, 2.0, 0.5, 0, 0, "idle", None, 0, "left"), "invalid"),
         (_frame("r1", 1, "soon", 1.0, 2.0, 0.5), "invalid"),

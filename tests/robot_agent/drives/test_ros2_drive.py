@@ -384,3 +384,23 @@ def _latched_pose_reaches_the_drive(
             drive.close()
     finally:
         publisher.undeclare()
+
+
+def test_the_odometry_s_twist_is_the_measured_wheel_speeds(
+    robot: Robot, drive_session: Any
+) -> None:
+    """The latency estimator's input: the robot's measured (u, omega) as wheel speeds (Eq. 2)
+    at the odometry's stamp on the agent's clock; nothing before the first odometry."""
+    drive = make(drive_session)
+    try:
+        assert all(math.isnan(v) for v in drive.wheel_speeds())
+        moving = StampedPose(1.0, 0.0, 0.25, WALL - 0.1, "odom", u=0.5, omega=1.0)
+        robot.put(ODOM_KEY, MESSAGES.encode_pose(ODOMETRY, moving))
+        wait_for(lambda: drive.poses_received == 1, 10, "the odometry")
+        right, left, at = drive.wheel_speeds()
+        r, b = drive.profile.wheel_radius, drive.profile.half_axle
+        assert right == pytest.approx((0.5 + b * 1.0) / r)
+        assert left == pytest.approx((0.5 - b * 1.0) / r)
+        assert at == pytest.approx(MONO - 0.1)
+    finally:
+        drive.close()

@@ -45,6 +45,10 @@ EXTRA_OF: dict[str, str] = {
     "httpx": "bench",
     "aiohttp": "bench",
     "scipy": "server",
+    "shapely": "server",  # the route graph, narrow passages (fleet/core/planner/)
+    "networkx": "server",
+    "uvloop": "server",
+    "httptools": "server",
     "matplotlib": "bench",
     "navground": "bench",
     "psycopg": "postgres",  # serve --store postgresql://...; bench failover

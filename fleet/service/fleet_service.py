@@ -69,7 +69,6 @@ from types import TracebackType
 
 from fleet.core.planner import PlannerConfig, plan
 from fleet.core.planner.clusters import components
-from fleet.core.planner.passages import narrow_passages
 from fleet.core.tasks import (
     RobotConflict,
     RobotEvent,
@@ -640,6 +639,10 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         zones = declared(self.settings.site)
         if not self.settings.narrow_passages or not obstacles:
             return zones
+        # shapely on first use: the fleet host's package (a robot install imports this module
+        # for its command line but never runs a service)
+        from fleet.core.planner.passages import narrow_passages
+
         radius = self.settings.profile.radius
         clearance = PlannerConfig().route_clearance(radius, self.settings.safety.contact_margin_m)
         return zones + narrow_passages(obstacles, clearance, radius)

@@ -11,10 +11,10 @@ a site has lanes, a robot's route (:meth:`LaneMap.route`) is:
   flow) -- to a lane point the pre-bay point sees, then the pre-bay point
   (``approach_m`` in front of the bay) and the paper's law for the last leg; the shortest
   such way (metres driven), its via-points where it turns, gets on or gets off;
-* straight to its goal when that way is clear and the goal is nearer than the lane point
-  it would get on at (the lanes would lead it away). Otherwise the lanes are the way, also
-  when they lead round (a lane a wall was put across is cut there): that is what lanes
-  are for;
+* straight to its goal when that way is clear of every wall and post (as without lanes:
+  lanes lead robots round walls, a robot with open floor to its bay drives straight);
+  otherwise the lanes are the way, also when they lead round (a lane a wall was put
+  across is cut there): that is what lanes are for;
 * a lane step that an obstacle now blocks (a wall put across it with ``PUT /obstacles``)
   is no way;
 * where the lanes give no way (a bay no lane point sees, a robot off every lane), the free
@@ -106,6 +106,8 @@ class LaneMap:
         [rad]): ``()`` straight, the lanes' way, else the free space's (module docstring);
         None: no way at all."""
         free = self.roadmap.route(start, goal, approach_m)
+        if free == ():
+            return free  # the straight way is clear: lanes lead round walls, not across floor
         s = (float(start[0]), float(start[1]))
         g = (float(goal[0]), float(goal[1]))
         h = float(goal[2])
@@ -117,8 +119,6 @@ class LaneMap:
             via = self._along(s, target)
             if via is None:
                 continue
-            if free == () and math.dist(s, g) <= math.dist(s, via[0]):
-                return ()  # the goal is nearer than the lanes
             return (*via, target) if pre_bay else via
         return free
 

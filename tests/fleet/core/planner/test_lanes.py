@@ -41,9 +41,10 @@ def test_a_two_way_lane_is_driven_either_way_and_the_free_graph_is_not_used() ->
     assert free is not None and all(abs(x) < 3.0 for x, _ in free)  # round the wall's end
 
 
-def test_a_goal_nearer_than_the_lanes_is_driven_to_straight() -> None:
+def test_open_floor_to_the_goal_is_driven_straight_lanes_or_not() -> None:
     graph = route_graph(WALL, CLEARANCE, lane_shapes(LOOP))
     assert graph.route((0.0, -1.0), (1.0, -1.2, 0.0), 1.0) == ()
+    assert graph.route((-3.0, -1.0), (3.0, -1.0, 0.0), 1.0) == ()  # beside the wall, clear
 
 
 def test_where_no_lane_is_seen_the_free_route_graph_leads() -> None:

@@ -786,10 +786,24 @@ class TaskLedger:
         task -- another sense of rotation is another way past. ``cause`` goes into the
         reason and the history (``standoff``); the task's stuck window is not spent."""
         task = self._under_way[task_id]
+        law = self._other_law(task)
+        reason = f"standoff: {cause}; gives way ({law}) until a plan resumes it"
+        self.stuck_watch.restart(task_id)
+        return self._held_revision(task, law, reason, "standoff", now, wall)
+
+    def _other_law(self, task: Task) -> Law:
+        """The other law for an ``auto`` task, pinned for the planner; else its own."""
         assert task.law is not None
-        law = task.law
-        if task.request.direction == "auto":
-            law = self._pinned[task_id] = "cw" if task.law == "ccw" else "ccw"
+        if task.request.direction != "auto":
+            return task.law
+        law: Law = "cw" if task.law == "ccw" else "ccw"
+        self._pinned[task.id] = law
+        return law
+
+    def _held_revision(
+        self, task: Task, law: Law, reason: str, event: str, now: float, wall: float
+    ) -> Effects:
+        """A held revision of ``task`` with ``law`` (it stands until a plan resumes it)."""
         revised = self._update(
             task,
             wall,
@@ -798,13 +812,12 @@ class TaskLedger:
             start_delay_s=0.0,
             hold=True,
             revision=task.revision + 1,
-            reason=f"standoff: {cause}; gives way ({law}) until a plan resumes it",
+            reason=reason,
         )
         effects: Effects = []
-        self._transition(revised, "standoff", effects)
-        track = self._tracking[task_id]
+        self._transition(revised, event, effects)
+        track = self._tracking[task.id]
         track.sent_at, track.corridor = now, None
-        self.stuck_watch.restart(task_id)
         effects.append(Publish(assignment_of(revised, self.config.avoidance)))
         return effects
 
@@ -831,25 +844,8 @@ class TaskLedger:
         if step == "requeue":
             self._avoid[task_id] = task.robot_id
             return self._requeue(task, reason, "recovery", wall, stop_robot=True)
-        law = task.law
-        if step == "flip" and task.request.direction == "auto":
-            law = self._pinned[task_id] = "cw" if task.law == "ccw" else "ccw"
-        revised = self._update(
-            task,
-            wall,
-            status=TaskStatus.WAITING,
-            law=law,
-            start_delay_s=0.0,
-            hold=True,
-            revision=task.revision + 1,
-            reason=reason,
-        )
-        effects: Effects = []
-        self._transition(revised, "recovery", effects)
-        track = self._tracking[task_id]
-        track.sent_at, track.corridor = now, None
-        effects.append(Publish(assignment_of(revised, self.config.avoidance)))
-        return effects
+        law = self._other_law(task) if step == "flip" else task.law
+        return self._held_revision(task, law, reason, "recovery", now, wall)
 
     def robot_removed(self, robot_id: str, wall: float) -> Effects:
         """The robot was removed from the fleet: queued tasks naming it fail (it will not

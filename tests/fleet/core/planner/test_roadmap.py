@@ -13,7 +13,7 @@ import pytest
 from hypothesis import assume, event, given, settings
 from hypothesis import strategies as st
 
-from fleet.core.geometry import segment_distance, segments_cross
+from fleet.core.geometry import segments_cross, segments_distance
 from fleet.core.planner.roadmap import END_SLACK_M, Roadmap
 from fleet.core.site import Wall
 from fleet.core.wire import Obstacle
@@ -34,15 +34,7 @@ def post(x: float, y: float, body: float = 0.1) -> Obstacle:
 
 def seg_distance(a: Pt, b: Pt, o: Obstacle) -> float:
     """Distance [m] between the segment a-b and the obstacle's segment."""
-    c, d = (o.x, o.y), o.far_end
-    if segments_cross(a, b, c, d):
-        return 0.0
-    return min(
-        segment_distance(*a, c, d),
-        segment_distance(*b, c, d),
-        segment_distance(*c, a, b),
-        segment_distance(*d, a, b),
-    )
+    return segments_distance(a, b, (o.x, o.y), o.far_end)
 
 
 def own_clearance(point: Pt, obstacles: list[Obstacle], clearance: float) -> float:

@@ -11,6 +11,7 @@ predicts what the robot does.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
@@ -53,20 +54,34 @@ def route_table(
     return table
 
 
-def remaining(via: Sequence[tuple[float, float]], x: float, y: float) -> FloatArray:
+def remaining(
+    via: Sequence[tuple[float, float]], x: float, y: float, goal: tuple[float, float] | None = None
+) -> FloatArray:
     """The via-points (m', 2) [m] a robot at (x, y) [m] still has to pass on route ``via``:
     from the one whose leg (from the via-point before it; the first: the point itself)
-    passes nearest to the robot. The robot does not report which one it aims at; this is
-    the planner's (and the dashboard's) estimate."""
+    passes nearest to the robot. With the route's ``goal`` (x, y) [m], none is left when
+    the robot is on the last leg: nearer to the goal than the last via-point is, and
+    nearer to that leg than to any other (without the goal the last via-point always is
+    left). The robot does not report which one it aims at; this is the planner's (and the
+    dashboard's) estimate."""
     points = np.asarray(via, dtype=np.float64).reshape(-1, 2)
     if points.shape[0] == 0:
         return points
-    a = np.vstack([points[:1], points[:-1]])  # each leg's start
-    d = points - a
+    ends = points if goal is None else np.vstack([points, [goal]])
+    a = np.vstack([ends[:1], ends[:-1]])  # each leg's start
+    d = ends - a
     length_sq = (d * d).sum(axis=1)
     t = np.where(
         length_sq > 0, ((np.array([x, y]) - a) * d).sum(axis=1) / np.maximum(length_sq, 1e-300), 0.0
     )
     closest = a + np.clip(t, 0.0, 1.0)[:, None] * d
-    nearest = int(np.argmin(np.hypot(closest[:, 0] - x, closest[:, 1] - y)))
+    distance = np.hypot(closest[:, 0] - x, closest[:, 1] - y)
+    nearest = int(np.argmin(distance[: points.shape[0]]))
+    if goal is not None:
+        last_to_goal = math.hypot(goal[0] - points[-1, 0], goal[1] - points[-1, 1])
+        if (
+            math.hypot(goal[0] - x, goal[1] - y) < last_to_goal
+            and distance[-1] <= distance[nearest]
+        ):
+            return points[:0].copy()  # on the last leg
     return points[nearest:].copy()

@@ -349,10 +349,13 @@ def _routes(
     """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the
     static obstacles: the rest of the route its robot was ``sent`` while its body's straight
     way to the next via-point is clear (the robot drives it: re-routing a robot beside a
-    wall from scratch can send it another way), else a new one from where it is (pushed off
-    its route by its peers) (:mod:`fleet.core.planner.roadmap`); (0, 2) where the straight
-    way is clear, there are no obstacles, or no route exists (the robot then drives straight
-    and its safety filter stops it at the obstacle; the API refuses such goals)."""
+    wall from scratch can send it another way), none once it is on the last leg with its
+    goal in sight (:func:`fleet.core.route.remaining` with the goal: sending the last
+    via-point again would turn it back to a point it has passed), else a new one from where
+    it is (pushed off its route by its peers) (:mod:`fleet.core.planner.roadmap`); (0, 2)
+    where the straight way is clear, there are no obstacles, or no route exists (the robot
+    then drives straight and its safety filter stops it at the obstacle; the API refuses
+    such goals)."""
     k = pose.shape[0]
     if not world.obstacles or k == 0:
         return ()
@@ -365,11 +368,16 @@ def _routes(
     out = []
     for i in range(k):
         here = (float(pose[i, 0]), float(pose[i, 1]))
-        rest = remaining(sent[i], *here) if sent[i] else NO_ROUTE
-        if len(rest) and roadmap.clear(here, (rest[0, 0], rest[0, 1]), float(radii[i])):
-            out.append(rest)  # still in sight of the next via-point: drive the rest
-            continue
         target = (float(goal[i, 0]), float(goal[i, 1]), float(goal[i, 2]))
+        if sent[i]:
+            rest = remaining(sent[i], *here, target[:2])
+            if not len(rest) and roadmap.clear(here, target[:2], float(radii[i])):
+                out.append(NO_ROUTE)  # on the last leg: the paper's law parks it
+                continue
+            rest = rest if len(rest) else remaining(sent[i], *here)
+            if roadmap.clear(here, (rest[0, 0], rest[0, 1]), float(radii[i])):
+                out.append(rest)  # still in sight of the next via-point: drive the rest
+                continue
         points = roadmap.route(here, target, config.approach_m)
         # At most what an assignment carries: a longer way is driven as far as that goes,
         # and routed again from there once the robot is out of the next point's sight.

@@ -158,6 +158,17 @@ def test_the_rest_of_a_route_starts_at_the_leg_the_robot_is_on() -> None:
     assert remaining([], 0.0, 0.0).shape == (0, 2)
 
 
+def test_a_robot_past_the_last_via_point_has_none_left_only_when_the_goal_is_given() -> None:
+    past = (2.5, 0.05)  # between the pre-bay point (2, 0) and the goal (3, 0)
+    assert remaining(AROUND, *past).tolist() == [list(AROUND[2])]  # without the goal
+    assert remaining(AROUND, *past, GOAL[:2]).shape == (0, 2)
+    # still short of the pre-bay point, or nearer another leg: the route goes on
+    assert remaining(AROUND, 1.6, -0.8, GOAL[:2]).tolist() == [list(AROUND[2])]
+    assert remaining(AROUND, 0.0, -2.1, GOAL[:2]).tolist() == [list(p) for p in AROUND[1:]]
+    # beside the goal but nearer the leg before the last: not on the last leg
+    assert remaining(AROUND, 2.5, -1.6, GOAL[:2]).tolist() == [list(AROUND[2])]
+
+
 def test_a_via_point_is_passed_early_only_where_the_next_leg_clears_the_corner() -> None:
     table = route_table([(0.0, 2.1), (1.5, 0.0)], GOAL, cw=False)
     params = step.robot_params(

@@ -175,8 +175,9 @@ _STRAY = Observation([], stray=True)
 
 
 def _suffix(rest: Sequence[tuple[float, float]], route: Sequence[tuple[float, float]]) -> bool:
-    """Whether the via-points ``rest`` end ``route`` (what is left of it: no new route; the
-    rest of a route is never empty, so an empty ``rest`` of a route is a new, straight way)."""
+    """Whether the via-points ``rest`` end ``route`` (what is left of it: no new route; an
+    empty ``rest`` of a route is a new, straight way unless the decision says the robot is
+    on its last leg, ``TaskDecision.last_leg``)."""
     if not rest:
         return not route
     tail = [tuple(p) for p in route[len(route) - len(rest) :]]
@@ -520,7 +521,8 @@ class TaskLedger:
             return Outcome.STALE, []
         track = self._tracking[task.id]
         wanted = (decision.law, decision.start_delay_s, decision.hold)
-        rerouted = not _suffix(decision.route, task.route)  # a new way round, not the rest
+        # a new way round, not the rest of the route (nothing left of it on the last leg)
+        rerouted = not (decision.last_leg or _suffix(decision.route, task.route))
         unchanged = decision.action == "keep" or wanted == (task.law, task.start_delay_s, task.hold)
         moves = not decision.hold
         if moves and not self.zones.can_take(decision.robot_id, decision.zones):

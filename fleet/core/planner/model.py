@@ -166,6 +166,9 @@ class TaskDecision:
     #: pass-through radius [m] (``ParkAssignment.route`` and ``pass_m``)
     route: tuple[tuple[float, float], ...] = ()
     pass_m: float = DEFAULT_PASS_M
+    #: the robot is on the last leg of the route it was sent: ``route`` is empty because
+    #: none of it is left, not because it is sent straight (no revision for that)
+    last_leg: bool = False
     #: the passes through single-robot zones the robot holds for this decision (its way
     #: enters them; it starts or goes on only once it holds them):
     #: :mod:`fleet.core.planner.gates`

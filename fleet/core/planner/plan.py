@@ -360,6 +360,7 @@ def _decisions(
                     corridor=sample_corridor(times, xy, every),
                     predicted_min_separation_m=float(s.best.separation[pos]),
                     route=tuple((float(x), float(y)) for x, y in m.route[i]) if m.route else (),
+                    last_leg=bool(m.last_leg[i]) if m.last_leg.size else False,
                     pass_m=fleet.world.pass_m,
                     zones=() if hold else _granted(fleet, i),
                     waits_for=_waits_for(fleet, i) if hold else None,

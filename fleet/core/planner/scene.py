@@ -82,6 +82,9 @@ class Movers:
     limits: FloatArray  # (k, 4) each robot's own profile (``Rows.limits``; NaN: the world's)
     #: each mover's via-points (m_i, 2) [m] (``Rows.route``; (0, 2): straight to its goal)
     route: tuple[FloatArray, ...] = ()
+    #: (k,) movers on the last leg of the route they were sent: their route is empty because
+    #: none of it is left (the robot keeps what it drives), not because it goes straight now
+    last_leg: BoolArray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     #: (k,) movers that must hold whatever the search finds: they wait for a single-robot
     #: zone (:mod:`fleet.core.planner.gates`); empty: none
     must_hold: BoolArray = field(default_factory=lambda: np.zeros(0, dtype=bool))
@@ -252,7 +255,7 @@ def build_fleet(
         snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles), snapshot.safety,
         config.pass_m, snapshot.lanes,
     )  # fmt: skip
-    route = _routes(pose0, goal, limits, world, config, [t.route for t in tasks])
+    route, last_leg = _routes(pose0, goal, limits, world, config, [t.route for t in tasks])
 
     # Lead-in: robots under way go on as they are; new and held robots stand.
     driving = kind == UNDER_WAY
@@ -289,6 +292,16 @@ def build_fleet(
     solo_time, solo_times, solo_xy = _solo(
         start, goal, gains, tolerance, allowed, world, snapshot.control_dt, config, limits, route
     )
+    drivable = _drivable(
+        route, solo_time, start, goal, gains, tolerance, allowed, world, snapshot.control_dt,
+        config, limits,
+    )  # fmt: skip
+    if drivable is not None:  # a route dropped: every solo again, on one time grid
+        route = drivable
+        solo_time, solo_times, solo_xy = _solo(
+            start, goal, gains, tolerance, allowed, world, snapshot.control_dt, config, limits,
+            route,
+        )  # fmt: skip
     fastest = np.where(
         allowed[:, 0] & (~allowed[:, 1] | (solo_time[:, 0] <= solo_time[:, 1])), 0, 1
     )
@@ -319,6 +332,7 @@ def build_fleet(
         keep_hold=kind == HELD,
         limits=limits,
         route=route,
+        last_leg=last_leg,
         must_hold=gates.must_hold,
     )
     return Fleet(
@@ -345,7 +359,7 @@ def _routes(
     world: World,
     config: PlannerConfig,
     sent: Sequence[Sequence[tuple[float, float]]],
-) -> tuple[FloatArray, ...]:
+) -> tuple[tuple[FloatArray, ...], BoolArray]:
     """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the
     static obstacles: the rest of the route its robot was ``sent`` while its body's straight
     way to the next via-point is clear (the robot drives it: re-routing a robot beside a
@@ -355,10 +369,11 @@ def _routes(
     it is (pushed off its route by its peers) (:mod:`fleet.core.planner.roadmap`); (0, 2)
     where the straight way is clear, there are no obstacles, or no route exists (the robot
     then drives straight and its safety filter stops it at the obstacle; the API refuses
-    such goals)."""
+    such goals). Also which movers are on their last leg (``Movers.last_leg``)."""
     k = pose.shape[0]
+    last_leg = np.zeros(k, dtype=bool)
     if not world.obstacles or k == 0:
-        return ()
+        return (), last_leg
     # shapely and networkx on first use: the fleet service plans with them, a robot never.
     from fleet.core.planner.lanes import route_graph
 
@@ -373,6 +388,7 @@ def _routes(
             rest = remaining(sent[i], *here, target[:2])
             if not len(rest) and roadmap.clear(here, target[:2], float(radii[i])):
                 out.append(NO_ROUTE)  # on the last leg: the paper's law parks it
+                last_leg[i] = True
                 continue
             rest = rest if len(rest) else remaining(sent[i], *here)
             if roadmap.clear(here, (rest[0, 0], rest[0, 1]), float(radii[i])):
@@ -383,7 +399,7 @@ def _routes(
         # and routed again from there once the robot is out of the next point's sight.
         points = (points or ())[:MAX_ROUTE_POINTS]
         out.append(np.array(points, dtype=np.float64).reshape(-1, 2) if points else NO_ROUTE)
-    return tuple(out)
+    return tuple(out), last_leg
 
 
 def stuck(fleet: Fleet) -> list[int]:
@@ -409,6 +425,41 @@ def _blocks(solo_xy: FloatArray, allowed: BoolArray, goal: FloatArray, reach: fl
     out: BoolArray = np.asarray(np.where(allowed[:, :, None], near, True).all(axis=1))
     np.fill_diagonal(out, False)
     return out
+
+
+def _drivable(
+    route: tuple[FloatArray, ...],
+    solo_time: FloatArray,
+    start: FloatArray,
+    goal: FloatArray,
+    gains: FloatArray,
+    tolerance: FloatArray,
+    allowed: BoolArray,
+    world: World,
+    dt: float,
+    config: PlannerConfig,
+    limits: FloatArray,
+) -> tuple[FloatArray, ...] | None:
+    """``route`` with the routes its robots cannot drive dropped (None: every route is
+    kept): a mover that does not finish its route alone with any law (``solo_time`` (k,
+    2)) drives straight where, alone, it arrives that way -- the paper's law and Eq. (27)
+    take it round the obstacles, while a route threading a gap between two posts lies
+    inside both repulsion zones, where the law stalls short of its via-points."""
+    stalled = [i for i, r in enumerate(route) if len(r) and not np.isfinite(solo_time[i]).any()]
+    if not stalled:
+        return None
+    idx = np.asarray(stalled, dtype=np.int64)
+    straight_time, _, _ = _solo(
+        start[idx], goal[idx], gains[idx], tolerance[idx], allowed[idx], world, dt, config,
+        limits[idx], [NO_ROUTE] * len(idx),
+    )  # fmt: skip
+    arrives = np.isfinite(straight_time).any(axis=1)
+    if not arrives.any():
+        return None
+    out = list(route)
+    for i in idx[arrives]:
+        out[int(i)] = NO_ROUTE
+    return tuple(out)
 
 
 def _solo(

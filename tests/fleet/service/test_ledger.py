@@ -437,6 +437,11 @@ def test_a_new_way_round_is_a_revision_and_the_rest_of_the_route_is_not(
         rest, robot_available=True, plan_safe=True, origin_seq=None, now=0.0, wall=WALL
     )
     assert outcome is Outcome.UNCHANGED and effects == []  # the rest of it: nothing to send
+    done = TaskDecision("t1", "r1", "keep", "cw", revision=0, route=(), last_leg=True)
+    outcome, effects = ledger.apply(
+        done, robot_available=True, plan_safe=True, origin_seq=None, now=0.0, wall=WALL
+    )
+    assert outcome is Outcome.UNCHANGED and effects == []  # on its last leg: nothing left
     other = ((0.0, -2.1), (2.0, 0.0))
     effects = applied(ledger, TaskDecision("t1", "r1", "keep", "cw", revision=0, route=other))
     (sent,) = [e.message for e in effects if isinstance(e, Publish)]

@@ -270,6 +270,24 @@ def test_static_obstacles_are_avoided_and_known_to_the_prediction() -> None:
     assert float(run.result.time[0]) == pytest.approx(d.predicted_arrival_s, abs=1e-6)
 
 
+def test_a_route_the_robot_cannot_drive_is_dropped_for_the_straight_way_it_can() -> None:
+    """Case III's posts with a robot crossing them on the diagonal: the route graph threads
+    it through the gap, where both posts' Eq. (27) zones stall the law short of the
+    via-points; straight, the law takes it round a post."""
+    posts = (
+        Obstacle(x=0.8, y=0.0, radius=1.0, body=0.2),
+        Obstacle(x=-0.8, y=0.0, radius=1.0, body=0.2),
+    )
+    snapshot = replace(scene([(-2.5, 1.2, 0.0)], [(2.5, -1.2, 0.0)]), obstacles=posts)
+    result = plan(snapshot)
+    (d,) = result.decisions
+    assert result.safe and d.action == "assign" and not d.hold
+    assert d.route == () and d.predicted_arrival_s is not None
+    run = replay(snapshot, result)
+    assert run.result.done.all()
+    assert float(run.result.time[0]) == pytest.approx(d.predicted_arrival_s, abs=1e-6)
+
+
 def test_a_task_taken_from_a_stuck_robot_goes_to_another_one_and_keeps_its_revision() -> None:
     near, far = idle("near", (2.0, 0.0, 0.0)), idle("far", (-4.0, 4.0, 0.0))
     requeued = replace(queued("t", (4.0, 0.0, 0.0), None, 1.0), revision=3)
@@ -299,6 +317,24 @@ def test_a_robot_behind_a_wall_is_routed_round_it_and_the_plan_predicts_its_run(
     assert d.predicted_arrival_s == pytest.approx(float(run.result.time[0]), abs=0.05)
     # the wall gone, the same task goes straight
     assert plan(replace(snapshot, obstacles=())).decisions[0].route == ()
+
+
+def test_a_robot_past_its_last_via_point_is_predicted_straight_to_its_goal() -> None:
+    """Past the pre-bay point nothing of the route is left: the plan predicts the law's
+    last leg (not a turn back to the point) and says so, so no revision is sent."""
+    snapshot = replace(scene([(-3.0, 0.0, 0.0)], [(3.0, 0.0, 0.0)]), obstacles=(WALL,))
+    first = plan(snapshot)
+    (d0,) = first.decisions
+    run = replay(snapshot, first)
+    later = moved_on(snapshot, first, 0.75 * float(run.result.time[0]))
+    x, y, _ = later.robots[0].pose
+    assert x > d0.route[-1][0]  # beyond the pre-bay point (2, 0), short of the goal
+    (d,) = plan(later).decisions
+    assert d.route == () and d.last_leg and d.action == "keep"
+    assert d.predicted_arrival_s is not None
+    assert 0.75 * float(run.result.time[0]) + d.predicted_arrival_s == pytest.approx(
+        float(run.result.time[0]), abs=0.1
+    )
 
 
 def test_a_robot_under_way_keeps_the_rest_of_the_route_it_was_sent() -> None:

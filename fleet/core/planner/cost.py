@@ -10,11 +10,13 @@ Lexicographic, smaller is better (:attr:`Score.key`):
    counts as at once: waiting cannot fix it --, then by how many pairs violate, then by
    the solo estimate of their arrivals (each robot's delay plus its solo time with its
    law);
-2. **trapped**, then **held** -- robots that stand because they hold (a hold is the last
-   resort; a robot waiting for a single-robot zone holds in every candidate and is not
-   counted), and first among them those that a robot this plan moves will trap by parking
-   on their way (``Fleet.blocks``): such a hold would never be released;
-3. **unfinished** -- moving robots that do not arrive within the horizon;
+2. **trapped** -- held robots that a robot this plan moves will trap by parking on their
+   way (``Fleet.blocks``): such a hold would never be released;
+3. **not arriving** -- robots that hold (a robot waiting for a single-robot zone holds in
+   every candidate and is not counted) plus moving robots that do not arrive within the
+   horizon (*unfinished*): a hold pays where it lets more robots arrive than it stops --
+   the filter would jam them otherwise -- and a robot that arrives neither way moves;
+   then **held**: a hold is the last resort;
 4. **makespan** -- the latest predicted arrival of a moving robot [s], plus
    ``change_penalty_s`` per change to a robot under way (a flip, a new delay, a hold): a
    change must pay for itself, so a stable plan stays stable;
@@ -89,8 +91,8 @@ class Score:
         return (
             0.0,
             self.trapped,
+            self.held + self.unfinished,
             self.held,
-            self.unfinished,
             self.makespan + p,
             self.total + p,
         )

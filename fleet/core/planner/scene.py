@@ -26,7 +26,7 @@ A :class:`Candidate` gives every mover of a cluster a law, a start delay and a h
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -289,19 +289,21 @@ def build_fleet(
             lead_min = float(np.min(np.where(pairs_involved, result.min_pair, np.inf)))
         delay_now = np.maximum(delay_now - lead, 0.0)
 
-    solo_time, solo_times, solo_xy = _solo(
-        start, goal, gains, tolerance, allowed, world, snapshot.control_dt, config, limits, route
-    )
-    drivable = _drivable(
-        route, solo_time, start, goal, gains, tolerance, allowed, world, snapshot.control_dt,
-        config, limits,
-    )  # fmt: skip
+    def solo(
+        idx: IntArray, routes: Sequence[FloatArray]
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Movers ``idx`` alone on ``routes`` (:func:`_solo`)."""
+        return _solo(
+            start[idx], goal[idx], gains[idx], tolerance[idx], allowed[idx], world,
+            snapshot.control_dt, config, limits[idx], routes,
+        )  # fmt: skip
+
+    everyone = np.arange(k)
+    solo_time, solo_times, solo_xy = solo(everyone, route)
+    drivable = _drivable(route, solo_time, solo)
     if drivable is not None:  # a route dropped: every solo again, on one time grid
         route = drivable
-        solo_time, solo_times, solo_xy = _solo(
-            start, goal, gains, tolerance, allowed, world, snapshot.control_dt, config, limits,
-            route,
-        )  # fmt: skip
+        solo_time, solo_times, solo_xy = solo(everyone, route)
     fastest = np.where(
         allowed[:, 0] & (~allowed[:, 1] | (solo_time[:, 0] <= solo_time[:, 1])), 0, 1
     )
@@ -430,29 +432,19 @@ def _blocks(solo_xy: FloatArray, allowed: BoolArray, goal: FloatArray, reach: fl
 def _drivable(
     route: tuple[FloatArray, ...],
     solo_time: FloatArray,
-    start: FloatArray,
-    goal: FloatArray,
-    gains: FloatArray,
-    tolerance: FloatArray,
-    allowed: BoolArray,
-    world: World,
-    dt: float,
-    config: PlannerConfig,
-    limits: FloatArray,
+    solo: Callable[[IntArray, Sequence[FloatArray]], tuple[FloatArray, FloatArray, FloatArray]],
 ) -> tuple[FloatArray, ...] | None:
     """``route`` with the routes its robots cannot drive dropped (None: every route is
     kept): a mover that does not finish its route alone with any law (``solo_time`` (k,
-    2)) drives straight where, alone, it arrives that way -- the paper's law and Eq. (27)
-    take it round the obstacles, while a route threading a gap between two posts lies
-    inside both repulsion zones, where the law stalls short of its via-points."""
+    2)) drives straight where, alone (``solo``: movers alone on given routes), it arrives
+    that way -- the paper's law and Eq. (27) take it round the obstacles, while a route
+    threading a gap between two posts lies inside both repulsion zones, where the law
+    stalls short of its via-points."""
     stalled = [i for i, r in enumerate(route) if len(r) and not np.isfinite(solo_time[i]).any()]
     if not stalled:
         return None
     idx = np.asarray(stalled, dtype=np.int64)
-    straight_time, _, _ = _solo(
-        start[idx], goal[idx], gains[idx], tolerance[idx], allowed[idx], world, dt, config,
-        limits[idx], [NO_ROUTE] * len(idx),
-    )  # fmt: skip
+    straight_time, _, _ = solo(idx, [NO_ROUTE] * len(idx))
     arrives = np.isfinite(straight_time).any(axis=1)
     if not arrives.any():
         return None

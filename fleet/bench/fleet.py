@@ -141,7 +141,7 @@ class FleetBenchRow(BaseModel):
 class BenchOptions:
     """How the bench runs: time scale of the sim robots, their disturbances (``parkfleet
     sim`` flags; empty: perfect robots), time-limit override [s, simulated], plot folder,
-    folder keeping the sim traces (else deleted), whether navground runs in a worker
+    folder keeping the sim traces and task stores (else deleted), whether navground runs in a worker
     process beside the fleet runs,
     how many disturbance seeds each scenario runs with (every policy on each), whether a
     short unmeasured fleet run comes first (:data:`WARM_UP`), the
@@ -368,7 +368,7 @@ def run_fleet_policy(
     update: dict[str, Any] = {
         "fleet_name": fleet_name,
         "task_timeout_s": _SERVICE_TIMEOUT_S,
-        "data_dir": workdir / fleet_name,  # a fresh task store per run
+        "data_dir": (options.traces or workdir) / fleet_name,  # a fresh task store per run
         "yard": scenario.bounds,
     }
     if policy == "none":  # no repulsion, no filter, 1 µm to keep: the planner holds no one

@@ -94,7 +94,8 @@ def register(commands: Any, bench: Any) -> None:
         "--traces",
         type=Path,
         metavar="DIR",
-        help="keep the fleet runs' sim traces there (fleet/io/trace.py format)",
+        help="keep the fleet runs' sim traces (fleet/io/trace.py format) and task stores "
+        "(a folder per run: its SQLite task history) there",
     )
     p.set_defaults(func=run)
 

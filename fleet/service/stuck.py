@@ -3,6 +3,9 @@
 :class:`StuckWatch` keeps, per task under way, the smallest *remaining distance* seen --
 position error plus heading error times ``heading_arm`` [m] (a robot turning on the spot
 near its goal is making progress too) -- and when it last shrank by ``min_progress_m``.
+The window runs on two clocks and the first to run out counts: the service's (monotonic)
+and the robot's own (its state's ``seq`` over the control rate), so a time-scaled
+simulation is judged like a real robot -- ``stuck_after_s`` of driving, not of wall time.
 A task whose robot is held on purpose (paused, e-stopped, waiting for the planner) has its
 window restarted: standing still then is not being stuck. :meth:`StuckWatch.observe` runs
 for every state of a robot under way (the service's hot path): it measures the distance at
@@ -11,8 +14,9 @@ most every ``check_interval_s`` [s], and otherwise only notes that the robot was
 :func:`stuck_cause` names what the service can see: no pose (no state for the whole
 window), a peer within the peer influence radius, a static obstacle within its influence
 zone. :data:`RECOVERIES` is the order the service tries (each attempt stored in the task's
-history and counted): re-plan with the other law (flip), wait a while (a start delay, so
-the peer passes), requeue to another robot; after the last the task fails.
+history and counted): re-plan with the other law and, on a route, off it (flip), wait a
+while (a start delay, so the peer passes), requeue to another robot; after the last the
+task fails.
 
 **Standoffs** are found sooner, on the robots' own clock: a robot that reports ``avoiding``
 (its safety filter or the repulsion of Eq. (27) acts) and has made no progress for
@@ -49,6 +53,9 @@ class _Progress:
     robot_since: float = math.nan
     robot_now: float = math.nan
     avoiding: bool = False
+    #: the stuck window on the robot's clock [s]: its best distance, when that last shrank
+    stuck_best: float = math.inf
+    stuck_since: float = math.nan
 
 
 def remaining(pose: Pose, goal: Pose, heading_arm: float) -> float:
@@ -109,8 +116,8 @@ class StuckWatch:
     def _observe_standoff(
         self, p: _Progress, pose: Pose, goal: Pose, held: bool, robot_t: float, avoiding: bool
     ) -> None:
-        """The standoff window: progress on the robot's clock (a clock that went back, a
-        restarted robot, restarts it)."""
+        """The standoff window and the stuck window on the robot's clock (a clock that went
+        back, a restarted robot, restarts both)."""
         p.avoiding = avoiding
         if math.isnan(robot_t):
             return
@@ -119,6 +126,8 @@ class StuckWatch:
         left = remaining(pose, goal, self.heading_arm)
         if held or restarted or left < p.robot_best - self.min_progress_m:
             p.robot_best, p.robot_since = left, robot_t
+        if held or restarted or left < p.stuck_best - self.min_progress_m:
+            p.stuck_best, p.stuck_since = left, robot_t
 
     def standoff(self, task_id: str) -> bool:
         """The task's robot reports ``avoiding`` and has made no progress for
@@ -141,10 +150,15 @@ class StuckWatch:
             progress.best, progress.since, progress.seen = math.inf, now, now
             progress.checked = -math.inf
             progress.robot_best, progress.robot_since = math.inf, progress.robot_now
+            progress.stuck_best, progress.stuck_since = math.inf, progress.robot_now
 
     def stuck(self, task_id: str, now: float) -> bool:
-        progress = self._tasks.get(task_id)
-        return progress is not None and now - progress.since >= self.stuck_after_s
+        """No progress for ``stuck_after_s`` on the service's clock (``now`` [s, monotonic])
+        or on the robot's."""
+        p = self._tasks.get(task_id)
+        return p is not None and (
+            now - p.since >= self.stuck_after_s or p.robot_now - p.stuck_since >= self.stuck_after_s
+        )
 
     def silent(self, task_id: str, now: float) -> bool:
         """No state of the task's robot for the whole window."""
@@ -156,6 +170,7 @@ class StuckWatch:
         progress = self._tasks[task_id]
         progress.since = now  # the next attempt after another full window
         progress.best, progress.checked = math.inf, -math.inf
+        progress.stuck_best, progress.stuck_since = math.inf, progress.robot_now
         if progress.attempts >= len(RECOVERIES):
             return None
         progress.attempts += 1

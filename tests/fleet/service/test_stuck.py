@@ -31,6 +31,30 @@ def test_progress_restarts_the_window_and_holding_is_not_being_stuck() -> None:
     )
 
 
+def test_the_window_runs_on_the_robots_clock_too() -> None:
+    """A robot whose clock runs five times the service's (a time-scaled simulation) is
+    stuck after the window of its own driving; held, it is not; progress restarts it."""
+    watch = StuckWatch(10.0)
+    goal = Pose(x=5, y=0)
+    watch.start("t", 0.0)
+    for k in range(12):  # the service's 0..2.2 s, the robot's 0..11 s, standing
+        watch.observe("t", Pose(x=0, y=0), goal, 0.2 * k, held=False, robot_t=1.0 * k)
+    assert watch.stuck("t", 2.2)
+    watch.start("t", 2.2)
+    watch.observe("t", Pose(x=0, y=0), goal, 2.4, held=True, robot_t=12.0)
+    watch.observe("t", Pose(x=0, y=0), goal, 4.8, held=True, robot_t=24.0)
+    assert not watch.stuck("t", 4.8)
+    watch.observe("t", Pose(x=0, y=0), goal, 5.0, held=False, robot_t=25.0)
+    watch.observe("t", Pose(x=1, y=0), goal, 6.0, held=False, robot_t=30.0)  # progress
+    watch.observe("t", Pose(x=1, y=0), goal, 7.8, held=False, robot_t=39.0)
+    assert not watch.stuck("t", 7.8)
+    watch.observe("t", Pose(x=1, y=0), goal, 8.0, held=False, robot_t=40.0)
+    assert watch.stuck("t", 8.0)
+    assert watch.next_recovery("t", 8.0) == "flip"
+    watch.observe("t", Pose(x=1, y=0), goal, 8.2, held=False, robot_t=41.0)
+    assert not watch.stuck("t", 8.2)  # a fresh window after a recovery
+
+
 def test_the_cause_is_what_the_service_can_see() -> None:
     me = RobotView(robot_id="a", status=RobotStatus.DRIVING, pose=Pose(x=0, y=0), last_seen=0)
     peer = me.model_copy(update={"robot_id": "b", "pose": Pose(x=0.7, y=0)})
@@ -125,6 +149,33 @@ def test_a_stuck_task_is_flipped_then_delayed_then_requeued_to_another_robot_the
     events = [event for _, event, _ in fleet.service.history(task.id)]
     assert events.count("recovery") == 3
     assert fleet.service.counters["recoveries"] == 3 and fleet.service.counters["stuck"] == 4
+
+
+def test_a_robot_stuck_on_its_route_is_flipped_off_it_to_the_laws_own_way(
+    fleet: Fleet, planner: RecordingPlanner
+) -> None:
+    """Where Eq. (27) holds a robot off a via-point, another law on the same route does
+    not help: the flip takes it off the route until it arrives or is requeued."""
+    fleet.service.set_obstacles([Obstacle(x=2.5, y=-1.5, end=(2.5, 1.5), radius=0.3, body=0.05)])
+    fleet.join("r1", 0.0, 0.0)
+    task = fleet.service.submit(req(5.0, 0.0))
+    fleet.service.tick()
+    routed = fleet.service.task(task.id)
+    assert routed.robot_id == "r1" and routed.route  # round the post
+
+    for _ in range(3):
+        fleet.robot("r1", 0.0, 0.0, mode=RobotMode.DRIVING, task_id=task.id, revision=0)
+        fleet.clock.advance(WINDOW / 2)
+    fleet.service.tick()
+    held, resumed = fleet.parks("r1")[-2:]
+    assert held.hold and (resumed.hold, resumed.route) == (False, [])
+    (recovery,) = [t for _, e, t in fleet.service.history(task.id) if e == "recovery"]
+    assert recovery.reason is not None and recovery.reason.endswith(
+        "recovery 1: flip (off its route: the law's own way)"
+    )
+    (seen,) = [t for t in planner.snapshots[-1].tasks if t.task_id == task.id]
+    assert seen.own_way and seen.direction == resumed.law
+    assert fleet.service.task(task.id).route == []
 
 
 def test_a_standoff_is_avoiding_without_progress_on_the_robots_own_clock() -> None:

@@ -221,6 +221,7 @@ class TaskLedger:
         self._held: dict[str, str] = {}  # robots an operator holds still -> why
         self._avoid: dict[str, str] = {}  # task -> robot it was taken from (stuck)
         self._pinned: dict[str, Law] = {}  # task under way -> the law a recovery chose
+        self._own_way: set[str] = set()  # tasks under way a recovery took off their route
         self._active: dict[str, Task] = {}  # every non-final task, by id
         self._queued: dict[str, Task] = {}
         self._under_way: dict[str, Task] = {}  # assigned, driving, waiting (with a robot)
@@ -287,6 +288,11 @@ class TaskLedger:
         """Tasks under way whose law a stuck recovery flipped -> that law (the planner
         keeps it: the robot was stuck with the other)."""
         return dict(self._pinned)
+
+    def own_way(self) -> frozenset[str]:
+        """Tasks under way a stuck recovery took off their route (the planner routes them
+        no more: their robot stalled on it)."""
+        return frozenset(self._own_way)
 
     def acknowledged_at(self) -> dict[str, float]:
         """Tasks under way whose robot reports their current revision -> when it first did
@@ -362,6 +368,7 @@ class TaskLedger:
         self.stuck_watch.forget(task.id)
         self._avoid.pop(task.id, None)
         self._pinned.pop(task.id, None)
+        self._own_way.discard(task.id)
         self._tracking.pop(task.id, None)
         self.paths.finish(task.id)
         self._finished[task.id] = task.status
@@ -687,6 +694,7 @@ class TaskLedger:
         )
         self._tracking.pop(task.id, None)
         self._pinned.pop(task.id, None)  # another robot may take it: its own best law
+        self._own_way.discard(task.id)
         effects: Effects = []
         self._transition(requeued, event, effects)
         if stop_robot and task.robot_id is not None:
@@ -829,8 +837,10 @@ class TaskLedger:
 
     def recover_stuck(self, task_id: str, cause: str, now: float, wall: float) -> Effects:
         """The next recovery of a stuck task (:data:`~fleet.service.stuck.RECOVERIES`):
-        ``flip`` -- a held revision with the other law (``auto`` tasks; else as ``wait``),
-        the law pinned for the planner (:meth:`pinned`); ``wait`` -- a held revision, so a
+        ``flip`` -- another way past: a held revision with the other law (``auto`` tasks),
+        the law pinned for the planner (:meth:`pinned`), and off its route when it has
+        one (:meth:`own_way`: the law's own way; a robot stalls on a route where Eq. (27)
+        holds it off a via-point); ``wait`` -- a held revision, so a
         peer passes; either way the robot stands until a plan resumes it through the plan's
         check (:meth:`apply`), with the start delay the plan chooses. ``requeue`` -- queued
         again, its robot told to stop, planned for another robot if there is one; after
@@ -847,6 +857,9 @@ class TaskLedger:
             self._avoid[task_id] = task.robot_id
             return self._requeue(task, reason, "recovery", wall, stop_robot=True)
         law = self._other_law(task) if step == "flip" else task.law
+        if step == "flip" and task.route:
+            self._own_way.add(task_id)
+            reason += " (off its route: the law's own way)"
         return self._held_revision(task, law, reason, "recovery", now, wall)
 
     def robot_removed(self, robot_id: str, wall: float) -> Effects:

@@ -58,6 +58,7 @@ class PlannerGlue(ServiceState):
             held = set(self._ledger.held)
             avoided = self._ledger.avoided()
             pinned = self._ledger.pinned()
+            own_way = self._ledger.own_way()
             acknowledged = {t: now - at for t, at in self._ledger.acknowledged_at().items()}
             obstacles = list(self._obstacles)
             zones = self._ledger.zones.shapes
@@ -79,6 +80,7 @@ class PlannerGlue(ServiceState):
             avoided,
             acknowledged,
             pinned,
+            own_way=own_way,
             zones=zones,
             zone_holders=zone_holders,
         )

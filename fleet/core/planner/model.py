@@ -110,6 +110,9 @@ class TaskSnapshot:
     avoid_robot: str | None = None
     #: the via-points (x, y) [m] its robot was sent (under way only; empty: none)
     route: tuple[tuple[float, float], ...] = ()
+    #: a stuck recovery took it off its route (its robot stalled on it): the plan gives it
+    #: no via-points, its robot drives the law's own way (under way only)
+    own_way: bool = False
 
 
 @dataclass(frozen=True)

@@ -255,7 +255,9 @@ def build_fleet(
         snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles), snapshot.safety,
         config.pass_m, snapshot.lanes,
     )  # fmt: skip
-    route, last_leg = _routes(pose0, goal, limits, world, config, [t.route for t in tasks])
+    route, last_leg = _routes(
+        pose0, goal, limits, world, config, [t.route for t in tasks], [t.own_way for t in tasks]
+    )
 
     # Lead-in: robots under way go on as they are; new and held robots stand.
     driving = kind == UNDER_WAY
@@ -361,6 +363,7 @@ def _routes(
     world: World,
     config: PlannerConfig,
     sent: Sequence[Sequence[tuple[float, float]]],
+    own_way: Sequence[bool],
 ) -> tuple[tuple[FloatArray, ...], BoolArray]:
     """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the
     static obstacles: the rest of the route its robot was ``sent`` while its body's straight
@@ -371,7 +374,8 @@ def _routes(
     it is (pushed off its route by its peers) (:mod:`fleet.core.planner.roadmap`); (0, 2)
     where the straight way is clear, there are no obstacles, or no route exists (the robot
     then drives straight and its safety filter stops it at the obstacle; the API refuses
-    such goals). Also which movers are on their last leg (``Movers.last_leg``)."""
+    such goals) or a stuck recovery took the mover off its route (``own_way``: the law's
+    own way). Also which movers are on their last leg (``Movers.last_leg``)."""
     k = pose.shape[0]
     last_leg = np.zeros(k, dtype=bool)
     if not world.obstacles or k == 0:
@@ -386,6 +390,9 @@ def _routes(
     for i in range(k):
         here = (float(pose[i, 0]), float(pose[i, 1]))
         target = (float(goal[i, 0]), float(goal[i, 1]), float(goal[i, 2]))
+        if own_way[i]:
+            out.append(NO_ROUTE)
+            continue
         if sent[i]:
             rest = remaining(sent[i], *here, target[:2])
             if not len(rest) and roadmap.clear(here, target[:2], float(radii[i])):

@@ -148,12 +148,15 @@ class Subscription:
 
     async def frames(self) -> AsyncIterator[str]:
         """SSE text: ``retry``, a snapshot of every robot, then live robot and task events
-        (several frames per chunk when they queue up), keepalive comments when idle."""
-        if self._ended:
-            return
+        (several frames per chunk when they queue up), keepalive comments when idle.
+
+        A stream ended before its first frame (dropped while the response was starting, or
+        the server shutting down) still sends what it queued, the overflow notice included,
+        and ends."""
         yield "retry: 2000\n\n"
-        for robot in await asyncio.to_thread(self._service.robots):
-            self.accept(RobotEvent(robot=robot))
+        if not self._ended:
+            for robot in await asyncio.to_thread(self._service.robots):
+                self.accept(RobotEvent(robot=robot))
         while True:
             try:
                 frame = await asyncio.wait_for(self.queue.get(), KEEPALIVE_S)

@@ -142,6 +142,22 @@ async def test_slow_client_is_dropped_with_a_log_line_not_buffered(
     assert "fell 5 frames behind: dropping it" in caplog.text
 
 
+async def test_a_client_dropped_before_its_stream_starts_still_gets_the_overflow_notice() -> None:
+    fleet = EventSource()
+    hub = EventHub(max_backlog=5)
+    subscription = hub.subscribe(fleet)  # subscribed by the route, the body not yet started
+    for x in range(10):
+        subscription.accept(task_event(float(x)))  # a burst before the first frame
+    try:
+        chunks = [chunk async for chunk in subscription.frames()]
+    finally:
+        subscription.close()
+    assert chunks[0] == "retry: 2000\n\n"
+    frames = [f for f in "".join(chunks[1:]).split("\n\n") if f]
+    assert [parse(f)[0] for f in frames] == ["task"] * 5 + ["overflow"]
+    assert hub.active == 0
+
+
 async def test_clients_beyond_the_cap_are_refused_until_one_leaves() -> None:
     fleet = EventSource()
     hub = EventHub(max_clients=2)

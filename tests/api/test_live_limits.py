@@ -49,6 +49,17 @@ def read_to_the_end(sock: socket.socket) -> bytes:
     return data
 
 
+def read_until(sock: socket.socket, marker: bytes) -> bytes:
+    """What the server sent up to and including ``marker`` (fails the test after 30 s)."""
+    sock.settimeout(30)
+    data = b""
+    while marker not in data:
+        chunk = sock.recv(1)
+        assert chunk, f"the connection closed before {marker!r}"
+        data += chunk
+    return data
+
+
 def big_task_event(k: int) -> TaskEvent:
     """A task change whose SSE frame is ~64 KB (a long reason)."""
     task = Task(
@@ -75,6 +86,8 @@ def test_a_client_that_stops_reading_is_dropped_and_cut_off(
     app, hub = app_on(source, settings)
     with serving(app, send_buffer=4096) as port, raw_get(port, "/events", 4096) as sock:  # type: ignore[arg-type]
         wait_for(lambda: hub.active == 1, 30, "the stream to open")
+        head = read_until(sock, b"retry: 2000")  # the body has started
+        assert head.startswith(b"HTTP/1.1 200")
         # 100 frames of 64 KB at once: 16 fit the queue, the client is dropped, and the
         # 1 MB of queued frames cannot reach a client that reads nothing: cut off.
         for k in range(100):
@@ -88,7 +101,6 @@ def test_a_client_that_stops_reading_is_dropped_and_cut_off(
         assert streams == []  # the client's listener went (the app's metrics listen on)
         assert "fell 16 frames behind: dropping it" in caplog.text
         received = read_to_the_end(sock)
-    assert received.startswith(b"HTTP/1.1 200")
     # Either its writes blocked and the server cut it off after the grace, or the socket's
     # and the transport's buffers took the queue and the stream ended on its last frame,
     # the overflow notice (which one is the kernel's choice, not the server's).

@@ -14,6 +14,10 @@ command turning at t_w is one of them; commands are applied in order, so
 * every command sent up to the *oldest* match took effect by t_w: its latency <= t_w - sent;
 * every command sent after the *newest* match had not: its latency > t_w - sent.
 
+The command in effect never goes back, so a measurement whose newest match is older than an
+earlier measurement's oldest one is noise beyond the tolerance (a superseded command that
+happens to look like the wheels): it is counted as unmatched and changes no bound.
+
 Each command thus gathers an interval (lo, hi] of its latency. Once it is ``horizon_s`` old
 it leaves; if its interval is closed and narrow (at most ``resolution_s`` wide: it changed
 from the command before it, so the measurements saw it start) it becomes a *sample*
@@ -28,7 +32,7 @@ configured [0, ``fallback_s``] (``SafetyConfig.max_latency_s``); a measured wind
 clipped to that bound (the sampling's resolution overstates hi by up to a period) unless
 the bound is broken (below). Measured on the disturbed
 simulated drive (5 % wheel noise, 2 % bias; tolerance 20 %, one control period of 20 ms):
-U(50, 150) ms gives about [40, 180] ms, a constant 80 ms [40, 120] ms, none [0, 40] ms.
+U(50, 150) ms gives about [20, 200] ms, a constant 80 ms [20, 140] ms, none [0, 60] ms.
 
 **A broken assumption.** When more than ``exceed_share`` of the recent verdicts have a
 latency certainly above ``fallback_s`` (their lo), the configured bound is wrong:
@@ -126,6 +130,9 @@ class LatencyEstimator:
         self._window = LatencyWindow(0.0, self.fallback_s)
         self._stale = 0  # verdicts since the window was computed (it is every 10: cheap)
         self.unmatched = 0  # measurements that matched no command (noise beyond tolerance)
+        #: [s] send time of the oldest command that may still be turning: commands act in
+        #: order, so it never goes back (the oldest match of every measurement taken).
+        self._in_effect_from = -math.inf
 
     # -- inputs -----------------------------------------------------------------------------
     def commanded(self, sent: float, right: float, left: float) -> None:
@@ -151,9 +158,13 @@ class LatencyEstimator:
                 if first < 0:
                     first = k
                 last = k
-        if first < 0:
+        if first < 0 or pending[last].sent < self._in_effect_from:
+            # no match, or only commands already superseded: the noise beyond the tolerance
+            # made an old command look like the one turning (it would raise the lower bound
+            # of every command since, a burst of false samples)
             self.unmatched += 1
         else:
+            self._in_effect_from = max(self._in_effect_from, pending[first].sent)
             for k, entry in enumerate(pending):
                 since = at - entry.sent
                 if k <= first:  # took effect by `at` (the one turning is at or after it)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from fleet.core.params import RobotProfile
@@ -48,6 +48,10 @@ def _drive_and_estimate(
     width=st.floats(0.0, 0.1),
     seed=st.integers(0, 2**20),
 )
+# Noise made a superseded command look like the one turning: the lower bound of every
+# command since rose, a burst of false samples beyond the trim (hi 0.18 s, 0.26 s before).
+@example(low=0.0, width=0.0, seed=22)
+@example(low=0.08, width=0.0, seed=22)
 def test_the_window_holds_the_drive_s_latency_within_a_few_periods(
     low: float, width: float, seed: int
 ) -> None:

@@ -227,6 +227,7 @@ def _step_params(task: AgentTask, profile: RobotProfile, limit: float) -> FloatA
         column(profile.radius),
         route_last=column(task.route.shape[1] - 1),
         pass_radius=assignment.pass_m,
+        smoothing=assignment.avoidance.smoothing_m,
     )
 
 

@@ -328,6 +328,7 @@ class OfflineFleet:
             k_avoid=self.settings.avoidance.k_avoid,
             peer_radius=self.settings.avoidance.peer_radius,
             min_x_oa=self.settings.avoidance.min_x_oa,
+            smoothing=self.settings.avoidance.smoothing_m,
             safety=batch_filter(self.settings.safety),
             start_delay=delay,
         )

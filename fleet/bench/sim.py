@@ -94,6 +94,7 @@ class RandomFleet:
             k_avoid=avoid.k_avoid,
             peer_radius=avoid.peer_radius if self.avoidance else 0.0,
             min_x_oa=avoid.min_x_oa,
+            smoothing=avoid.smoothing_m,
             safety=self.safety,
         )
 
@@ -115,8 +116,9 @@ def random_fleet(robots: int, seed: int = 0, peers: bool = False) -> RandomFleet
     if not peers:
         return RandomFleet(starts, goals, gains, laws)
     return RandomFleet(
-        starts, goals, gains, laws, RobotProfile(), Avoidance(peer_radius=PEER_RADIUS)
-    )
+        starts, goals, gains, laws, RobotProfile(),
+        Avoidance(peer_radius=PEER_RADIUS, smoothing_m=0.0),  # the paper's term, as plain_loop
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -97,6 +97,7 @@ def predicted_times(
         **obstacle_columns(obstacles),
         k_avoid=avoidance.k_avoid,
         min_x_oa=avoidance.min_x_oa,
+        smoothing=avoidance.smoothing_m,
     )
     result = simulate(problem, dt=dt, max_time=horizon)
     remaining = np.hypot(result.final_pose[:, 0] - goal[:, 0], result.final_pose[:, 1] - goal[:, 1])

@@ -3,9 +3,16 @@
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializationInfo,
+    SerializerFunctionWrapHandler,
+    model_serializer,
+)
 
 PositiveFloat = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
 
@@ -52,13 +59,33 @@ class RobotProfile(BaseModel):
 
 
 class Avoidance(BaseModel):
-    """Obstacle repulsion of Eq. (27): K_avoid [m^2/s], influence radii [m], x_OA guard [m]."""
+    """Obstacle repulsion of Eq. (27): K_avoid [m^2/s], influence radii [m], x_OA guard [m].
+
+    ``smoothing_m`` [m]: the width of the bands over which the term is made continuous
+    (:func:`fleet.core.step.repulsion_term`): faded in over the outer ``smoothing_m`` of each
+    influence radius, linear through 0 for |x_OA| below it. The paper's term jumps at both
+    (from 0 to -K_avoid / radius at the edge; from -K_avoid / min_x_oa to +K_avoid / min_x_oa
+    abeam), so a robot's pose noise there flips its speed tick by tick (the stop-and-turn
+    of docs/benchmarks.md). 0: the paper's term exactly.
+    """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     k_avoid: Annotated[float, Field(ge=0.0, allow_inf_nan=False)] = 4.0
     peer_radius: PositiveFloat = 1.0
     min_x_oa: PositiveFloat = 0.05
+    smoothing_m: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] = 0.25
+
+    @model_serializer(mode="wrap")
+    def _paper_term_without_the_field(
+        self, handler: SerializerFunctionWrapHandler, info: SerializationInfo
+    ) -> Any:
+        """``smoothing_m`` = 0 is left out, so that a robot of an older release (whose
+        Avoidance forbids unknown fields) accepts the assignment (fleet/core/wire.py)."""
+        data = handler(self)
+        if isinstance(data, dict) and self.smoothing_m == 0.0:
+            data.pop("smoothing_m", None)
+        return data
 
 
 class SafetyConfig(BaseModel):

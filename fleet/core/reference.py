@@ -36,13 +36,15 @@ class WheelLimit:
 
 @dataclass(frozen=True)
 class Avoidance:
-    """Eq. (27): K_avoid [m^2/s], peer influence radius [m], x_OA guard [m]; and the robot's
-    body radius [m] (the safety filter's)."""
+    """Eq. (27): K_avoid [m^2/s], peer influence radius [m], x_OA guard [m]; the robot's
+    body radius [m] (the safety filter's); the width [m] of the term's smoothed bands
+    (0: the paper's term)."""
 
     k_avoid: float
     peer_radius: float
     min_x_oa: float
     radius: float
+    smoothing: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -286,10 +288,25 @@ def posture_law(error: Posture, gains: GainTriple, cw: bool) -> tuple[float, flo
     return kx * x_e, -magnitude if cw else magnitude
 
 
-def repulsion_term(x_oa: float, k_avoid: float, min_x_oa: float) -> float:
-    """-K_avoid / x_OA of Eq. (27) with |x_OA| floored at ``min_x_oa`` keeping its sign."""
-    guarded = max(x_oa, min_x_oa) if x_oa >= 0.0 else min(x_oa, -min_x_oa)
-    return -k_avoid / guarded
+def repulsion_term(
+    x_oa: float, offset: tuple[float, float], influence: float, a: Avoidance
+) -> float:
+    """Eq. (27)'s term of a core at ``offset`` (dx, dy) [m] within ``influence`` [m].
+
+    Without ``a.smoothing``: -K_avoid / x_OA with |x_OA| floored at the guard keeping its
+    sign. With it (w [m]): linear in x_OA below g = max(w, guard), then scaled by how deep
+    the core is in the outer w of the radius (from 0 at the edge to 1).
+    """
+    w = a.smoothing
+    if w <= 0.0:
+        guarded = max(x_oa, a.min_x_oa) if x_oa >= 0.0 else min(x_oa, -a.min_x_oa)
+        return -a.k_avoid / guarded
+    g = max(w, a.min_x_oa)
+    dx, dy = offset
+    depth = (influence - math.sqrt(dx * dx + dy * dy)) / w
+    if abs(x_oa) < g:
+        return min(1.0, depth) * (-a.k_avoid * x_oa / (g * g))
+    return min(1.0, depth) * (-a.k_avoid / x_oa)
 
 
 def within_tolerance(error: Posture, tol_position: float, tol_heading: float) -> bool:
@@ -339,17 +356,17 @@ def step(
     avoiding = False
     c, s = math.cos(theta), math.sin(theta)
     if avoidance is not None and avoidance.k_avoid > 0.0:
-        k, guard = avoidance.k_avoid, avoidance.min_x_oa
         for peer in peers:
             dx, dy = peer.x - x, peer.y - y
             if dx * dx + dy * dy < avoidance.peer_radius * avoidance.peer_radius:
-                repulsion += repulsion_term(c * dx + s * dy, k, guard)  # Eq. (26)
+                x_oa = c * dx + s * dy  # Eq. (26)
+                repulsion += repulsion_term(x_oa, (dx, dy), avoidance.peer_radius, avoidance)
                 avoiding = True
         for obstacle in obstacles:
             dx, dy = obstacle_offset(obstacle, x, y)
             radius = obstacle[2]
             if dx * dx + dy * dy < radius * radius:
-                repulsion += repulsion_term(c * dx + s * dy, k, guard)
+                repulsion += repulsion_term(c * dx + s * dy, (dx, dy), radius, avoidance)
                 avoiding = True
     u += repulsion
     if limit is not None:

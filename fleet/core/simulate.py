@@ -115,6 +115,8 @@ class BatchProblem:
     k_avoid: float = 0.0  # K_avoid of Eq. (27) [m^2/s]
     peer_radius: float = 0.0  # influence radius of each robot on its peers [m]; 0 = off
     min_x_oa: float = DEFAULT_MIN_X_OA
+    #: [m] width of Eq. (27)'s smoothed bands, every robot's (0: the paper's term).
+    smoothing: float = 0.0
     #: (N,) [s] each robot stands still (u = omega = 0) while t < start_delay - DELAY_EPS,
     #: like an agent in its start delay; arrival is checked throughout. None: no delays.
     start_delay: FloatArray | None = None
@@ -152,6 +154,7 @@ class BatchProblem:
             None if self.start_delay is None else self.start_delay - DELAY_EPS,
             None if self.route_last is None else self.route_last.astype(np.float64),
             0.0 if self.pass_radius is None else self.pass_radius,
+            self.smoothing,
         )
 
     def legs(self) -> IntArray:
@@ -180,13 +183,14 @@ class BatchProblem:
         obstacle_end: npt.ArrayLike | None = None,
         routes: Sequence[npt.ArrayLike | None] | None = None,
         pass_radius: npt.ArrayLike = DEFAULT_PASS_M,
+        smoothing: float = 0.0,
     ) -> BatchProblem:
         """Broadcast per-robot inputs (scalars, models or arrays) to an N-robot problem.
 
         ``routes[i]``: robot i's via-points (m_i, 2) [m], world frame, its goal left out
         (:mod:`fleet.core.route`); None or no rows: straight to the goal.
         ``pass_radius`` [m]: the via-points' pass-through radius, at least the position
-        tolerance.
+        tolerance. ``smoothing`` [m]: Eq. (27)'s smoothed bands (``Avoidance.smoothing_m``).
         """
         start_arr = np.atleast_2d(np.asarray(start, dtype=np.float64))
         n = start_arr.shape[0]
@@ -235,6 +239,7 @@ class BatchProblem:
             k_avoid=float(k_avoid),
             peer_radius=float(peer_radius),
             min_x_oa=float(min_x_oa),
+            smoothing=float(smoothing),
             start_delay=None if start_delay is None else _column(start_delay, n, "start_delay"),
             body_radius=_column([p.radius for p in profs], n, "body_radius"),
             safety=safety,

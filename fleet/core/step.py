@@ -19,7 +19,9 @@ One step of one robot (:func:`robot_step`), in this order:
 5. Eq. (27): -K_avoid / x_OA added to u for every peer closer than ``peer_radius`` and every
    static obstacle whose core (a post's centre, a wall segment's closest point) is closer
    than its influence radius; x_OA (Eq. 26, that point's coordinate along the heading) is
-   floored at ``min_x_oa`` keeping its sign (0 counts as ahead);
+   floored at ``min_x_oa`` keeping its sign (0 counts as ahead) -- or, with the robot's
+   ``SMOOTHING`` w > 0 (the fleet's default), the term made continuous: linear through 0
+   near abeam and faded in over the outer w of the radius (:func:`repulsion_term`);
 6. saturation: u and omega divided by the same factor so that neither wheel of Eq. (2)
    exceeds ``max_wheel_speed`` (the curvature omega/u is kept);
 7. safety filter (:func:`safety_filter`, when ``safety.margin`` >= 0): the command changed as
@@ -120,7 +122,8 @@ BODY_RADIUS = 12  # [m], the body, for the safety filter
 DELAY_END = 13  # [s] the robot is held while t < DELAY_END (batch only; -inf = never)
 ROUTE_LAST = 14  # column of the robot's goal in the route table (batch only; -1: no route)
 PASS_SQ = 15  # squared pass-through radius [m^2] of the route's via-points
-ROBOT_COLUMNS = 16
+SMOOTHING = 16  # [m] width of Eq. (27)'s smoothed bands (0: the paper's term; repulsion_term)
+ROBOT_COLUMNS = 17
 
 # Rows of a route table (``route[:, k]``): the points a robot aims at in turn, its via-points
 # then its goal (world frame). A robot aims at entry k until its centre comes within the
@@ -284,13 +287,36 @@ def posture_law(
     return kx * x_e, -magnitude if cw else magnitude
 
 
-@njit("float64(float64, float64, float64)", cache=True, error_model="numpy")
-def repulsion_term(x_oa: float, k_avoid: float, min_x_oa: float) -> float:
-    """One obstacle's term -K_avoid / x_OA of Eq. (27) [m/s], with |x_OA| floored at
-    ``min_x_oa`` [m] keeping its sign (x_OA = 0 counts as ahead, so the robot backs off);
-    each term is therefore bounded by K_avoid / min_x_oa."""
-    guarded = max(x_oa, min_x_oa) if x_oa >= 0.0 else min(x_oa, -min_x_oa)
-    return -k_avoid / guarded
+@njit(
+    "float64(float64, float64, float64, float64, float64, float64)",
+    cache=True,
+    error_model="numpy",
+)
+def repulsion_term(
+    x_oa: float,
+    distance_sq: float,
+    influence: float,
+    k_avoid: float,
+    min_x_oa: float,
+    smoothing: float,
+) -> float:
+    """One obstacle's term of Eq. (27) [m/s]: x_OA [m] (Eq. 26) of a core ``distance_sq``
+    [m^2] away, inside its ``influence`` radius [m].
+
+    ``smoothing`` = 0: the paper's -K_avoid / x_OA with |x_OA| floored at ``min_x_oa`` [m]
+    keeping its sign (x_OA = 0 counts as ahead, so the robot backs off); bounded by
+    K_avoid / min_x_oa. ``smoothing`` = w > 0 [m]: the same term made continuous, so that
+    pose noise at a band's edge cannot flip the robot's speed from tick to tick: linear
+    through 0 for |x_OA| < g = max(w, ``min_x_oa``) (-K_avoid x_OA / g^2: nothing for a
+    core abeam), and faded in linearly over the outer w of the influence radius (nothing
+    at its edge); bounded by K_avoid / g.
+    """
+    if smoothing <= 0.0:
+        guarded = max(x_oa, min_x_oa) if x_oa >= 0.0 else min(x_oa, -min_x_oa)
+        return -k_avoid / guarded
+    band = max(smoothing, min_x_oa)
+    term = -k_avoid * x_oa / (band * band) if abs(x_oa) < band else -k_avoid / x_oa
+    return min(1.0, (influence - math.sqrt(distance_sq)) / smoothing) * term
 
 
 @njit("UniTuple(float64, 2)(float64, float64, float64, float64)", cache=True, error_model="numpy")
@@ -694,17 +720,24 @@ def robot_step(
     avoiding = False
     if k_avoid > 0.0:
         influence_sq = peer_radius * peer_radius
+        smoothing = params[i, SMOOTHING]
         for j in range(peer_lo, peer_hi):
             if j == skip:
                 continue
             dx, dy = positions[0, j] - x, positions[1, j] - y
-            if dx * dx + dy * dy < influence_sq:
-                repulsion += repulsion_term(c * dx + s * dy, k_avoid, min_x_oa)  # Eq. (26)
+            d_sq = dx * dx + dy * dy
+            if d_sq < influence_sq:
+                repulsion += repulsion_term(
+                    c * dx + s * dy, d_sq, peer_radius, k_avoid, min_x_oa, smoothing
+                )  # Eq. (26)
                 avoiding = True
         for j in range(obstacles.shape[1]):
             dx, dy = obstacle_offset(obstacles, j, x, y)
-            if dx * dx + dy * dy < obstacles[2, j] * obstacles[2, j]:
-                repulsion += repulsion_term(c * dx + s * dy, k_avoid, min_x_oa)
+            d_sq = dx * dx + dy * dy
+            if d_sq < obstacles[2, j] * obstacles[2, j]:
+                repulsion += repulsion_term(
+                    c * dx + s * dy, d_sq, obstacles[2, j], k_avoid, min_x_oa, smoothing
+                )
                 avoiding = True
     max_wheel = params[i, MAX_WHEEL_SPEED]
     u, omega = saturate(u + repulsion, omega, r, b, max_wheel)
@@ -820,12 +853,14 @@ def robot_params(
     delay_end: FloatArray | None = None,
     route_last: FloatArray | None = None,
     pass_radius: FloatArray | float = 0.0,
+    smoothing: FloatArray | float = 0.0,
 ) -> FloatArray:
     """Parameter rows (N, ``ROBOT_COLUMNS``) from per-robot columns (N,) and goal/gains (N, 3).
 
     ``delay_end`` [s]: the batch holds robot i while t < delay_end[i] (None: never).
     ``route_last``: the column of robot i's goal in the batch's route table (None or -1: no
-    route); ``pass_radius`` [m] its via-points' pass-through radius.
+    route); ``pass_radius`` [m] its via-points' pass-through radius; ``smoothing`` [m] the
+    width of its Eq. (27) bands (:func:`repulsion_term`; 0: the paper's term).
     """
     n = goal.shape[0]
     params = np.empty((n, ROBOT_COLUMNS))
@@ -843,6 +878,7 @@ def robot_params(
     params[:, DELAY_END] = -np.inf if delay_end is None else delay_end
     params[:, ROUTE_LAST] = -1.0 if route_last is None else route_last
     params[:, PASS_SQ] = np.square(pass_radius)
+    params[:, SMOOTHING] = smoothing
     return params
 
 

@@ -148,10 +148,18 @@ import re
 from collections import OrderedDict
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Annotated, Literal, TypeVar
+from typing import Annotated, Any, Literal, TypeVar
 
 import msgspec
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    TypeAdapter,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from fleet.core.geometry import segment_distance
 from fleet.core.params import Avoidance, Gains, RobotProfile, Tolerance
@@ -651,6 +659,14 @@ class ParkAssignment(_Message):
     filter still keeps it off the walls, but it stops at a wall the route goes around, and
     the planner's prediction (which follows the route) is wrong for it. Upgrade the robots
     before giving a site walls that robots must drive around.
+
+    ``avoidance.smoothing_m``: the width of Eq. (27)'s smoothed bands
+    (:class:`fleet.core.params.Avoidance`). Compatibility rule (``v`` stays 1): absent means
+    0, the paper's term, which is what a service of an older release plans with; a service
+    sends it unless it is 0. A robot of an older release rejects an assignment carrying it
+    (its ``avoidance`` forbids unknown fields: dropped and counted as ``invalid``): upgrade
+    the robots before the service, or run the service with ``avoidance.smoothing_m = 0``
+    until they are.
     """
 
     kind: Literal["park"] = "park"
@@ -673,6 +689,13 @@ class ParkAssignment(_Message):
         default_factory=list
     )
     pass_m: Annotated[float, Field(gt=0, le=10.0, allow_inf_nan=False)] = DEFAULT_PASS_M
+
+    @field_validator("avoidance", mode="before")
+    @classmethod
+    def _absent_smoothing_is_the_papers_term(cls, value: Any) -> Any:
+        if isinstance(value, dict) and "smoothing_m" not in value:
+            return {**value, "smoothing_m": 0.0}
+        return value
 
     @model_validator(mode="after")
     def _passes_beyond_tolerance(self) -> ParkAssignment:

@@ -126,6 +126,7 @@ def replay(snapshot: PlanningSnapshot, result: Plan, max_time: float = 300.0) ->
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius,
         min_x_oa=avoid.min_x_oa,
+        smoothing=avoid.smoothing_m,
         start_delay=delays,
         safety=batch_filter(snapshot.safety),
         routes=routes,

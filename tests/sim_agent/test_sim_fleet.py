@@ -142,6 +142,7 @@ def test_a_lockstep_fleet_among_peers_is_the_batch_simulation_of_the_same_scene(
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius,
         min_x_oa=avoid.min_x_oa,
+        smoothing=avoid.smoothing_m,
         safety=batch_filter(settings.safety),
     )
     batch = simulate(problem, dt=period, max_time=ticks * period, record=True)

@@ -188,6 +188,7 @@ def problem_of(rows: Rows, world: World, peers: bool = True) -> BatchProblem:
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius if peers else 0.0,
         min_x_oa=avoid.min_x_oa,
+        smoothing=avoid.smoothing_m,
         start_delay=rows.delay,
         safety=batch_filter(world.safety),
         routes=None if rows.route is None else list(rows.route),

@@ -233,6 +233,7 @@ def test_mismatched_lengths_are_rejected() -> None:
             reference.Safety(0.05, 0.03, 5.0, 0.04, 0.1),
         ]
     ),
+    st.sampled_from([0.0, 0.25]),
 )
 def test_batch_with_peers_obstacles_and_delays_equals_the_reference_fleet_loop(
     fleet: Fleet,
@@ -242,10 +243,11 @@ def test_batch_with_peers_obstacles_and_delays_equals_the_reference_fleet_loop(
     obstacles: list[tuple[float, ...]],
     delays: list[float],
     safety: reference.Safety | None,
+    smoothing: float,
 ) -> None:
-    """Whole runs of robots that repel each other (Eq. 27), keep clear through the safety
-    filter, avoid static posts and walls and start late agree with the plain-Python fleet loop
-    bit for bit."""
+    """Whole runs of robots that repel each other (Eq. 27, the paper's term or smoothed),
+    keep clear through the safety filter, avoid static posts and walls and start late agree
+    with the plain-Python fleet loop bit for bit."""
     starts, goals, gains, laws = fleet
     n = len(starts)
     tol = Tolerance(position=0.1, heading=0.1)
@@ -255,14 +257,14 @@ def test_batch_with_peers_obstacles_and_delays_equals_the_reference_fleet_loop(
         obstacles=[o[:2] for o in obstacles], obstacle_radius=[o[2] for o in obstacles],
         obstacle_body=[min(o[3], o[2]) for o in obstacles],
         obstacle_end=[o[4:6] for o in obstacles], k_avoid=k_avoid,
-        peer_radius=peer_radius, min_x_oa=0.05, start_delay=delays[:n],
+        peer_radius=peer_radius, min_x_oa=0.05, start_delay=delays[:n], smoothing=smoothing,
         safety=step.SAFETY_OFF if safety is None else step.Safety(
             safety.margin, safety.projection, safety.rate, safety.spread, safety.heading
         ),
     )  # fmt: skip
     batch = simulate(problem, dt=0.02, max_time=2.0)
     avoidance = reference.Avoidance(
-        k_avoid=k_avoid, peer_radius=peer_radius, min_x_oa=0.05, radius=0.2
+        k_avoid=k_avoid, peer_radius=peer_radius, min_x_oa=0.05, radius=0.2, smoothing=smoothing
     )
     runs = reference.simulate_loop(
         starts, goals, gains, laws, avoidance=avoidance,

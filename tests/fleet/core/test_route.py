@@ -60,6 +60,7 @@ def batch_run(a: ParkAssignment, steps: int) -> tuple[np.ndarray, bool]:
     problem = BatchProblem.build(
         [START], [GOAL], a.gains, a.law, a.tolerance, PROFILE, **obstacle_columns([WALL]),
         k_avoid=a.avoidance.k_avoid, min_x_oa=a.avoidance.min_x_oa,
+        smoothing=a.avoidance.smoothing_m,
         safety=batch_filter(SafetyConfig()), routes=[a.route], pass_radius=a.pass_m,
     )  # fmt: skip
     result = simulate(problem, dt=DT, max_time=steps * DT, record=True)

@@ -52,16 +52,22 @@ avoidance_st = st.builds(
     peer_radius=st.floats(0.3, 3.0),
     min_x_oa=st.floats(0.01, 0.2),
     radius=st.floats(0.05, 0.4),
+    smoothing=st.sampled_from([0.0, 0.25]) | st.floats(0.01, 1.0),
 )
 
 
 def _params(
-    goal: Posture, gains: GainTriple, law_name: Law, limit: float, radius: float
+    goal: Posture,
+    gains: GainTriple,
+    law_name: Law,
+    limit: float,
+    radius: float,
+    smoothing: float = 0.0,
 ) -> FloatArray:
     one = np.array
     return step.robot_params(
         one([goal]), one([gains]), one([1.0 if law_name == "cw" else 0.0]), one([0.1]),
-        one([0.1]), one([R]), one([B]), one([limit]), one([radius]),
+        one([0.1]), one([R]), one([B]), one([limit]), one([radius]), smoothing=smoothing,
     )  # fmt: skip
 
 
@@ -88,7 +94,14 @@ class Situation:
         safety = self.safety
         return step.step_robot(
             self.pose,
-            _params(self.goal, self.gains, self.law, wheel_limit, self.avoidance.radius),
+            _params(
+                self.goal,
+                self.gains,
+                self.law,
+                wheel_limit,
+                self.avoidance.radius,
+                self.avoidance.smoothing,
+            ),
             peers=bodies[:, :3].T.copy(),
             shapes=bodies[:, 3:].T.copy(),
             obstacles=np.array(self.obstacles, dtype=np.float64).reshape(-1, 6).T.copy(),
@@ -182,15 +195,49 @@ def test_wheel_speeds_invert_equation_2(u: float, omega: float, r: float, b: flo
     assert math.isclose(u2, u, abs_tol=1e-9) and math.isclose(w2, omega, abs_tol=1e-9)
 
 
-@given(st.floats(-3, 3), st.floats(0.1, 10), st.floats(0.01, 0.2))
+@given(st.floats(-3, 3), st.floats(0.0, 3.0), st.floats(0.1, 10), st.floats(0.01, 0.2))
 def test_repulsion_term_is_bounded_and_pushes_away(
-    x_oa: float, k_avoid: float, min_x_oa: float
+    x_oa: float, distance: float, k_avoid: float, min_x_oa: float
 ) -> None:
-    du = step.repulsion_term(x_oa, k_avoid, min_x_oa)
+    du = step.repulsion_term(x_oa, distance * distance, 3.0, k_avoid, min_x_oa, 0.0)
     assert abs(du) <= k_avoid / min_x_oa  # the guard bounds the singular term
     assert du < 0 if x_oa >= 0 else du > 0  # ahead (or abeam): back off; behind: go on
     if abs(x_oa) >= min_x_oa:
-        assert du == -k_avoid / x_oa  # Eq. (27) exactly
+        assert du == -k_avoid / x_oa  # Eq. (27) exactly, however deep in the radius
+
+
+@given(
+    st.floats(-3, 3),
+    st.floats(0.0, 1.0),
+    st.floats(0.1, 10),
+    st.floats(0.01, 0.2),
+    st.floats(0.05, 0.5),
+    st.floats(1e-6, 1e-3),
+)
+def test_the_smoothed_term_is_continuous_bounded_and_the_papers_inside_its_bands(
+    x_oa: float, depth: float, k_avoid: float, min_x_oa: float, w: float, h: float
+) -> None:
+    """With smoothing w: no jump at the influence radius nor abeam (a small move of the core
+    changes the term by a bounded slope times the move), never stronger than the paper's
+    term, pushing the same way, and the paper's term exactly away from both bands."""
+    influence = 1.0 + w
+
+    def term(x: float, d: float) -> float:
+        return step.repulsion_term(x, d * d, influence, k_avoid, min_x_oa, w)
+
+    distance = influence - depth * (influence - 0.01)  # from the edge (depth 0) inwards
+    du = term(x_oa, distance)
+    band = max(w, min_x_oa)
+    paper = step.repulsion_term(x_oa, distance * distance, influence, k_avoid, min_x_oa, 0.0)
+    assert abs(du) <= abs(paper) + 1e-12 and abs(du) <= k_avoid / band + 1e-12
+    assert du <= 0 if x_oa >= 0 else du >= 0
+    assert term(x_oa, influence) == 0.0 and term(0.0, distance) == 0.0
+    slope = k_avoid / band**2 + k_avoid / (band * w)  # Lipschitz in x_OA and in distance
+    assert abs(term(x_oa + h, distance) - du) <= slope * h * (1 + 1e-9)
+    if distance - h > 0:
+        assert abs(term(x_oa, distance - h) - du) <= slope * h * (1 + 1e-9)
+    if abs(x_oa) >= band and distance <= influence - w:
+        assert du == -k_avoid / x_oa
 
 
 # -- the whole step ----------------------------------------------------------------------------

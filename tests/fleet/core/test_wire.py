@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fleet.core.params import UNLIMITED, Gains, RobotProfile
+from fleet.core.params import UNLIMITED, Avoidance, Gains, RobotProfile
 from fleet.core.wire import (
     MAX_PAYLOAD_BYTES,
     CancelAssignment,
@@ -163,6 +163,29 @@ def test_a_message_without_a_term_is_term_zero_and_an_old_payload_still_parses()
     got = Decoder().decode(ParkAssignment, json.dumps(legacy).encode())
     assert got is not None and got.term == 0
     assert CancelAssignment(robot_id="r1", task_id="t1").term == 0
+
+
+def test_eq_27_smoothing_travels_and_its_absence_is_the_papers_term() -> None:
+    """A service sends ``smoothing_m`` (the fleet's default 0.25 m) and the robot drives
+    it; an older service sends none and plans the paper's term: read as 0; a 0 is left
+    out, so a robot of an older release (Avoidance forbids unknown fields) still parses."""
+    sent = _park(None)
+    assert sent.avoidance.smoothing_m == 0.25
+    got = Decoder().decode(ParkAssignment, encode(sent))
+    assert got is not None and got.avoidance.smoothing_m == 0.25
+    legacy = json.loads(encode(sent))
+    del legacy["avoidance"]["smoothing_m"]
+    older = Decoder().decode(ParkAssignment, json.dumps(legacy).encode())
+    assert older is not None and older.avoidance.smoothing_m == 0.0
+    paper = sent.model_copy(update={"avoidance": Avoidance(smoothing_m=0.0)})
+    payload = json.loads(encode(paper))
+    assert "smoothing_m" not in payload["avoidance"]
+    assert set(payload["avoidance"]) == {"k_avoid", "peer_radius", "min_x_oa"}  # the old set
+    back = Decoder().decode(ParkAssignment, encode(paper))
+    assert back is not None and back.avoidance.smoothing_m == 0.0
+    bad = json.loads(encode(sent))
+    bad["avoidance"]["smoothing_m"] = -0.1
+    assert Decoder().decode(ParkAssignment, json.dumps(bad).encode()) is None
 
 
 @given(terms=st.lists(st.integers(0, 5), max_size=30))

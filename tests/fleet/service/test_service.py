@@ -350,16 +350,18 @@ def test_a_replan_that_changes_a_robot_under_way_sends_the_next_revision(fleet: 
     fleet.service.lead_time_max = 0.0  # plan from the reported poses (deterministic)
     q = math.pi / 4
     fleet.join("r0", 4.0, 0.0)
-    fleet.join("r1", -4.0, 0.0)
     fleet.robot("r0", 4.0, 0.0, math.pi + q)
-    fleet.robot("r1", -4.0, 0.0, q)
     first = fleet.service.submit(
         TaskRequest(goal=Pose(x=-4.0, y=0.0, theta=math.pi - q), robot_id="r0", law_gains=TABLE_1)
     )
     fleet.service.tick()
     (park0,) = fleet.parks("r0")
     assert park0.revision == 0
+    assert park0.start_delay_s == 0.0 and not park0.hold  # alone: it drives at once
     fleet.robot("r0", 4.0, 0.0, math.pi + q, RobotMode.DRIVING, first.id)
+    # r1 comes up on r0's goal (where r0 is bound: it cannot arrive before r1 leaves)
+    fleet.join("r1", -4.0, 0.0)
+    fleet.robot("r1", -4.0, 0.0, q)
     assert fleet.service.task(first.id).status == TaskStatus.DRIVING
 
     second = fleet.service.submit(
@@ -405,15 +407,16 @@ def test_a_safe_robot_under_way_is_not_replanned(fleet: Fleet) -> None:
     fleet.service.lead_time_max = 0.0
     q = math.pi / 4
     fleet.join("r0", 4.0, 0.0)
-    fleet.join("r1", -4.0, 0.0)
     fleet.robot("r0", 4.0, 0.0, math.pi + q)
-    fleet.robot("r1", -4.0, 0.0, q)
     first = fleet.service.submit(
         TaskRequest(goal=Pose(x=-4.0, y=0.0, theta=math.pi - q), robot_id="r0", law_gains=TABLE_1)
     )
     fleet.service.tick()
     (park0,) = fleet.parks("r0")
+    assert park0.start_delay_s == 0.0 and not park0.hold
     fleet.robot("r0", 4.0, 0.0, math.pi + q, RobotMode.DRIVING, first.id)
+    fleet.join("r1", -4.0, 0.0)  # on r0's goal, then off to r0's start the same way round
+    fleet.robot("r1", -4.0, 0.0, q)
     fleet.service.submit(
         TaskRequest(
             goal=Pose(x=4.0, y=0.0, theta=-q), robot_id="r1", direction=park0.law, law_gains=TABLE_1

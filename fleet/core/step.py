@@ -799,7 +799,8 @@ def step_robot(
     safety: Safety = SAFETY_OFF,
     dt: float = 0.0,
 ) -> StepResult:
-    """One step of one robot (the agent's tick): :func:`robot_step` on ``params`` (1, 14).
+    """One step of one robot (the agent's tick): :func:`robot_step` on ``params``
+    (1, ``ROBOT_COLUMNS``).
 
     ``peers`` (3, M) = x, y, theta, ``shapes`` (2, M) = body radius, spread and
     ``obstacles`` (4, K) are C-contiguous float64 rows (see the module docstring). ``dt``

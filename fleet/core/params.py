@@ -3,16 +3,9 @@
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any
+from typing import Annotated
 
-from pydantic import (
-    BaseModel,
-    ConfigDict,
-    Field,
-    SerializationInfo,
-    SerializerFunctionWrapHandler,
-    model_serializer,
-)
+from pydantic import BaseModel, ConfigDict, Field
 
 PositiveFloat = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
 
@@ -75,17 +68,6 @@ class Avoidance(BaseModel):
     peer_radius: PositiveFloat = 1.0
     min_x_oa: PositiveFloat = 0.05
     smoothing_m: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] = 0.25
-
-    @model_serializer(mode="wrap")
-    def _paper_term_without_the_field(
-        self, handler: SerializerFunctionWrapHandler, info: SerializationInfo
-    ) -> Any:
-        """``smoothing_m`` = 0 is left out, so that a robot of an older release (whose
-        Avoidance forbids unknown fields) accepts the assignment (fleet/core/wire.py)."""
-        data = handler(self)
-        if isinstance(data, dict) and self.smoothing_m == 0.0:
-            data.pop("smoothing_m", None)
-        return data
 
 
 class SafetyConfig(BaseModel):

@@ -157,6 +157,7 @@ from pydantic import (
     Field,
     TypeAdapter,
     ValidationError,
+    field_serializer,
     field_validator,
     model_validator,
 )
@@ -696,6 +697,13 @@ class ParkAssignment(_Message):
         if isinstance(value, dict) and "smoothing_m" not in value:
             return {**value, "smoothing_m": 0.0}
         return value
+
+    @field_serializer("avoidance")
+    def _papers_term_without_the_field(self, avoidance: Avoidance) -> dict[str, float]:
+        """``smoothing_m`` = 0 is left out: a robot of an older release accepts it."""
+        return avoidance.model_dump(
+            exclude={"smoothing_m"} if avoidance.smoothing_m == 0.0 else None
+        )
 
     @model_validator(mode="after")
     def _passes_beyond_tolerance(self) -> ParkAssignment:

@@ -89,6 +89,7 @@ def obstacle_offset(obstacle: ObstacleRow, px: float, py: float) -> tuple[float,
 
 
 SIDE_STEP = 0.5
+TURN_PRICE = 0.5
 _SQRT_HALF = math.sqrt(0.5)
 _TOL = 1e-12
 
@@ -138,17 +139,20 @@ def _satisfies(planes: Sequence[tuple[float, float, float]], u: float, w: float)
 
 
 def closest_feasible(
-    planes: Sequence[tuple[float, float, float]], u0: float, w0: float
+    planes: Sequence[tuple[float, float, float]], u0: float, w0: float, turn_cost: float
 ) -> tuple[float, float]:
-    """The point of the half-planes' intersection closest to (u0, w0), else (0, 0)."""
+    """The point of the half-planes' intersection closest to (u0, w0) in the metric
+    du^2 + ``turn_cost`` dw^2, else (0, 0)."""
     if _satisfies(planes, u0, w0):
         return u0, w0
     best, best_u, best_w = math.inf, 0.0, 0.0
     for a1, a2, bound in planes:
         excess = a1 * u0 + a2 * w0 - bound
         if excess > 0.0:
-            cu, cw = u0 - excess * a1, w0 - excess * a2
-            d = (cu - u0) * (cu - u0) + (cw - w0) * (cw - w0)
+            b2 = a2 / turn_cost
+            t = excess / (a1 * a1 + a2 * b2)
+            cu, cw = u0 - t * a1, w0 - t * b2
+            d = (cu - u0) * (cu - u0) + turn_cost * ((cw - w0) * (cw - w0))
             if d < best and _satisfies(planes, cu, cw):
                 best, best_u, best_w = d, cu, cw
     for k, (a1, a2, c1) in enumerate(planes):
@@ -157,7 +161,7 @@ def closest_feasible(
             if abs(det) < 1e-12:
                 continue
             cu, cw = (c1 * b2 - a2 * c2) / det, (a1 * c2 - c1 * b1) / det
-            d = (cu - u0) * (cu - u0) + (cw - w0) * (cw - w0)
+            d = (cu - u0) * (cu - u0) + turn_cost * ((cw - w0) * (cw - w0))
             if d < best and _satisfies(planes, cu, cw):
                 best, best_u, best_w = d, cu, cw
     return best_u, best_w
@@ -205,6 +209,7 @@ def safety_filter(
         more = _body_half_planes(dx, dy, c, s, gap, spread, safety.heading, 0.5 * rate, reach)
         stop = stop or more is None
         planes += more or []
+    peer_rows = len(planes)
     for obstacle in obstacles:
         dx, dy = obstacle_offset(obstacle, px, py)
         gap = math.sqrt(dx * dx + dy * dy) - own - obstacle[3]
@@ -218,9 +223,19 @@ def safety_filter(
     side = SIDE_STEP / (1.0 + SIDE_STEP) * reach
     if cw:
         side = -side
-    u, w = closest_feasible(planes, u0, w0 + side)
-    if u * u + w * w > reach * reach:  # only rounding gets here: stand still instead
-        return 0.0, 0.0, True
+    # Among peers only, a change of w = l omega costs (TURN_PRICE b / l)^2 beside u's
+    # (at least 1); with a static body in range, 1 (turn along it).
+    turn_cost = 1.0
+    if len(planes) == peer_rows and ahead > 0.0:
+        k = TURN_PRICE * (limit.half_axle if limit is not None else ahead) / ahead
+        turn_cost = max(k * k, 1.0)
+    u, w = closest_feasible(planes, u0, w0 + side, turn_cost)
+    length_sq = u * u + w * w
+    if length_sq > reach * reach:  # shortened to reach: towards 0 if 0 is feasible
+        if not _satisfies(planes, 0.0, 0.0):
+            return 0.0, 0.0, True
+        shrink = reach / math.sqrt(length_sq)
+        u, w = u * shrink, w * shrink
     return u, w / ahead if ahead > 0.0 else omega0, True
 
 

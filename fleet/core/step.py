@@ -62,10 +62,13 @@ or V / l). With rate * dt <= 1 the
 clearance of every pair then never falls below 0 from one step to the next:
 C' >= (1 - rate dt) C (derivation in the docs/safety.md).
 The constraints are half-planes a . v <= c with unit a; the command is the point of
-their intersection closest to the nominal v0 (two variables: the nominal, each edge's
-projection or each vertex, the closest feasible one wins -- exact, no solver), or a
-standstill when none is feasible (standing still never closes a gap). Bodies whose
-constraint cannot bind (c >= V) are skipped. When it binds, the aim is shifted sideways by
+their intersection closest to the nominal v0 in du^2 + k^2 dw^2 (two variables: the
+nominal, each edge's projection or each vertex, the closest feasible one wins -- exact, no
+solver), or a standstill when none is feasible (standing still never closes a gap); k = 1
+with a static body in range (turn along it), ``TURN_PRICE`` b / l among peers only (slow
+down before swerving: :func:`_turn_cost`); a result longer than V is scaled back to V
+(feasible: every constraint holds 0; else a standstill). Bodies whose constraint cannot
+bind (c >= V) are skipped. When it binds, the aim is shifted sideways by
 ``SIDE_STEP`` |v0| in the law's rotation sense (robots meeting head-on pass each other).
 
 
@@ -388,6 +391,8 @@ _SQRT_HALF = math.sqrt(0.5)
 _FEASIBLE_TOL = 1e-12  # [m/s] slack of a constraint check
 #: Sideways aim of a bound command, a fraction of |v0| in l omega (law's rotation sense).
 SIDE_STEP = 0.5
+#: Share of the wheels' price of a turn (b domega) in the filter's metric among peers.
+TURN_PRICE = 0.5
 
 
 @njit(inline="always", error_model="numpy")
@@ -479,9 +484,12 @@ def _satisfies(cons: FloatArray, n: int, u: float, w: float) -> bool:
 
 
 @njit(inline="always", error_model="numpy")
-def closest_feasible(cons: FloatArray, n: int, u0: float, w0: float) -> tuple[float, float]:
-    """The point of {a . v <= c} (rows of ``cons``) closest to (u0, w0): the nominal if
-    feasible, else the closest feasible edge projection or vertex; (0, 0) if none is."""
+def closest_feasible(
+    cons: FloatArray, n: int, u0: float, w0: float, turn_cost: float
+) -> tuple[float, float]:
+    """The point of {a . v <= c} (rows of ``cons``) closest to (u0, w0) in the metric
+    du^2 + ``turn_cost`` dw^2: the nominal if feasible, else the closest feasible edge
+    projection or vertex; (0, 0) if none is."""
     if _satisfies(cons, n, u0, w0):
         return u0, w0
     best_u = best_w = 0.0
@@ -489,8 +497,10 @@ def closest_feasible(cons: FloatArray, n: int, u0: float, w0: float) -> tuple[fl
     for k in range(n):
         excess = cons[k, 0] * u0 + cons[k, 1] * w0 - cons[k, 2]
         if excess > 0.0:
-            cu, cw = u0 - excess * cons[k, 0], w0 - excess * cons[k, 1]
-            d = (cu - u0) * (cu - u0) + (cw - w0) * (cw - w0)
+            a2 = cons[k, 1] / turn_cost  # the edge's normal in the metric
+            t = excess / (cons[k, 0] * cons[k, 0] + cons[k, 1] * a2)
+            cu, cw = u0 - t * cons[k, 0], w0 - t * a2
+            d = (cu - u0) * (cu - u0) + turn_cost * ((cw - w0) * (cw - w0))
             if d < best and _satisfies(cons, n, cu, cw):
                 best, best_u, best_w = d, cu, cw
     for k in range(n):
@@ -500,10 +510,40 @@ def closest_feasible(cons: FloatArray, n: int, u0: float, w0: float) -> tuple[fl
                 continue
             cu = (cons[k, 2] * cons[m, 1] - cons[k, 1] * cons[m, 2]) / det
             cw = (cons[k, 0] * cons[m, 2] - cons[k, 2] * cons[m, 0]) / det
-            d = (cu - u0) * (cu - u0) + (cw - w0) * (cw - w0)
+            d = (cu - u0) * (cu - u0) + turn_cost * ((cw - w0) * (cw - w0))
             if d < best and _satisfies(cons, n, cu, cw):
                 best, best_u, best_w = d, cu, cw
     return best_u, best_w
+
+
+@njit(inline="always", error_model="numpy")
+def _turn_cost(half_axle: float, ahead: float, peers_only: bool) -> float:
+    """The weight of dw^2 beside du^2 in the filter's metric (w = l omega). Among peers
+    only: (``TURN_PRICE`` b / l)^2, a share of the wheels' own price of a turn (du^2 + b^2
+    domega^2 is half the sum of the wheels' squared changes, times r^2): a peer moves on,
+    so slowing down is the better answer, and a turn priced at the point's speed makes a
+    two-tick limit cycle in omega against a standing peer. With a static body in range:
+    1, so that the robot turns along a post or a wall instead of stopping at it."""
+    if not peers_only or ahead <= 0.0:
+        return 1.0
+    k = TURN_PRICE * half_axle / ahead
+    return max(k * k, 1.0)
+
+
+@njit(inline="always", error_model="numpy")
+def _within_reach(
+    cons: FloatArray, n: int, u: float, w: float, reach: float, ahead: float, omega0: float
+) -> tuple[float, float, bool]:
+    """The filter's (u, omega, True) from its (u, w = l omega), shortened to ``reach``
+    (the second-order allowance eps assumes |v| <= reach): scaled towards 0 when 0 is
+    feasible (the constraints are convex), else a standstill."""
+    length_sq = u * u + w * w
+    if length_sq > reach * reach:
+        if not _satisfies(cons, n, 0.0, 0.0):
+            return 0.0, 0.0, True
+        shrink = reach / math.sqrt(length_sq)
+        u, w = u * shrink, w * shrink
+    return u, w / ahead if ahead > 0.0 else omega0, True
 
 
 @njit(inline="always", error_model="numpy")
@@ -544,6 +584,7 @@ def safety_filter(
         spread = own_spread + shapes[1, j]
         n, hold = _add_body(cons, n, dx, dy, c, s, gap, spread, own_heading, half, reach)
         stop |= hold
+    peer_rows = n
     for j in range(obstacles.shape[1]):
         dx, dy = obstacle_offset(obstacles, j, px, py)
         gap = math.sqrt(dx * dx + dy * dy) - own - obstacles[3, j]
@@ -558,10 +599,9 @@ def safety_filter(
     side = SIDE_STEP / (1.0 + SIDE_STEP) * reach
     if params[i, CW] != 0.0:
         side = -side
-    u, w = closest_feasible(cons, n, u0, w0 + side)
-    if u * u + w * w > reach * reach:  # only rounding gets here: stand still instead
-        return 0.0, 0.0, True
-    return u, w / ahead if ahead > 0.0 else omega0, True
+    turn_cost = _turn_cost(b, ahead, n == peer_rows)
+    u, w = closest_feasible(cons, n, u0, w0 + side, turn_cost)
+    return _within_reach(cons, n, u, w, reach, ahead, omega0)
 
 
 # -- THE step ---------------------------------------------------------------------------------

@@ -97,9 +97,9 @@ fleets: st.SearchStrategy[Fleet] = st.integers(1, 5).flatmap(
 wheel_limits = st.sampled_from([math.inf, 4.0, 15.0])
 
 
-def _wheel_limit(max_wheel_speed: float) -> reference.WheelLimit | None:
-    if not math.isfinite(max_wheel_speed):
-        return None
+def _wheel_limit(max_wheel_speed: float) -> reference.WheelLimit:
+    """The profile's wheels (an infinite limit saturates nothing; the filter's metric still
+    needs the half axle)."""
     return reference.WheelLimit(PROFILE.wheel_radius, PROFILE.half_axle, max_wheel_speed)
 
 

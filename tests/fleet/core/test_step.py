@@ -251,7 +251,7 @@ def test_compiled_step_equals_the_plain_python_reference(sit: Situation) -> None
     wheel = reference.WheelLimit(R, B, sit.limit)
     ref = reference.step(
         sit.pose, sit.goal, sit.gains, sit.law == "cw", 0.02,
-        None if math.isinf(sit.limit) else wheel, avoidance=sit.avoidance, peers=sit.peers,
+        wheel, avoidance=sit.avoidance, peers=sit.peers,
         obstacles=sit.obstacles, safety=sit.safety,
     )  # fmt: skip
     assert (got.x_e, got.y_e, got.theta_e) == ref.error

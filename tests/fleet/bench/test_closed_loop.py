@@ -49,14 +49,15 @@ def test_decisions_the_ledger_refuses_move_no_robot() -> None:
 
 
 def test_a_fixed_law_that_blocks_fails_with_the_limit_as_makespan_and_no_path_ratio() -> None:
-    """ccw on a right-hand swap: the robots meet head on and never park (the bench's own
-    case where a simple rule breaks); the planner gets them both home."""
-    scenario = swap(2, "right")
+    """ccw on a right-hand swap of 8: the robots jam at the centre and never park (the
+    bench's own case where a simple rule breaks; up to 6 robots the safety filter's
+    braking and sideways aim now get a fixed law through); the planner gets them home."""
+    scenario = swap(8, "right")
     blocked = run_closed_loop(scenario, "ccw", time_limit_s=60.0)
     assert blocked.success_rate == 0.0
     assert blocked.makespan_s == 60.0
     assert math.isnan(blocked.path_ratio)  # over tasks that arrived: none did
-    assert blocked.outcomes[Outcome.APPLIED] == 2  # both assigned, through the ledger
+    assert blocked.outcomes[Outcome.APPLIED] == 8  # all assigned, through the ledger
     planned = run_closed_loop(scenario, "auto", plan, time_limit_s=60.0)
     assert planned.success_rate == 1.0 and planned.collisions == 0
     assert planned.makespan_s < 60.0 and planned.path_ratio >= 1.0

@@ -65,10 +65,10 @@ The constraints are half-planes a . v <= c with unit a; the command is the point
 their intersection closest to the nominal v0 in du^2 + k^2 dw^2 (two variables: the
 nominal, each edge's projection or each vertex, the closest feasible one wins -- exact, no
 solver), or a standstill when none is feasible (standing still never closes a gap); k = 1
-with a static body in range (turn along it), ``TURN_PRICE`` b / l among peers only (slow
-down before swerving: :func:`_turn_cost`); a result longer than V is scaled back to V
-(feasible: every constraint holds 0; else a standstill). Bodies whose constraint cannot
-bind (c >= V) are skipped. When it binds, the aim is shifted sideways by
+with a static body in range (turn along it), ``TURN_PRICE`` b / l (at least 1) among
+peers only (slow down before swerving: :func:`_turn_cost`); a result longer than V is
+scaled back to V (feasible: every constraint holds 0; else a standstill). Bodies whose
+constraint cannot bind (c >= V) are skipped. When it binds, the aim is shifted sideways by
 ``SIDE_STEP`` |v0| in the law's rotation sense (robots meeting head-on pass each other).
 
 

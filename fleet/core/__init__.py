@@ -3,7 +3,7 @@
 - :mod:`~fleet.core.types`: shared type names (``Law``, ``Posture``, arrays).
 - :mod:`~fleet.core.params`: validated gains, tolerances, robot profile, avoidance.
 - :mod:`~fleet.core.step`: THE closed-loop control step, compiled (numba): error (5),
-  laws (17)/(20), Eq. (27) repulsion, saturation (Eq. 2), contact guard, Euler, stop rule;
+  laws (17)/(20), Eq. (27) repulsion, saturation (Eq. 2), safety filter, Euler, stop rule;
   run by the agents, the simulated drive and the batch simulator.
 - :mod:`~fleet.core.control`: law names, Eq. (2) on arrays, Lyapunov functions.
 - :mod:`~fleet.core.simulate`: the batch closed-loop simulator (N robots at once).

@@ -1,7 +1,7 @@
 """Law names and array helpers around the control step of Panahandeh et al. (``shared/paper.txt``).
 
 The control step itself -- posture error (5) with the wraps (11)/(21), laws (17)/(20),
-repulsion (27), saturation, contact guard, Euler -- exists once, compiled, in
+repulsion (27), saturation, the safety filter, Euler -- exists once, compiled, in
 :mod:`fleet.core.step`. This module keeps what works on whole arrays around it: law names,
 Eq. (2) both ways (recorded controls, drives that take body velocities), the Lyapunov
 functions (12.a)/(22) for analysis, and :func:`pose_error` on posture sequences.

@@ -68,7 +68,8 @@ solver), or a standstill when none is feasible (standing still never closes a ga
 with a static body in range (turn along it), ``TURN_PRICE`` b / l (at least 1) among
 peers only (slow down before swerving: :func:`_turn_cost`); a result longer than V is
 scaled back to V (feasible: every constraint holds 0; else a standstill). Bodies whose
-constraint cannot bind (c >= V) are skipped. When it binds, the aim is shifted sideways by
+constraint cannot bind (c >= V) are skipped -- a peer by its centre's distance, before
+its projected point is computed (|p_i - p_j| is within 2 l of it). When it binds, the aim is shifted sideways by
 ``SIDE_STEP`` |v0| in the law's rotation sense (robots meeting head-on pass each other).
 
 
@@ -389,6 +390,7 @@ SAFETY_OFF = Safety(-1.0, 0.0, 0.0, 0.0, 0.0)
 MAX_CONSTRAINTS = 48
 _SQRT_HALF = math.sqrt(0.5)
 _FEASIBLE_TOL = 1e-12  # [m/s] slack of a constraint check
+_CULL_SLACK = 1e-6  # [m] beyond rounding: a culled body is one whose constraint is skipped
 #: Sideways aim of a bound command, a fraction of |v0| in l omega (law's rotation sense).
 SIDE_STEP = 0.5
 #: Share of the wheels' price of a turn (b domega) in the filter's metric among peers.
@@ -574,8 +576,15 @@ def safety_filter(
     n = 0
     stop = False
     half = 0.5 * rate
+    # A peer whose centre is farther than this cannot bind (|p_j - p_i| is within 2 l of the
+    # centres' distance; the slack keeps the cull from ever skipping one the test keeps).
+    far = reach / half + own + 3.0 * ahead + own_spread + _CULL_SLACK
     for j in range(peer_lo, peer_hi):
         if j == skip:
+            continue
+        ex, ey = positions[0, j] - x, positions[1, j] - y
+        reach_j = far + shapes[0, j] + shapes[1, j]
+        if ex * ex + ey * ey >= reach_j * reach_j:
             continue
         th = positions[2, j]
         dx = positions[0, j] + ahead * math.cos(th) - px

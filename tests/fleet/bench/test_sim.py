@@ -51,7 +51,10 @@ def test_quick_bench_prints_a_table(capsys: pytest.CaptureFixture[str]) -> None:
         ["peers", "4"],
         ["peers+filter", "4"],
     ]
-    assert "target at N = 10 000" in lines[-1]
+    assert "target at N = 10 000" in lines[-2]
+    share = float(lines[-1].split(":")[1].split("x")[0])  # "peers+filter / peers: 0.58x ..."
+    rates = {line.split()[0]: float(line.split()[3].replace(",", "")) for line in lines[3:5]}
+    assert share == pytest.approx(rates["peers+filter"] / rates["peers"], abs=0.006)
 
 
 def test_ratios_are_against_the_loop_of_the_same_scene_in_the_same_run() -> None:

@@ -262,6 +262,42 @@ def test_compiled_step_equals_the_plain_python_reference(sit: Situation) -> None
     assert got.done == reference.within_tolerance(ref.error, 0.1, 0.1)
 
 
+#: Peers 0.3-3 m from the robot in any direction: the filter's cull (a peer too far to
+#: bind is skipped before its projected point is computed) lies in this range.
+nearby_peers_st = st.lists(
+    st.tuples(st.floats(0.3, 3.0), st.floats(-math.pi, math.pi), angle, body_st), max_size=4
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(situations, nearby_peers_st, safety_st.filter(lambda s: s is not None))
+def test_the_filter_s_cull_skips_only_peers_the_reference_skips(
+    sit: Situation,
+    nearby: list[tuple[float, float, float, reference.Body]],
+    safety: reference.Safety,
+) -> None:
+    """Peers around the cull's distance: the compiled step still equals the reference,
+    which computes every peer's constraint and drops those that cannot bind."""
+    x, y, _ = sit.pose
+    peers = [
+        reference.Body(
+            x + d * math.cos(bearing), y + d * math.sin(bearing), theta, body.radius, body.spread
+        )
+        for d, bearing, theta, body in nearby
+    ]
+    near = Situation(
+        sit.pose, sit.goal, sit.gains, sit.law, sit.limit, sit.avoidance, peers, [], safety
+    )
+    got = near.compiled()
+    ref = reference.step(
+        near.pose, near.goal, near.gains, near.law == "cw", 0.02,
+        reference.WheelLimit(R, B, near.limit), avoidance=near.avoidance, peers=peers,
+        obstacles=[], safety=safety,
+    )  # fmt: skip
+    assert (got.u, got.omega, got.avoiding) == (ref.u, ref.omega, ref.avoiding)
+    assert (got.x, got.y, got.theta) == ref.pose
+
+
 @settings(max_examples=300, deadline=None)
 @given(situations)
 def test_omega_sign_wheel_limit_and_curvature_hold_for_every_step(sit: Situation) -> None:

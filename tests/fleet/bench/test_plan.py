@@ -43,3 +43,16 @@ def test_quick_bench_json_has_the_documented_schema(capsys: pytest.CaptureFixtur
 def test_bad_sizes_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["bench", "plan", "--robots", "0"]) == 2
     assert "at least 1" in capsys.readouterr().err
+
+
+def test_a_stream_longer_than_the_default_limit_is_run_to_its_end(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The run lasts until its last task has arrived and had time to park: a stream of 4
+    tasks 200 s apart (the last arrives after the closed loop's default 240 s) parks all."""
+    from fleet.bench import plan as bench_plan
+
+    monkeypatch.setattr(bench_plan, "STREAM_GAP_S", 200.0)
+    assert max(bench_plan.arrivals(4, 1)) > 240.0
+    row = bench_plan.latency(4, [1])
+    assert row.success_rate == 1.0 and row.collisions == 0

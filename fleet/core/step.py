@@ -69,8 +69,9 @@ with a static body in range (turn along it), ``TURN_PRICE`` b / l (at least 1) a
 peers only (slow down before swerving: :func:`_turn_cost`); a result longer than V is
 scaled back to V (feasible: every constraint holds 0; else a standstill). Bodies whose
 constraint cannot bind (c >= V) are skipped -- a peer by its centre's distance, before
-its projected point is computed (|p_i - p_j| is within 2 l of it). When it binds, the aim is shifted sideways by
-``SIDE_STEP`` |v0| in the law's rotation sense (robots meeting head-on pass each other).
+its projected point is computed (|p_i - p_j| is within 2 l of it). When it binds, the
+aim is shifted sideways by ``SIDE_STEP`` |v0| in the law's rotation sense (robots meeting
+head-on pass each other).
 
 
 **Numerics.** IEEE double arithmetic in a fixed order with libm's ``sin``, ``cos`` and ``exp``

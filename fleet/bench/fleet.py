@@ -59,7 +59,7 @@ from fleet.bench.peers import (
 )
 from fleet.bench.plots import plot_run
 from fleet.bench.scenarios import Scenario, random_yard, swap
-from fleet.bench.zone_floor import zone_floor
+from fleet.bench.solo_floor import law_floor, zone_floor
 from fleet.core.params import Avoidance, SafetyConfig
 from fleet.core.tasks import (
     Direction,
@@ -133,8 +133,11 @@ class FleetBenchRow(BaseModel):
     time_scale: float | None = None  # simulated s per wall s of the run (fleet policies)
     disturbance_seed: int = 0  # which of the scenario's disturbance sets (scenario_seed)
     #: the largest sum over robots of the time each, alone, spends in one single-robot zone
-    #: [sim s]: the floor one-at-a-time zones put under the makespan (zone_floor.py)
+    #: [sim s]: the floor one-at-a-time zones put under the makespan (solo_floor.py)
     zone_solo_s: float | None = None
+    #: the makespan if no robot met another: each task's arrival plus its robot's solo time
+    #: under the faster law, perfect robots, the peers' assignment [sim s] (solo_floor.py)
+    law_solo_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -584,10 +587,15 @@ def run_fleet_bench(
     done: dict[tuple[int, str], FleetBenchRow] = {}
 
     floors = {s.name: zone_floor(s, options.settings) for s in scenarios}
+    alone = {s.name: law_floor(s, options.settings) for s in scenarios}
 
     def finish(k: int, scenario: Scenario, policy: str, outcome: Outcome) -> None:
         row = make_row(scenario, policy, outcome).model_copy(
-            update={"disturbance_seed": cases[k][1], "zone_solo_s": floors[scenario.name]}
+            update={
+                "disturbance_seed": cases[k][1],
+                "zone_solo_s": floors[scenario.name],
+                "law_solo_s": alone[scenario.name],
+            }
         )
         if options.plots is not None:
             name = f"{scenario.name}--{policy}{f'--d{cases[k][1]}' if cases[k][1] else ''}.png"

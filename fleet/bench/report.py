@@ -21,7 +21,13 @@ Pure formatting of :class:`~fleet.bench.fleet.FleetBenchRow` lists (one run's ro
   service plans in real time; pausing the robots' clock for it would hide what a user
   waits); it measures it: the wait of the task that arrived last, from its submission to
   its robot leaving idle (the makespan shrinks by at most this at time scale 1 -- minus the
-  wall time the plan still takes), and every plan's wall time x S.
+  wall time the plan still takes), and every plan's wall time x S;
+* :func:`law_floor_table` -- ``auto``'s makespan beside the makespan its robots would have
+  alone under the paper's faster law (``law_solo_s``, :mod:`fleet.bench.solo_floor`, an
+  estimate on the peers' goals) and the fastest collision-free policy's: when the law alone
+  already needs more than 1.25x the fastest policy, meeting the makespan target takes a
+  plan that beats the law's own solo drive; ``auto / law alone`` is what the fleet's
+  interactions and the disturbances add. Only for runs that carry the estimate.
 """
 
 from __future__ import annotations
@@ -194,3 +200,33 @@ def planning_wait_table(rows: Sequence[FleetBenchRow]) -> str:
             f"| {family} | {policy} | {s.makespan_mean_s:.1f} | {wait} | {share} | {planning} |"
         )
     return "\n".join(lines)
+
+
+def law_floor_table(rows: Sequence[FleetBenchRow]) -> str:
+    """Markdown: per family, ``auto``'s mean makespan, the law alone (module docstring), the
+    fastest collision-free policy's, and the ratios of the law alone to the fastest and of
+    auto to the law alone; empty when no ``auto`` row carries the estimate (older runs)."""
+    summary = {(s.family, s.policy): s for s in summarise(rows)}
+    lines = [
+        "| scenario | auto makespan [s] | the law alone [s] | fastest collision-free [s] | "
+        "law alone / fastest | auto / law alone |",
+        "|---|---|---|---|---|---|",
+    ]
+    for family in _families(rows):
+        auto = summary.get((family, "auto"))
+        floors = [
+            r.law_solo_s
+            for r in rows
+            if r.family == family and r.policy == "auto" and r.law_solo_s is not None
+        ]
+        if auto is None or not floors:
+            continue
+        floor = float(np.mean(floors))
+        best = _fastest_clean(family, summary)
+        fastest = "-" if best is None else f"{best.policy} {best.makespan_mean_s:.1f}"
+        share = "-" if best is None else f"{floor / best.makespan_mean_s:.2f}x"
+        lines.append(
+            f"| {family} | {auto.makespan_mean_s:.1f} | {floor:.1f} | {fastest} | {share} | "
+            f"{auto.makespan_mean_s / floor:.2f}x |"
+        )
+    return "\n".join(lines) if len(lines) > 2 else ""

@@ -19,7 +19,13 @@ from fleet.bench.fleet import (
     run_fleet_bench,
     summarise,
 )
-from fleet.bench.report import auto_table, planning_wait_table, policy_table, smoothness_table
+from fleet.bench.report import (
+    auto_table,
+    law_floor_table,
+    planning_wait_table,
+    policy_table,
+    smoothness_table,
+)
 from fleet.bench.scenarios import Scenario, full_suite, load_scenarios, quick_suite
 from fleet.cli.options import add_json, add_time_scale, positive_float, positive_int
 from fleet.io.settings import load_settings
@@ -142,6 +148,7 @@ def format_row(done: int, total: int, row: FleetBenchRow) -> str:
         f"{row.obstacle_hits:>4} {plan:>15} {smooth:>9} {_fmt(row.plan_wait_s, '.1f'):>6} "
         f"{row.wall_s:>6.0f}"
         + ("" if row.zone_solo_s is None else f"  (zones one at a time: {row.zone_solo_s:.0f} s)")
+        + ("" if row.law_solo_s is None else f"  (the law alone: {row.law_solo_s:.0f} s)")
     )
 
 
@@ -175,8 +182,9 @@ def print_markdown(rows: list[FleetBenchRow], out: TextIO) -> None:
         auto_table(rows),
         smoothness_table(rows),
         planning_wait_table(rows),
+        law_floor_table(rows),
     )
-    print("\n" + "\n\n".join(tables), file=out)
+    print("\n" + "\n\n".join(t for t in tables if t), file=out)
 
 
 def run(args: argparse.Namespace) -> int:

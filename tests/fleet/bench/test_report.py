@@ -4,7 +4,13 @@ spelled out."""
 from __future__ import annotations
 
 from fleet.bench.fleet import FleetBenchRow
-from fleet.bench.report import auto_table, planning_wait_table, policy_table, smoothness_table
+from fleet.bench.report import (
+    auto_table,
+    law_floor_table,
+    planning_wait_table,
+    policy_table,
+    smoothness_table,
+)
 
 
 def _row(family: str, policy: str, seed: int | None = None, **figures: float) -> FleetBenchRow:
@@ -105,3 +111,14 @@ def test_the_planning_wait_table_shows_the_service_s_share_of_the_fleet_makespan
     lines = planning_wait_table(rows).splitlines()
     assert "plans' wall time x 5 [s]" in lines[0]
     assert lines[2:] == ["| swap | auto | 40.0 | 4.0 | 10% | 6.5 |"]
+
+
+def test_the_law_alone_stands_beside_auto_and_the_fastest_clean_policy() -> None:
+    """auto's makespan, the law's own solo estimate and the fastest collision-free policy,
+    with both ratios; families whose rows carry no estimate (older runs) are left out, and
+    without any estimate there is no table."""
+    assert law_floor_table(ROWS) == ""
+    rows = [r.model_copy(update={"law_solo_s": 40.0}) if r.family == "good" else r for r in ROWS]
+    lines = law_floor_table(rows).splitlines()
+    assert lines[0].startswith("| scenario | auto makespan [s] | the law alone [s] |")
+    assert lines[2:] == ["| good | 60.0 | 40.0 | orca 50.0 | 0.80x | 1.50x |"]

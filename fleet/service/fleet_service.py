@@ -69,7 +69,6 @@ from types import TracebackType
 
 from fleet.core.planner import PlannerConfig, plan
 from fleet.core.planner.clusters import components
-from fleet.core.route import remaining
 from fleet.core.tasks import (
     RobotConflict,
     RobotEvent,
@@ -391,7 +390,6 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             self._queue(timeouts, now)
             stuck, recovered = self._recover_stuck(now, wall)
             standoffs = self._break_standoffs(now, wall)
-            gone_by = self._end_give_ways(now)
             resends = self._ledger.resends(now)
             self._outbox.enqueue(resends)
             points = self._positions()
@@ -417,8 +415,6 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             self._counters.add("standoffs_broken", len(standoffs))
             _log.info("standoffs broken: %s", "; ".join(standoffs))
             self._planner.request("standoff")
-        if gone_by:
-            self._planner.request("gave_way")
         if removed:
             self._planner.request("robot_removed")
         self._check_separation(points)
@@ -440,11 +436,10 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
 
     def _break_standoffs(self, now: float, wall: float) -> list[str]:
         """Break every standoff (call with the lock held): the robots in one (within the
-        peer radius of each other) are a group; the one nearest the next point of its way
-        (its next via-point, else its goal) goes, every other gives way to it, and its
-        window restarts. A robot alone in a standoff gives way to the robot nearest it. A
-        robot with no robot within the peer radius (held by the repulsion of an obstacle)
-        is left to the stuck watch. Returns what was done, one line per robot giving way."""
+        peer radius of each other) are a group, the one with the youngest task gives way
+        and the others' windows restart; returns what was done, one line per standoff. A
+        robot alone (no robot within the peer radius: held by the repulsion of an obstacle)
+        is left to the stuck watch."""
         tasks = self._ledger.standoffs()
         if not tasks:
             return []
@@ -463,58 +458,22 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         done = []
         for members in components(len(tasks), links):
             group = [tasks[i] for i in members]
-            goes = min(group, key=lambda t: (_to_next_point(t, where[t.id]), t.created_at))
-            for gives in group:
-                assert gives.robot_id is not None and goes.robot_id is not None
-                near = self._standoff_cause(gives.robot_id, where[gives.id], radius)
-                if near is None:  # alone (by an obstacle): the stuck watch's, not a standoff
-                    self._ledger.stuck_watch.restart(gives.id)
-                    continue
-                cause, nearest = near
-                if gives is goes and len(group) > 1:
-                    self._ledger.stuck_watch.restart(gives.id)
-                    continue
-                to_robot = goes.robot_id if gives is not goes else nearest
-                self._queue(self._ledger.break_standoff(gives.id, cause, to_robot, now, wall), now)
-                done.append(f"{gives.robot_id} gives way to {to_robot} ({cause})")
+            gives = max(group, key=lambda t: (t.created_at, t.robot_id or ""))
+            assert gives.robot_id is not None
+            cause = self._standoff_cause(gives.robot_id, where[gives.id], radius)
+            if cause is None:  # alone (by an obstacle): the stuck watch's, not a standoff
+                self._ledger.stuck_watch.restart(gives.id)
+                continue
+            self._queue(self._ledger.break_standoff(gives.id, cause, now, wall), now)
+            for other in group:
+                if other is not gives:
+                    self._ledger.stuck_watch.restart(other.id)
+            done.append(f"{gives.robot_id} gives way ({cause})")
         return done
 
-    def _end_give_ways(self, now: float) -> int:
-        """End every give-way whose robot may go again (call with the lock held): the robot
-        it gives way to is farther than the peer radius, has no task driving (finished,
-        held, gone) or no pose, or the give-way has lasted its windows
-        (:meth:`TaskLedger.give_way_expired`); returns how many ended."""
-        radius = self.settings.avoidance.peer_radius
-        ended = 0
-        for task_id, to_robot in self._ledger.giving_way().items():
-            task = self._ledger.get(task_id)
-            other_task = self._ledger.task_of_robot(to_robot)
-            mine = None if task is None or task.robot_id is None else self._pose_of(task.robot_id)
-            theirs = self._pose_of(to_robot)
-            if (
-                mine is None
-                or theirs is None
-                or other_task is None
-                or other_task.hold
-                or math.dist(mine, theirs) > radius
-                or self._ledger.give_way_expired(task_id, now)
-            ):
-                self._ledger.end_give_way(task_id)
-                ended += 1
-        return ended
-
-    def _pose_of(self, robot_id: str) -> tuple[float, float] | None:
-        """The robot's last reported position [m] (None: none heard)."""
-        rec = self._roster.record(robot_id)
-        if rec is None or rec.state is None:
-            return None
-        return (rec.state.pose.x, rec.state.pose.y)
-
-    def _standoff_cause(
-        self, robot_id: str, at: tuple[float, float], radius: float
-    ) -> tuple[str, str] | None:
-        """The robot nearest ``robot_id`` (at ``at``) within ``radius`` [m], as words, and
-        its id (None: no robot is that near)."""
+    def _standoff_cause(self, robot_id: str, at: tuple[float, float], radius: float) -> str | None:
+        """The robot nearest ``robot_id`` (at ``at``) within ``radius`` [m], as words (None:
+        no robot is that near)."""
         near = []
         for rec in self._roster.records():
             s = rec.state
@@ -527,7 +486,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             return None
         seconds = self.settings.standoff_after_s
         d, other = min(near)
-        return f"no progress for {seconds:g} s while avoiding {other} at {d:.2f} m", other
+        return f"no progress for {seconds:g} s while avoiding {other} at {d:.2f} m"
 
     def _stuck_cause(self, task: Task, now: float) -> str:
         """What the service sees around a stuck task's robot: the peers near it (robots
@@ -729,12 +688,3 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             out["close_pairs"] = len(self._close_pairs)
         out["effects_pending"] = self._outbox.pending
         return out
-
-
-def _to_next_point(task: Task, at: tuple[float, float]) -> float:
-    """Distance [m] from ``at`` to the next point of the task's way: the first via-point
-    its robot has still to pass (:func:`fleet.core.route.remaining`), else its goal."""
-    goal = task.request.goal
-    rest = remaining([(p[0], p[1]) for p in task.route], at[0], at[1], (goal.x, goal.y))
-    target = (float(rest[0, 0]), float(rest[0, 1])) if len(rest) else (goal.x, goal.y)
-    return math.dist(at, target)

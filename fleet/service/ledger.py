@@ -34,10 +34,7 @@ its progress watch; :meth:`TaskLedger.stuck` lists the tasks with no progress fo
 requeue to another robot) or fails the task, with the cause in its reason and history.
 :meth:`TaskLedger.standoffs` lists, sooner, robots ``avoiding`` without progress for
 ``standoff_after_s`` of their own time; :meth:`TaskLedger.break_standoff` makes one of them
-give way (a held revision, the other law pinned) *to* one robot: no plan resumes it until
-:meth:`TaskLedger.end_give_way` (the service ends it once that robot has gone its way,
-stops, or ``GIVE_WAY_WINDOWS`` standoff windows have passed: :meth:`give_way_expired`). A
-plan resumed it at once before, and robots crowding one gate stood there in turn.
+give way (a held revision, the other law pinned), for a plan to resume.
 
 Bays (:mod:`~fleet.service.bays`): a task's bay is held from its reservation until it is
 final (or the reservation is given back).
@@ -104,9 +101,6 @@ _STILL_ON_PURPOSE = frozenset({RobotMode.WAITING, RobotMode.PAUSED, RobotMode.ES
 FINISHED_REMEMBERED = 10_000
 #: The reason of a task whose robot an operator let go, until a plan resumes it.
 RELEASED_REASON = "released by the operator: waiting for the next plan"
-#: A robot gives way in a standoff for at most this many ``standoff_after_s`` windows (on
-#: its own clock or the service's, the first to run out).
-GIVE_WAY_WINDOWS = 3.0
 #: [s] between re-sends of an unacknowledged assignment (and, by the service, of a cancel).
 RESEND_INTERVAL_S = 0.2
 _NEVER = float("-inf")
@@ -210,16 +204,6 @@ def assignment_of(task: Task, avoidance: Avoidance) -> ParkAssignment:
     )
 
 
-@dataclass(frozen=True, slots=True)
-class _GiveWay:
-    """A robot giving way in a standoff: to whom, and until when at the latest [s, the
-    service's monotonic clock and the robot's own, NaN: unknown]."""
-
-    to_robot: str
-    until: float
-    until_robot: float
-
-
 class TaskLedger:
     """Active tasks and their transitions (see the module docstring)."""
 
@@ -238,7 +222,6 @@ class TaskLedger:
         self._avoid: dict[str, str] = {}  # task -> robot it was taken from (stuck)
         self._pinned: dict[str, Law] = {}  # task under way -> the law a recovery chose
         self._own_way: set[str] = set()  # tasks under way a recovery took off their route
-        self._giving_way: dict[str, _GiveWay] = {}  # task under way -> whom it gives way to
         self._active: dict[str, Task] = {}  # every non-final task, by id
         self._queued: dict[str, Task] = {}
         self._under_way: dict[str, Task] = {}  # assigned, driving, waiting (with a robot)
@@ -386,7 +369,6 @@ class TaskLedger:
         self._avoid.pop(task.id, None)
         self._pinned.pop(task.id, None)
         self._own_way.discard(task.id)
-        self._giving_way.pop(task.id, None)
         self._tracking.pop(task.id, None)
         self.paths.finish(task.id)
         self._finished[task.id] = task.status
@@ -560,8 +542,6 @@ class TaskLedger:
             return Outcome.UNCHANGED, []
         if task.robot_id in self._held and not decision.hold:
             return Outcome.UNCHANGED, []  # an operator holds it: a plan after the release
-        if task.id in self._giving_way and not decision.hold:
-            return Outcome.UNCHANGED, []  # it gives way: a plan after the other has gone
         resumes = task.hold and not decision.hold
         if not decision.hold and not plan_safe:
             return Outcome.UNSAFE, []  # it would start, resume or re-route a robot
@@ -810,40 +790,16 @@ class TaskLedger:
             and watch.standoff(t.id)
         ]
 
-    def break_standoff(
-        self, task_id: str, cause: str, to_robot: str, now: float, wall: float
-    ) -> Effects:
-        """The task's robot gives way to ``to_robot`` in a standoff: a held revision, with
-        the other law pinned for an ``auto`` task -- another sense of rotation is another
-        way past. No plan resumes it until :meth:`end_give_way`; then it stands until a plan
-        resumes it through the plan's check. ``cause`` goes into the reason and the history
-        (``standoff``); the task's stuck window is not spent."""
+    def break_standoff(self, task_id: str, cause: str, now: float, wall: float) -> Effects:
+        """The task's robot gives way in a standoff: a held revision (it stands until a plan
+        resumes it through the plan's check), with the other law pinned for an ``auto``
+        task -- another sense of rotation is another way past. ``cause`` goes into the
+        reason and the history (``standoff``); the task's stuck window is not spent."""
         task = self._under_way[task_id]
         law = self._other_law(task)
-        reason = f"standoff: {cause}; gives way ({law}) to {to_robot} until it has gone"
+        reason = f"standoff: {cause}; gives way ({law}) until a plan resumes it"
         self.stuck_watch.restart(task_id)
-        window = GIVE_WAY_WINDOWS * self.config.standoff_after_s
-        self._giving_way[task_id] = _GiveWay(
-            to_robot, now + window, self.stuck_watch.robot_time(task_id) + window
-        )
         return self._held_revision(task, law, reason, "standoff", now, wall)
-
-    def giving_way(self) -> dict[str, str]:
-        """Tasks whose robot gives way in a standoff -> the robot it gives way to."""
-        return {task_id: g.to_robot for task_id, g in self._giving_way.items()}
-
-    def give_way_expired(self, task_id: str, now: float) -> bool:
-        """The task's robot has given way for ``GIVE_WAY_WINDOWS`` standoff windows, on
-        the service's clock (``now`` [s, monotonic]) or its own, whichever ran out first."""
-        g = self._giving_way.get(task_id)
-        return g is not None and (
-            now >= g.until or self.stuck_watch.robot_time(task_id) >= g.until_robot
-        )
-
-    def end_give_way(self, task_id: str) -> None:
-        """The task's robot no longer gives way: the next plan may resume it."""
-        if self._giving_way.pop(task_id, None) is not None:
-            self._version += 1
 
     def _other_law(self, task: Task) -> Law:
         """The other law for an ``auto`` task, pinned for the planner; else its own."""

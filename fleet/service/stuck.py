@@ -135,11 +135,6 @@ class StuckWatch:
         p = self._tasks.get(task_id)
         return p is not None and p.avoiding and p.robot_now - p.robot_since >= self.standoff_after_s
 
-    def robot_time(self, task_id: str) -> float:
-        """The task's robot's clock at its last state [s] (NaN: none heard yet)."""
-        p = self._tasks.get(task_id)
-        return math.nan if p is None else p.robot_now
-
     def restart(self, task_id: str) -> None:
         """A fresh standoff window for the task (another robot gave way)."""
         p = self._tasks.get(task_id)

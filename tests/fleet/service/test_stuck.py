@@ -7,12 +7,11 @@ from collections.abc import Iterator
 
 import pytest
 
-from fleet.core.planner import Plan, PlanningSnapshot, TaskDecision, plan
+from fleet.core.planner import Plan, PlanningSnapshot, plan
 from fleet.core.tasks import RobotStatus, RobotView, TaskStatus
-from fleet.core.wire import Obstacle, Pose, RobotMode, RobotState
-from fleet.service.ledger import GIVE_WAY_WINDOWS
+from fleet.core.wire import Obstacle, Pose, RobotMode
 from fleet.service.stuck import StuckWatch, remaining, stuck_cause
-from tests.fleet.service.conftest import Fleet, ScriptedPlanner, assign_queued, req
+from tests.fleet.service.conftest import Fleet, req
 
 WINDOW = 30.0
 
@@ -205,7 +204,6 @@ def test_a_standoff_is_avoiding_without_progress_on_the_robots_own_clock() -> No
 
 
 def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_plan() -> None:
-    """Two robots nose to nose, each as far from its goal: the younger task gives way."""
     from fleet.core.wire import RobotState
     from tests.fleet.service.conftest import ScriptedPlanner, assign_queued
 
@@ -238,132 +236,12 @@ def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_pla
         gave = f.service.task(second.id)
         assert gave.hold and gave.law == "cw" and gave.revision == 1
         assert gave.reason is not None and gave.reason.startswith(
-            "standoff: no progress for 4 s while avoiding old at 0.60 m; gives way (cw) to old"
+            "standoff: no progress for 4 s while avoiding old at 0.60 m; gives way (cw)"
         )
         assert not f.service.task(first.id).hold and f.service.task(first.id).revision == 0
         assert not f.service.task(third.id).hold  # alone: the stuck watch's, not a standoff
         (held,) = [p for p in f.parks("new") if p.revision == 1]
         assert held.hold and held.law == "cw"
         assert [e for _, e, _ in f.service.history(second.id)][-1] == "standoff"
-    finally:
-        f.service.close()
-
-
-def _resume_held(snapshot: PlanningSnapshot) -> list[TaskDecision]:
-    """A plan that resumes every held task at once (what a plan on a perfect model does
-    in a crowded gate)."""
-    return [
-        TaskDecision(t.task_id, t.robot_id, "revise", t.law, revision=t.revision)
-        for t in snapshot.tasks
-        if t.hold and t.robot_id is not None and t.law is not None
-    ]
-
-
-class _Crowd:
-    """Robots of a fleet (inline planning) playing their states: (id, x, y, task)."""
-
-    def __init__(self, f: Fleet) -> None:
-        self.f = f
-        self.where: dict[str, tuple[float, float, str]] = {}
-        self.mode: dict[str, RobotMode] = {}
-
-    def states(self, seq: int) -> None:
-        for rid, (x, y, task_id) in self.where.items():
-            task = self.f.service.task(task_id)
-            self.f.bus.deliver_state(
-                RobotState(robot_id=rid, seq=seq, stamp=self.f.clock.wall(),
-                           pose=Pose(x=x, y=y), mode=self.mode.get(rid, RobotMode.AVOIDING),
-                           task_id=task_id,
-                           revision=task.revision)
-            )  # fmt: skip
-
-
-def test_robots_crowding_one_way_give_way_to_the_one_nearest_it_until_it_has_gone() -> None:
-    """Three robots stalled before one gate, avoiding each other: the one nearest the next
-    point of its way goes, the other two give way to it, and a plan that would resume them
-    at once changes nothing (before, a plan did, and the three stood there in turn). Once
-    it has gone beyond the peer radius, they may be resumed."""
-    planner = ScriptedPlanner(assign_queued("ccw"))
-    f = Fleet(planner=planner, task_timeout_s=1000.0)
-    crowd = _Crowd(f)
-    try:
-        starts = {"a": (-1.0, 0.0), "b": (-0.3, 0.0), "c": (-0.6, 0.5)}
-        tasks = {}
-        for rid, (x, y) in starts.items():
-            f.join(rid, x, y)
-            tasks[rid] = f.service.submit(req(5.0, {"a": -2.0, "b": 0.0, "c": 2.0}[rid], robot=rid))
-        f.service.tick()
-        crowd.where = {rid: (*starts[rid], tasks[rid].id) for rid in starts}
-        crowd.states(100)
-        crowd.states(300)  # 4 s of the robots' own time without progress, all avoiding
-        planner.decide = _resume_held
-        f.service.tick()
-        assert f.service.counters["standoffs_broken"] == 2
-        held = {rid for rid in starts if f.service.task(tasks[rid].id).hold}
-        assert held == {"a", "c"}  # b is nearest its goal: it goes
-        for rid in held:
-            reason = f.service.task(tasks[rid].id).reason
-            assert reason is not None and "to b until it has gone" in reason
-        f.service.tick()  # the plan the standoff asked for resumes them: refused
-        assert {rid for rid in starts if f.service.task(tasks[rid].id).hold} == held
-        crowd.where["b"] = (1.5, 0.0, tasks["b"].id)  # b has gone through
-        crowd.states(310)
-        f.service.tick()  # the give-ways end; the plan that asks for resumes them
-        assert not any(f.service.task(tasks[rid].id).hold for rid in starts)
-    finally:
-        f.service.close()
-
-
-def _nose_to_nose(f: Fleet, crowd: _Crowd, planner: ScriptedPlanner) -> tuple[str, str]:
-    """Robots "old" and "new" nose to nose until "new" gives way; their task ids."""
-    f.join("old", -0.3, 0.0)
-    f.join("new", 0.3, 0.0)
-    first = f.service.submit(req(4.0, 0.0, robot="old"))
-    f.clock.advance(1.0)
-    second = f.service.submit(req(-4.0, 0.0, robot="new"))
-    f.service.tick()
-    crowd.where = {"old": (-0.3, 0.0, first.id), "new": (0.3, 0.0, second.id)}
-    crowd.states(100)
-    crowd.states(300)
-    planner.decide = _resume_held
-    f.service.tick()
-    assert f.service.task(second.id).hold and not f.service.task(first.id).hold
-    return first.id, second.id
-
-
-def test_a_give_way_ends_when_the_robot_it_waits_for_is_held_itself() -> None:
-    """No two robots wait on each other: the one given way to is paused by its operator
-    (held), so the one giving way may be resumed."""
-    planner = ScriptedPlanner(assign_queued("ccw"))
-    f = Fleet(planner=planner, task_timeout_s=1000.0)
-    crowd = _Crowd(f)
-    try:
-        first, second = _nose_to_nose(f, crowd, planner)
-        crowd.states(310)
-        f.service.tick()
-        assert f.service.task(second).hold  # still giving way
-        crowd.mode["old"] = RobotMode.PAUSED
-        crowd.states(320)
-        f.service.tick()
-        assert f.service.task(first).hold and not f.service.task(second).hold
-    finally:
-        f.service.close()
-
-
-def test_a_give_way_lasts_at_most_its_windows_of_the_robots_own_clock() -> None:
-    """GIVE_WAY_WINDOWS standoff windows of 4 s at 50 Hz, then a plan may resume it even
-    though the robot it gave way to has not moved."""
-    planner = ScriptedPlanner(assign_queued("ccw"))
-    f = Fleet(planner=planner, task_timeout_s=1000.0)
-    crowd = _Crowd(f)
-    try:
-        _, second = _nose_to_nose(f, crowd, planner)
-        windows = round(50 * 4 * GIVE_WAY_WINDOWS)
-        crowd.states(300 + windows - 1)  # just short of its windows
-        f.service.tick()
-        assert f.service.task(second).hold
-        crowd.states(300 + windows)
-        f.service.tick()  # its windows have run out: a plan resumes it
-        assert not f.service.task(second).hold
     finally:
         f.service.close()

@@ -59,7 +59,7 @@ from fleet.bench.peers import (
 )
 from fleet.bench.plots import plot_run
 from fleet.bench.scenarios import Scenario, random_yard, swap
-from fleet.bench.solo_floor import law_floor, zone_floor
+from fleet.bench.solo_floor import law_alone, zone_floor
 from fleet.core.params import Avoidance, SafetyConfig
 from fleet.core.tasks import (
     Direction,
@@ -587,7 +587,7 @@ def run_fleet_bench(
     done: dict[tuple[int, str], FleetBenchRow] = {}
 
     floors = {s.name: zone_floor(s, options.settings) for s in scenarios}
-    alone = {s.name: law_floor(s, options.settings) for s in scenarios}
+    alone = {s.name: law_alone(s, options.settings) for s in scenarios}
 
     def finish(k: int, scenario: Scenario, policy: str, outcome: Outcome) -> None:
         row = make_row(scenario, policy, outcome).model_copy(

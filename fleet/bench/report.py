@@ -22,7 +22,7 @@ Pure formatting of :class:`~fleet.bench.fleet.FleetBenchRow` lists (one run's ro
   waits); it measures it: the wait of the task that arrived last, from its submission to
   its robot leaving idle (the makespan shrinks by at most this at time scale 1 -- minus the
   wall time the plan still takes), and every plan's wall time x S;
-* :func:`law_floor_table` -- ``auto``'s makespan beside the makespan its robots would have
+* :func:`law_alone_table` -- ``auto``'s makespan beside the makespan its robots would have
   alone under the paper's faster law (``law_solo_s``, :mod:`fleet.bench.solo_floor`, an
   estimate on the peers' goals) and the fastest collision-free policy's: when the law alone
   already needs more than 1.25x the fastest policy, meeting the makespan target takes a
@@ -202,7 +202,7 @@ def planning_wait_table(rows: Sequence[FleetBenchRow]) -> str:
     return "\n".join(lines)
 
 
-def law_floor_table(rows: Sequence[FleetBenchRow]) -> str:
+def law_alone_table(rows: Sequence[FleetBenchRow]) -> str:
     """Markdown: per family, ``auto``'s mean makespan, the law alone (module docstring), the
     fastest collision-free policy's, and the ratios of the law alone to the fastest and of
     auto to the law alone; empty when no ``auto`` row carries the estimate (older runs)."""

@@ -1,6 +1,7 @@
-"""What robots alone already need: single-robot floors under a scenario's makespan.
+"""What robots alone already need: the floor single-robot zones put under a makespan, and
+the makespan of the paper's law with every robot alone.
 
-Both floors predict each robot alone, on the planner's own solo prediction
+Both predict each robot alone, on the planner's own solo prediction
 (:mod:`fleet.core.planner.scene`: the compiled step on a perfect robot, its route, its
 fastest law), and are reported beside the makespan of every run
 (:class:`~fleet.bench.fleet.FleetBenchRow`):
@@ -12,7 +13,7 @@ fastest law), and are reported beside the makespan of every run
   largest sum over the zones is the floor a one-at-a-time zone puts under the makespan. A
   zone that allows convoys (every passage found) can beat it: robots going the same way are
   in it together.
-* :func:`law_floor` (``law_solo_s``): the makespan if no robot ever met another -- every
+* :func:`law_alone` (``law_solo_s``): the makespan if no robot ever met another -- every
   task at its arrival time plus its robot's solo time under the paper's faster law, on the
   peers' assignment (:func:`fleet.bench.peers.assign_goals`: named tasks to their robot,
   else straight-line optimal per arrival group). It holds the laws' own convergence
@@ -98,7 +99,7 @@ def zone_floor(scenario: Scenario, settings: Settings) -> float | None:
     return round(float(spent.max()), 1)
 
 
-def law_floor(scenario: Scenario, settings: Settings) -> float | None:
+def law_alone(scenario: Scenario, settings: Settings) -> float | None:
     """The makespan [s] of every task driven by its robot alone under its faster law, from
     its arrival, on the peers' assignment (module docstring: an estimate, not a bound);
     None when a robot alone does not arrive within the planner's horizon."""
@@ -114,4 +115,4 @@ def law_floor(scenario: Scenario, settings: Settings) -> float | None:
     return round(finish, 1)
 
 
-__all__ = ["law_floor", "scenario_zones", "zone_floor"]
+__all__ = ["law_alone", "scenario_zones", "zone_floor"]

@@ -21,7 +21,7 @@ from fleet.bench.fleet import (
 )
 from fleet.bench.report import (
     auto_table,
-    law_floor_table,
+    law_alone_table,
     planning_wait_table,
     policy_table,
     smoothness_table,
@@ -182,7 +182,7 @@ def print_markdown(rows: list[FleetBenchRow], out: TextIO) -> None:
         auto_table(rows),
         smoothness_table(rows),
         planning_wait_table(rows),
-        law_floor_table(rows),
+        law_alone_table(rows),
     )
     print("\n" + "\n\n".join(t for t in tables if t), file=out)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 from fleet.bench.fleet import FleetBenchRow
 from fleet.bench.report import (
     auto_table,
-    law_floor_table,
+    law_alone_table,
     planning_wait_table,
     policy_table,
     smoothness_table,
@@ -117,8 +117,8 @@ def test_the_law_alone_stands_beside_auto_and_the_fastest_clean_policy() -> None
     """auto's makespan, the law's own solo estimate and the fastest collision-free policy,
     with both ratios; families whose rows carry no estimate (older runs) are left out, and
     without any estimate there is no table."""
-    assert law_floor_table(ROWS) == ""
+    assert law_alone_table(ROWS) == ""
     rows = [r.model_copy(update={"law_solo_s": 40.0}) if r.family == "good" else r for r in ROWS]
-    lines = law_floor_table(rows).splitlines()
+    lines = law_alone_table(rows).splitlines()
     assert lines[0].startswith("| scenario | auto makespan [s] | the law alone [s] |")
     assert lines[2:] == ["| good | 60.0 | 40.0 | orca 50.0 | 0.80x | 1.50x |"]

@@ -9,7 +9,7 @@ import math
 
 from fleet.bench.peers import assign_goals
 from fleet.bench.scenarios import corridor, garage, random_yard, swap
-from fleet.bench.solo_floor import law_floor, scenario_zones, zone_floor
+from fleet.bench.solo_floor import law_alone, scenario_zones, zone_floor
 from fleet.io.settings import load_settings
 
 
@@ -35,14 +35,14 @@ def test_without_zones_there_is_no_floor() -> None:
 def test_the_law_alone_is_no_faster_than_the_wheels_and_counts_from_each_arrival() -> None:
     settings = load_settings()
     scenario = swap(4, "right")
-    alone = law_floor(scenario, settings)
+    alone = law_alone(scenario, settings)
     top = settings.profile.max_speed
     longest = max(math.dist(r.start[:2], r.goal[:2]) for r in scenario.robots)
     assert alone is not None and alone >= longest / top
     later = scenario.model_copy(
         update={"robots": [r.model_copy(update={"arrival_s": 10.0}) for r in scenario.robots]}
     )
-    assert law_floor(later, settings) == alone + 10.0
+    assert law_alone(later, settings) == alone + 10.0
 
 
 def test_unnamed_goals_go_to_the_robots_the_peers_give_them() -> None:
@@ -61,4 +61,4 @@ def test_unnamed_goals_go_to_the_robots_the_peers_give_them() -> None:
         }
     )
     assert owner != list(range(10))
-    assert law_floor(scenario, settings) == law_floor(named, settings)
+    assert law_alone(scenario, settings) == law_alone(named, settings)

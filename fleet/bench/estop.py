@@ -8,8 +8,12 @@ robot a far goal, then, once all are driving, repeats: publish a fleet-wide ``es
 (``fleet.io.operator.put_control``: the same call as ``parkfleet estop``), note for each
 robot when its first ``estop`` state arrives (``u = omega = 0``: the agent publishes that
 state right after ``drive.stop()`` in the same tick), ``release``, wait until all drive
-again. Robots that arrive are sent back across the yard. Each e-stop waits a random 0-2
-control periods after the robots drive again, so it lands at a random phase of their ticks;
+again. Each robot drives up or down its column of the grid the robots start in, and is sent
+back when it arrives. Two robots (one row) never meet; across the yard, as they drove
+before, they met head-on and one could stand in its safety filter when the e-stop came (a
+stop the wheels figures leave out: ``wheels_samples``). In larger grids robots of one column
+meet on the way back. Each e-stop waits a random 0-2 control periods after the robots
+drive again, so it lands at a random phase of their ticks;
 the first comes after a one-second warm-up.
 
 Reported per N, over N x trials samples, p50 / p99 / max [ms]:
@@ -81,7 +85,7 @@ from fleet.io.transport import listening_locators, open_session, tcp_endpoint
 DEFAULT_SIZES = (10, 100)
 _DRIVING = (RobotMode.DRIVING, RobotMode.AVOIDING)
 _GAINS = Gains(kx=1.0, ky=2.0, ktheta=1.0)
-GOAL_X = 9.0  # [m]: robots drive across the yard, to +-GOAL_X
+GOAL_Y = 9.0  # [m]: robots drive along their column of the yard, to y = +-GOAL_Y
 
 
 class _States:
@@ -122,15 +126,15 @@ class _States:
 
 
 def _assign(session: Any, keys: Keys, state: RobotState, task: str) -> None:
-    goal_x = -GOAL_X if state.pose.x > 0 else GOAL_X
-    theta = 0.0 if goal_x > 0 else np.pi
+    goal_y = -GOAL_Y if state.pose.y > 0 else GOAL_Y
+    theta = 0.5 * np.pi if goal_y > 0 else -0.5 * np.pi
     session.put(
         keys.assignment(state.robot_id),
         encode(
             ParkAssignment(
                 robot_id=state.robot_id,
                 task_id=task,
-                goal=Pose(x=goal_x, y=state.pose.y, theta=float(theta)),
+                goal=Pose(x=state.pose.x, y=goal_y, theta=float(theta)),
                 law="ccw",
                 gains=_GAINS,
             )

@@ -12,11 +12,9 @@ passes (:class:`fleet.core.zones.ZonePass`):
   (:meth:`ZoneBook.take`);
 * every state of a robot: a zone it stands in that nobody holds becomes its own (a robot
   that got there without a plan: lost on its way, an older release; it goes no way, so
-  nobody may join it); a zone it holds is given back once it stands outside it, the rest
-  of its way does not enter it, and it is through: nearer the exit of the pass it was
-  granted than its entry (:meth:`ZoneBook.observe`) -- a robot the law swings wide of the
-  mouth, whose straight way to its goal then cuts past a post instead of through the zone,
-  keeps it; a robot standing in a zone keeps it, whatever its task;
+  nobody may join it); a zone it holds is given back once it stands outside it and the
+  rest of its way does not enter it (:meth:`ZoneBook.observe`); a robot standing in a zone
+  keeps it, whatever its task;
 * a robot removed from the fleet gives back every zone (:meth:`ZoneBook.release_robot`).
 
 Pure and not thread-safe: the task ledger keeps it and the service calls it under its lock.
@@ -24,7 +22,6 @@ Pure and not thread-safe: the task ledger keeps it and the service calls it unde
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -41,15 +38,6 @@ class ZoneState:
     zone: ZoneShape
     robot_ids: tuple[str, ...] = ()
     task_ids: tuple[str, ...] = ()
-
-
-def _through(how: ZonePass | None, x: float, y: float) -> bool:
-    """Whether a robot at (x, y) [m] outside a zone it holds on pass ``how`` is through it:
-    nearer the pass's exit than its entry (a robot without a pass, one that stood in it,
-    is)."""
-    if how is None:
-        return True
-    return math.dist((x, y), how.exit) <= math.dist((x, y), how.entry)
 
 
 class ZoneBook:
@@ -137,7 +125,7 @@ class ZoneBook:
             if way is not None:
                 if rest is None:
                     rest = way()
-                if shape.entered_by(rest) or not _through(self._holders[name][robot_id], x, y):
+                if shape.entered_by(rest):
                     continue
             self._drop(name, robot_id)
             changed = True

@@ -17,9 +17,8 @@ robots going its way) gets them for this plan, each with its pass
 A mover one of whose zones another robot holds -- a robot standing in it, lost in it, one
 earlier in the order, or in a convoy zone one going the other way -- must hold: it waits
 where it stands, and its reason names the zone and the holder. A plan is made with those robots
-held (:attr:`fleet.core.planner.scene.Movers.must_hold`); once the holder is through the zone
-the service gives it back (:meth:`fleet.service.zones.ZoneBook.observe`) and plans again,
-and the next robot goes. Granting every zone of
+held (:attr:`fleet.core.planner.scene.Movers.must_hold`); once the holder has left the zone
+the service gives it back and plans again, and the next robot goes. Granting every zone of
 a way at once, before the robot starts, means no robot ever holds one zone while it waits
 for another: zones cannot deadlock.
 """

@@ -43,22 +43,6 @@ def test_a_robot_takes_a_free_zone_it_stands_in_and_gives_it_back_once_out_and_p
     assert book.release_robot("r2") and book.holding("gate") == ()
 
 
-def test_a_robot_swung_wide_of_the_mouth_keeps_its_zone_until_it_is_through() -> None:
-    """The law and Eq. (27) may swing a robot wide of a passage's mouth, so far that the
-    straight line to its goal cuts past the post instead of through the zone (case III with
-    four robots: the zone went to a robot coming the other way, and both stood at the mouth
-    for the rest of the run). It keeps the zone until it is nearer the exit than the entry
-    of its pass."""
-    book = ZoneBook([GATE])
-    book.take("r1", [EAST])
-    goal = (3.0, 3.0)
-    assert not GATE.entered_by([(-1.5, 2.0), goal])  # its straight way misses the zone
-    assert not book.observe("r1", -1.5, 2.0, lambda: [(-1.5, 2.0), goal])
-    assert book.holding("gate") == ("r1",) and not book.can_take("r2", [WEST])
-    assert book.observe("r1", 2.0, 1.5, lambda: [(2.0, 1.5), goal])  # through: given back
-    assert book.holding("gate") == ()
-
-
 def test_a_convoy_zone_is_held_by_robots_going_one_way_only() -> None:
     book = ZoneBook([ZoneShape("gate", GATE.outline, convoys=True)])
     assert book.take("r1", [EAST])

@@ -43,7 +43,7 @@ from fleet.core.params import Avoidance, RobotProfile, SafetyConfig, Tolerance
 from fleet.core.planner import Plan, PlannerConfig, PlanningSnapshot, TaskDecision
 from fleet.core.planner.assign import pair_queued
 from fleet.core.planner.rollout import STANDING_DELAY
-from fleet.core.simulate import BatchProblem, batch_safety, obstacle_columns, simulate
+from fleet.core.simulate import BatchProblem, batch_filter, obstacle_columns, simulate
 from fleet.core.tasks import DEFAULT_GAINS, RobotStatus, Task, TaskRequest
 from fleet.core.types import Law, Posture
 from fleet.core.wire import CancelAssignment, ParkAssignment, Pose, RobotMode, RobotState
@@ -123,7 +123,6 @@ class OfflineFleet:
         self.ids = scenario.robot_ids
         self._index = {rid: i for i, rid in enumerate(self.ids)}
         self.pose = np.array(scenario.starts, dtype=np.float64).reshape(-1, 3)
-        self.speed = np.zeros(self.pose.shape[0])  # [m/s] each robot's speed of the spreads
         self.t = 0.0
         self._ticks = 0  # control ticks simulated: the robots' state seq
         self._chunks = [self._chunk(np.array([0.0]), self.pose[None], self._modes()[None])]
@@ -330,9 +329,8 @@ class OfflineFleet:
             peer_radius=self.settings.avoidance.peer_radius,
             min_x_oa=self.settings.avoidance.min_x_oa,
             smoothing=self.settings.avoidance.smoothing_m,
-            **batch_safety(self.settings.safety),
+            safety=batch_filter(self.settings.safety),
             start_delay=delay,
-            start_speed=self.speed,
         )
         result = simulate(problem, dt=self.dt, max_time=duration, record=True)
         assert result.trajectory is not None
@@ -355,8 +353,6 @@ class OfflineFleet:
             poses = np.repeat(result.final_pose[None], steps, axis=0)
         self._chunks.append(self._chunk(ticks, poses, modes))
         self.pose = result.final_pose.copy()
-        if result.final_speed is not None:
-            self.speed = result.final_speed.copy()
         self._ticks += steps
         self.t += steps * self.dt
         self.observe(arrived)

@@ -30,8 +30,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fleet.core.params import UNLIMITED, Avoidance, RobotProfile, SafetyConfig, Tolerance
-from fleet.core.simulate import PAPER_DT, BatchProblem, SimResult, batch_safety, simulate
-from fleet.core.step import FIXED_SPREADS, SAFETY_OFF, Safety, SpreadLine
+from fleet.core.simulate import PAPER_DT, BatchProblem, SimResult, batch_filter, simulate
+from fleet.core.step import SAFETY_OFF, Safety
 from fleet.core.types import LAWS, GainTriple, Law, Posture
 
 #: Robot counts of the independent scene.
@@ -81,7 +81,6 @@ class RandomFleet:
     profile: RobotProfile = UNLIMITED
     avoidance: Avoidance | None = None
     safety: Safety = SAFETY_OFF
-    spreads: SpreadLine = FIXED_SPREADS
 
     def problem(self) -> BatchProblem:
         avoid = self.avoidance or Avoidance(k_avoid=0.0)
@@ -97,7 +96,6 @@ class RandomFleet:
             min_x_oa=avoid.min_x_oa,
             smoothing=avoid.smoothing_m,
             safety=self.safety,
-            spreads=self.spreads,
         )
 
 
@@ -278,7 +276,7 @@ def run_sim_bench(
     peer_loop = loop_rate(peers, peer_loop_steps, repeats)
     batch = batch_rate(peers, peer_steps, repeats)
     rows.append(_row("peers", peer_robots, peer_steps, batch, peer_loop))
-    filtered = replace(peers, **batch_safety(SafetyConfig()))
+    filtered = replace(peers, safety=batch_filter(SafetyConfig()))
     batch = batch_rate(filtered, peer_steps, repeats)
     rows.append(_row("peers+filter", peer_robots, peer_steps, batch, peer_loop))
     return BenchReport(rows, repeats)

@@ -140,22 +140,10 @@ class SafetyConfig(BaseModel):
         return self.pose_error_m + self.reach(speed, self.max_latency_s)
 
     def batch_spread(self) -> float:
-        """The own spread [m] of a standing robot in the batch simulator (the planner's
-        rollouts): :meth:`own_spread` at speed 0 (it grows with speed as
-        :meth:`spread_line` says)."""
-        return self.own_spread(0.0)
-
-    def spread_line(self) -> tuple[float, float, float, float]:
-        """How the batch's spreads grow with a robot's speed [m/s], so that its filter
-        keeps the room an agent's does (``fleet.core.step.SpreadLine``): own spread
-        :meth:`own_spread` (``max_latency_s`` [s] per m/s); as a peer, :meth:`peer_spread`
-        of a peer just heard (``link_delay_s + max_latency_s`` [s] per m/s, and the extra
-        [m] a standing peer has over a standing robot's own spread); the speed falls at
-        most ``max_accel_m_s2`` (the agent's bound on its commands in flight). The batch
-        has no latency or link of its own; it takes the agents' bounds, as they do."""
-        seconds = self.link_delay_s + self.max_latency_s
-        extra = self.peer_spread(0.0, 0.0) - self.own_spread(0.0)
-        return (self.max_latency_s, extra, seconds, self.max_accel_m_s2)
+        """The spread [m] the batch simulator (the planner's rollouts) gives every robot: a
+        standing robot's pose error and what it may start to do within latency and link
+        delay (the batch has no command latency of its own)."""
+        return self.pose_error_m + self.reach(0.0, self.link_delay_s + self.max_latency_s)
 
     def peer_spread(self, speed: float, silent_s: float) -> float:
         """A peer's uncertainty [m] around its measured pose (reported ``speed`` [m/s],

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import NamedTuple
 
 from fleet.core.types import GainTriple, Law, Posture
@@ -425,7 +425,6 @@ def simulate_loop(
     safety: Safety | None = None,
     latency_steps: int = 0,
     clearances: list[float] | None = None,
-    spreads: tuple[float, float, float, float] = (0.0, 0.0, 0.0, math.inf),
 ) -> list[RobotRun]:
     """Simulate N robots step by step until each is done or ``max_time`` [s] has passed.
 
@@ -444,8 +443,7 @@ def simulate_loop(
     speed when the projection is at most the half axle); a done robot's commands in flight
     still act. ``clearances`` (if given) receives, after every step, the smallest body
     clearance [m] of any pair (centre distance - both radii) and of any robot to an
-    obstacle's body. ``spreads`` (own s, peer extra m, peer s, fall m/s^2): the spreads
-    grow with each robot's speed, as the batch's (``fleet.core.step.SpreadLine``).
+    obstacle's body.
     """
     if not len(starts) == len(goals) == len(gains) == len(laws):
         raise ValueError("starts, goals, gains and laws must have the same length")
@@ -458,8 +456,6 @@ def simulate_loop(
     spread = top_speed * latency_steps * dt if latency_steps else 0.0
     if safety is not None:
         spread += safety.spread  # as the batch: every robot's own spread is its peers' too
-    own_s, peer_extra, peer_s, fall = spreads
-    speed = [0.0] * n
     poses = list(starts)
     in_flight: list[list[tuple[float, float]]] = [[(0.0, 0.0)] * latency_steps for _ in range(n)]
     done_at: list[int | None] = [None] * n
@@ -471,26 +467,18 @@ def simulate_loop(
         ):
             break
         following = list(poses)
-        applied = [0.0] * n
         for i in range(n):
             decided = (0.0, 0.0)
             if done_at[i] is None:
                 peers = (
-                    [
-                        Body(*p, radius, spread + peer_extra + peer_s * speed[j])
-                        for j, p in enumerate(poses)
-                        if j != i
-                    ]
+                    [Body(*p, radius, spread) for j, p in enumerate(poses) if j != i]
                     if avoidance
                     else []
                 )
-                own = None
-                if safety is not None:
-                    own = replace(safety, spread=safety.spread + own_s * speed[i])
                 result = step(
                     predict(poses[i], in_flight[i], dt), goals[i], gains[i], laws[i] == "cw",
                     dt, limit, avoidance=avoidance, peers=peers, obstacles=obstacles,
-                    hold=k * dt < delays[i], safety=own,
+                    hold=k * dt < delays[i], safety=safety,
                 )  # fmt: skip
                 decided = (result.u, result.omega)
                 if within_tolerance(result.error, tol_position, tol_heading):
@@ -498,7 +486,6 @@ def simulate_loop(
             queue = in_flight[i]
             queue.append(decided)
             u, omega = queue.pop(0)
-            applied[i] = abs(u)
             distance[i] += abs(u) * dt
             effort[i] += (abs(omega) + abs(u)) * dt  # Eq. (25)
             x, y, theta = poses[i]
@@ -508,7 +495,6 @@ def simulate_loop(
                 theta + omega * dt,
             )
         poses = following
-        speed = [max(applied[i], speed[i] - fall * dt) for i in range(n)]
         if clearances is not None:
             clearances.append(_smallest_clearance(poses, radius, obstacles))
     return [

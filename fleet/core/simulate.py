@@ -37,14 +37,12 @@ from fleet.core.route import route_table
 from fleet.core.step import (
     DISTANCE,
     EFFORT,
-    FIXED_SPREADS,
     OBSTACLE_ROWS,
     RECORD_COLUMNS,
     SAFETY_OFF,
     Interaction,
     Safety,
     Schedule,
-    SpreadLine,
     advance_batch,
     lower_min_separation,
     robot_params,
@@ -59,20 +57,10 @@ DELAY_EPS = 1e-6
 RECORD_CHUNK_ROWS = 256
 
 
-class BatchSafety(TypedDict):
-    """The safety arguments of :meth:`BatchProblem.build` (:func:`batch_safety`)."""
-
-    safety: Safety
-    spreads: SpreadLine
-
-
-def batch_safety(config: SafetyConfig) -> BatchSafety:
-    """The safety filter the batch runs for robots configured with ``config``: a standing
-    robot's own spread (:meth:`SafetyConfig.batch_spread`), and spreads that grow with each
-    robot's speed as the agents' do (:meth:`SafetyConfig.spread_line`; fixed when the filter
-    is off)."""
-    spreads = SpreadLine(*config.spread_line()) if config.enabled else FIXED_SPREADS
-    return BatchSafety(safety=Safety(*config.filter_terms(config.batch_spread())), spreads=spreads)
+def batch_filter(config: SafetyConfig) -> Safety:
+    """The safety filter the batch runs for robots configured with ``config``: every robot
+    with :meth:`SafetyConfig.batch_spread` (the batch has no command latency or link)."""
+    return Safety(*config.filter_terms(config.batch_spread()))
 
 
 class ObstacleColumns(TypedDict):
@@ -136,11 +124,6 @@ class BatchProblem:
     body_radius: FloatArray | None = None
     #: The safety filter (:class:`fleet.core.step.Safety`); off: the paper's model.
     safety: Safety = SAFETY_OFF
-    #: How each robot's spreads grow with its speed (:class:`fleet.core.step.SpreadLine`).
-    spreads: SpreadLine = FIXED_SPREADS
-    #: (N,) [m/s] each robot's speed S of the spreads at the start (a run continued from
-    #: another's ``final_speed``); None: all standing.
-    start_speed: FloatArray | None = None
     #: (``ROUTE_ROWS``, M) every robot's route table (its via-points, then its goal;
     #: :mod:`fleet.core.step`), robot i's in columns ``route_first[i] .. route_last[i]``
     #: (-1: no route, the robot aims at its goal). None: no robot has a route.
@@ -201,8 +184,6 @@ class BatchProblem:
         routes: Sequence[npt.ArrayLike | None] | None = None,
         pass_radius: npt.ArrayLike = DEFAULT_PASS_M,
         smoothing: float = 0.0,
-        spreads: SpreadLine = FIXED_SPREADS,
-        start_speed: npt.ArrayLike | None = None,
     ) -> BatchProblem:
         """Broadcast per-robot inputs (scalars, models or arrays) to an N-robot problem.
 
@@ -210,8 +191,6 @@ class BatchProblem:
         (:mod:`fleet.core.route`); None or no rows: straight to the goal.
         ``pass_radius`` [m]: the via-points' pass-through radius, at least the position
         tolerance. ``smoothing`` [m]: Eq. (27)'s smoothed bands (``Avoidance.smoothing_m``).
-        ``safety`` and ``spreads``: the filter (:func:`batch_safety`); ``start_speed``
-        [m/s]: each robot's speed of the spreads at the start (None: standing).
         """
         start_arr = np.atleast_2d(np.asarray(start, dtype=np.float64))
         n = start_arr.shape[0]
@@ -264,8 +243,6 @@ class BatchProblem:
             start_delay=None if start_delay is None else _column(start_delay, n, "start_delay"),
             body_radius=_column([p.radius for p in profs], n, "body_radius"),
             safety=safety,
-            spreads=spreads,
-            start_speed=None if start_speed is None else _column(start_speed, n, "start_speed"),
             route=None if table is None else table[0],
             route_first=None if table is None else table[1],
             route_last=None if table is None else table[2],
@@ -333,9 +310,6 @@ class SimResult:
     #: (N,) how many of its via-points each robot passed (None: no robot had a route); a
     #: run continued from ``final_pose`` goes on with the rest of each route
     passed: IntArray | None = None
-    #: (N,) [m/s] each robot's speed S of the spreads at the end (a continued run's
-    #: ``start_speed``); None: zeros
-    final_speed: FloatArray | None = None
 
     @property
     def min_separation(self) -> float:
@@ -398,9 +372,8 @@ def simulate(
             np.vstack([problem.obstacles.T, influence[None, :], body[None, :], end.T])
         )
     interaction = Interaction(
-        g, problem.k_avoid, problem.peer_radius, problem.min_x_oa, problem.safety, problem.spreads
+        g, problem.k_avoid, problem.peer_radius, problem.min_x_oa, problem.safety
     )
-    speed = np.zeros(n) if problem.start_speed is None else problem.start_speed.astype(np.float64)
     min_pair_sq = np.full((blocks, g, g), np.inf) if track_separation else None
     recorded: list[FloatArray] = []
 
@@ -416,7 +389,7 @@ def simulate(
             buffer = np.empty((rows, n, RECORD_COLUMNS))
         taken = advance_batch(
             pose, params, done_step, metrics, obstacles, interaction,
-            Schedule(dt, step, steps, record_every), buffer, min_pair_sq, route, leg, speed,
+            Schedule(dt, step, steps, record_every), buffer, min_pair_sq, route, leg,
         )  # fmt: skip
         if buffer is not None:  # rows after the last robot was done are not part of the run
             recorded.append(buffer[: _recorded_steps(step, step + taken, record_every)])
@@ -452,5 +425,4 @@ def simulate(
         min_pair_distance=min_pair_full,
         trajectory=trajectory,
         passed=None if problem.route is None else np.where(leg >= 0, leg - problem.legs(), 0),
-        final_speed=speed,
     )

@@ -934,39 +934,20 @@ def robot_params(
 
 
 # -- N robots, many steps ---------------------------------------------------------------------
-class SpreadLine(NamedTuple):
-    """How a batch robot's spreads grow with its speed, as an agent's do with the speed of
-    its commands in flight: S, the robot's |u| [m/s] of the previous step, or, while it
-    slows down, S - ``fall_m_s2`` dt (the agent's bound on the commands in flight falls at
-    most that fast). Its own spread is ``Safety.spread`` + ``own_s`` S, and as a peer it
-    has ``Safety.spread`` + ``peer_extra_m`` + ``peer_s`` S [m]
-    (:meth:`fleet.core.params.SafetyConfig.spread_line`)."""
-
-    own_s: float = 0.0
-    peer_extra_m: float = 0.0
-    peer_s: float = 0.0
-    fall_m_s2: float = math.inf
-
-
-#: Spreads that do not grow with speed: every robot's own and as a peer ``Safety.spread``.
-FIXED_SPREADS = SpreadLine(0.0, 0.0, 0.0, math.inf)
-
-
 class Interaction(NamedTuple):
     """How the robots of a batch act on each other: within blocks of ``group`` consecutive
     robots, through Eq. (27) with K_avoid [m^2/s] inside ``peer_radius`` [m] (x_OA guard
     ``min_x_oa`` [m]) and the safety filter; Eq. (27) not at all unless K_avoid > 0 and
     ``peer_radius`` > 0. K_avoid and ``min_x_oa`` act on static obstacles too. ``safety``:
-    the filter (:class:`Safety`), which acts on static bodies whenever it is on, and among
-    the robots of a group when ``peer_radius`` > 0 (0: independent robots); its
-    ``spread`` grows with each robot's speed as ``spreads`` says (:class:`SpreadLine`)."""
+    the filter (:class:`Safety`; its ``spread`` is every peer's too), which acts on static
+    bodies whenever it is on, and among the robots of a group when ``peer_radius`` > 0
+    (0: independent robots)."""
 
     group: int
     k_avoid: float
     peer_radius: float
     min_x_oa: float
     safety: tuple[float, float, float, float, float] = SAFETY_OFF
-    spreads: tuple[float, float, float, float] = FIXED_SPREADS
 
 
 @njit("boolean(int64, float64, float64, float64)", cache=True, error_model="numpy")
@@ -1017,19 +998,16 @@ def _advance_robot(
     row: int,
     route: FloatArray,
     leg: np.ndarray,
-    speed_next: FloatArray,
 ) -> int:
     """Robot i's step ``step`` (time ``t`` = step dt [s]) from ``current`` into
     ``following`` (both (3, N)), with peers ``peer_lo .. peer_hi - 1``; returns 1 if the
     stop rule fired. ``row`` >= 0 records the step in that row of ``record``. A robot with
     a route (``leg[i]`` >= 0, its entry in ``route``) first passes the via-points it is
-    within the pass-through radius of and aims at the next entry (:func:`aim`). The
-    robot's |u| [m/s] goes into ``speed_next[i]``."""
+    within the pass-through radius of and aims at the next entry (:func:`aim`)."""
     x, y, theta = current[0, i], current[1, i], current[2, i]
     moving = done_step[i] < 0
     if not moving and row < 0:  # done: stands still (still a peer of the others)
         following[0, i], following[1, i], following[2, i] = x, y, theta
-        speed_next[i] = 0.0
         return 0
     if moving and leg[i] >= 0:
         leg[i] = _aim(x, y, theta, params, i, route, leg[i], obstacles)
@@ -1042,7 +1020,6 @@ def _advance_robot(
     u = omega = 0.0
     if moving:
         u, omega = r[4], r[5]
-        speed_next[i] = abs(u)
         metrics[EFFORT, i] += (abs(omega) + abs(u)) * dt  # Eq. (25)
         metrics[DISTANCE, i] += abs(u) * dt
         following[0, i], following[1, i], following[2, i] = r[10], r[11], r[12]
@@ -1050,7 +1027,6 @@ def _advance_robot(
             done_step[i] = step
             finished = 1
     else:
-        speed_next[i] = 0.0
         following[0, i], following[1, i], following[2, i] = x, y, theta
     if row >= 0:
         record[row, i, 0], record[row, i, 1], record[row, i, 2] = x, y, theta
@@ -1094,23 +1070,19 @@ def advance_chunk(
     min_pair_sq: FloatArray,
     route: FloatArray,
     leg: np.ndarray,
-    speed: FloatArray,
 ) -> int:
     """Robots ``lo .. hi - 1`` for up to ``max_steps`` steps from step ``first_step``;
     returns the steps taken until all of them were done (see :func:`advance_batch`).
 
     Once every robot of the chunk is done nothing in it changes any more, so it stops
     there -- unless recording, which goes on to the end of the call (standing rows)."""
-    group, k_avoid, peer_radius, min_x_oa, safety, spreads = interaction
-    margin, ahead, rate, spread, heading = safety
-    own_s, peer_extra, peer_s, fall = spreads
+    group, k_avoid, peer_radius, min_x_oa, safety = interaction
     dt, first_step, max_steps, record_every = schedule
-    peers = interacting(group, k_avoid, peer_radius, margin)
+    peers = interacting(group, k_avoid, peer_radius, safety[0])
     span = group if peers else max(hi - lo, 1)
-    shapes = np.empty((2, pose.shape[1]))  # every peer's body radius and spread
-    speed_next = np.empty(pose.shape[1])
+    shapes = np.empty((2, pose.shape[1]))  # every peer's body radius and the spread
     for i in range(lo, hi):
-        shapes[0, i], shapes[1, i] = params[i, BODY_RADIUS], spread + peer_extra + peer_s * speed[i]
+        shapes[0, i], shapes[1, i] = params[i, BODY_RADIUS], safety[3]
     remaining = 0
     for i in range(lo, hi):
         remaining += 1 if done_step[i] < 0 else 0
@@ -1134,15 +1106,11 @@ def advance_chunk(
             end = min(base + span, hi)
             peer_hi = end if peers else base
             for i in range(base, end):
-                own = (margin, ahead, rate, spread + own_s * speed[i], heading)
                 remaining -= _advance_robot(
                     i, step, t, current, following, params, done_step, metrics, obstacles,
-                    shapes, base, peer_hi, k_avoid, peer_radius, min_x_oa, own, dt,
-                    record, row, route, leg, speed_next,
+                    shapes, base, peer_hi, k_avoid, peer_radius, min_x_oa, safety, dt,
+                    record, row, route, leg,
                 )  # fmt: skip
-        for i in range(lo, hi):  # the speeds the next step's spreads take
-            speed[i] = max(speed_next[i], speed[i] - fall * dt)
-            shapes[1, i] = spread + peer_extra + peer_s * speed[i]
         current, following = following, current
         ran += 1
     if ran % 2 == 1:
@@ -1169,12 +1137,10 @@ def _advance_chunks_in_parallel(chunk: int, n: int, *args: Any) -> int:
         pairs,
         route,
         leg,
-        speed,
     ) = args
     # The threads get scalars and arrays only (parfors take no named tuples).
-    group, k_avoid, peer_radius, min_x_oa, safety, spreads = interaction
+    group, k_avoid, peer_radius, min_x_oa, safety = interaction
     margin, ahead, rate, spread, heading = safety  # scalars: parfors take no tuples
-    own_s, peer_extra, peer_s, fall = spreads
     dt, first_step, max_steps, record_every = schedule
     chunks = (n + chunk - 1) // chunk
     taken = np.zeros(chunks, dtype=np.int64)
@@ -1183,11 +1149,9 @@ def _advance_chunks_in_parallel(chunk: int, n: int, *args: Any) -> int:
             c * chunk, min(n, (c + 1) * chunk), pose, spare, params, done_step, metrics,
             obstacles,
             Interaction(
-                group, k_avoid, peer_radius, min_x_oa, (margin, ahead, rate, spread, heading),
-                (own_s, peer_extra, peer_s, fall),
+                group, k_avoid, peer_radius, min_x_oa, (margin, ahead, rate, spread, heading)
             ),
             Schedule(dt, first_step, max_steps, record_every), record, pairs, route, leg,
-            speed,
         )  # fmt: skip
     most = 0
     for c in range(chunks):
@@ -1207,7 +1171,6 @@ def advance_batch(
     min_pair_sq: FloatArray | None = None,
     route: FloatArray | None = None,
     leg: npt.NDArray[np.int64] | None = None,
-    speed: FloatArray | None = None,
 ) -> int:
     """Advance N robots as ``schedule`` says, stopping when every robot is done; returns the
     steps taken (until the last one was done).
@@ -1220,8 +1183,6 @@ def advance_batch(
     order; ``min_pair_sq`` (blocks, group, group) the smallest pre-step squared separations.
     ``route`` (``ROUTE_ROWS``, M) holds every robot's route table and ``leg`` (N,) the
     entry each robot aims at (-1: no route; updated in place, with its goal columns).
-    ``speed`` (N,) [m/s]: each robot's speed S of :class:`SpreadLine` (updated in place;
-    None: all standing).
 
     Robots are simulated in independent chunks (whole blocks when they interact or
     separations are tracked), each through all its steps; large batches spread the chunks
@@ -1232,14 +1193,13 @@ def advance_batch(
     min_pair_sq = np.zeros((0, 0, 0)) if min_pair_sq is None else min_pair_sq
     route = np.zeros((ROUTE_ROWS, 0)) if route is None else route
     leg = np.full(n, -1, dtype=np.int64) if leg is None else leg
-    speed = np.zeros(n) if speed is None else speed
     group = interaction.group
     peers = interacting(group, interaction.k_avoid, interaction.peer_radius, interaction.safety[0])
     unit = group if peers or min_pair_sq.shape[0] > 0 else 1
     chunk = unit * max(1, CHUNK_ROBOTS // unit)
     spare = np.empty_like(pose)
     args = (pose, spare, params, done_step, metrics, obstacles, interaction, schedule, record,
-            min_pair_sq, route, leg, speed)  # fmt: skip
+            min_pair_sq, route, leg)  # fmt: skip
     if n > chunk and n * (group if peers else 1) >= PARALLEL_MIN_WORK and _threads["usable"]:
         try:
             return int(_advance_chunks_in_parallel(chunk, n, *args))

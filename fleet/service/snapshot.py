@@ -144,7 +144,6 @@ def planning_input(
                 revision=s.revision,
                 age_s=r.age_s * time_scale,
                 profile=r.profile,
-                speed_m_s=abs(s.u),
             )
         )
         origins[s.robot_id] = s.seq + lead_time_s * hz

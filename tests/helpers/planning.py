@@ -17,7 +17,7 @@ import numpy as np
 from fleet.core.params import Tolerance
 from fleet.core.planner import Plan, PlannerConfig, PlanningSnapshot, RobotSnapshot, TaskSnapshot
 from fleet.core.planner.rollout import STANDING_DELAY
-from fleet.core.simulate import BatchProblem, SimResult, batch_safety, obstacle_columns, simulate
+from fleet.core.simulate import BatchProblem, SimResult, batch_filter, obstacle_columns, simulate
 from fleet.core.tasks import DEFAULT_GAINS, Direction, RobotStatus, TaskStatus
 from fleet.core.types import Law, Posture
 
@@ -128,8 +128,7 @@ def replay(snapshot: PlanningSnapshot, result: Plan, max_time: float = 300.0) ->
         min_x_oa=avoid.min_x_oa,
         smoothing=avoid.smoothing_m,
         start_delay=delays,
-        start_speed=[r.speed_m_s for r in snapshot.robots],
-        **batch_safety(snapshot.safety),
+        safety=batch_filter(snapshot.safety),
         routes=routes,
         pass_radius=PlannerConfig().pass_m,
     )
@@ -148,13 +147,9 @@ def moved_on(snapshot: PlanningSnapshot, result: Plan, elapsed: float) -> Planni
         d = decisions[t.task_id]
         pose = tuple(float(v) for v in run.result.final_pose[i])
         status = RobotStatus.WAITING if elapsed < d.start_delay_s else RobotStatus.DRIVING
-        speed = 0.0 if run.result.final_speed is None else float(run.result.final_speed[i])
         robots.append(
-            RobotSnapshot(
-                r.robot_id, (pose[0], pose[1], pose[2]), status, False, t.task_id, d.law,
-                speed_m_s=speed,
-            )
-        )  # fmt: skip
+            RobotSnapshot(r.robot_id, (pose[0], pose[1], pose[2]), status, False, t.task_id, d.law)
+        )
         tasks.append(
             dataclasses.replace(
                 t,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from fleet.core.params import Gains, Tolerance
-from fleet.core.simulate import BatchProblem, batch_safety, simulate
+from fleet.core.simulate import BatchProblem, batch_filter, simulate
 from fleet.core.wire import ParkAssignment, Pose, RobotMode
 from fleet.io.settings import load_settings
 from sim_agent.fleet import SimFleet, Spawn, spawn_layout
@@ -143,7 +143,7 @@ def test_a_lockstep_fleet_among_peers_is_the_batch_simulation_of_the_same_scene(
         peer_radius=avoid.peer_radius,
         min_x_oa=avoid.min_x_oa,
         smoothing=avoid.smoothing_m,
-        **batch_safety(settings.safety),
+        safety=batch_filter(settings.safety),
     )
     batch = simulate(problem, dt=period, max_time=ticks * period, record=True)
     assert batch.trajectory is not None

@@ -61,8 +61,7 @@ class RobotSnapshot:
     ``task_id``/``law``/``revision``: what its last state says it runs.
     ``age_s``: how old ``pose`` is [s, robot time] at the snapshot.
     ``profile``: the robot's own (it described itself); None: the snapshot's ``profile``
-    (the host's, for a robot of an older release). ``speed_m_s``: |u| of its last state
-    [m/s] (the rollouts' spreads grow with it: ``fleet.core.step.SpreadLine``).
+    (the host's, for a robot of an older release).
     """
 
     robot_id: str
@@ -74,7 +73,6 @@ class RobotSnapshot:
     revision: int = 0
     age_s: float = 0.0
     profile: RobotProfile | None = None
-    speed_m_s: float = 0.0
 
 
 @dataclass(frozen=True)

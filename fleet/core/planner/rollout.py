@@ -34,7 +34,7 @@ import numpy as np
 
 from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
 from fleet.core.route import LaneShape
-from fleet.core.simulate import BatchProblem, SimResult, batch_safety, obstacle_columns, simulate
+from fleet.core.simulate import BatchProblem, SimResult, batch_filter, obstacle_columns, simulate
 from fleet.core.types import BoolArray, FloatArray, IntArray
 from fleet.core.wire import DEFAULT_PASS_M, Obstacle
 
@@ -62,9 +62,7 @@ class Rows:
     robot's own profile (wheel radius [m], half axle [m], max wheel speed [rad/s], body
     radius [m]; :func:`limits_of`), a NaN row (or None for all) = the world's profile.
     ``route`` (n entries or None for all): each robot's via-points (m_i, 2) [m]
-    (:mod:`fleet.core.route`), an empty (0, 2) = straight to its goal. ``speed`` (n,)
-    [m/s]: each robot's speed S of the filter's spreads at the start
-    (:class:`fleet.core.step.SpreadLine`; None: all standing).
+    (:mod:`fleet.core.route`), an empty (0, 2) = straight to its goal.
     """
 
     start: FloatArray  # (n, 3)
@@ -75,7 +73,6 @@ class Rows:
     delay: FloatArray  # (n,)
     limits: FloatArray | None = None  # (n, 4); None or NaN rows: the world's profile
     route: tuple[FloatArray, ...] | None = None
-    speed: FloatArray | None = None  # (n,) [m/s]; None: standing
 
     @property
     def size(self) -> int:
@@ -121,13 +118,6 @@ class Rows:
                     [np.full((p.size, 4), np.nan) if p.limits is None else p.limits for p in parts]
                 )
             ),
-            speed=(
-                None
-                if all(p.speed is None for p in parts)
-                else np.concatenate(
-                    [np.zeros(p.size) if p.speed is None else p.speed for p in parts]
-                )
-            ),
         )
 
 
@@ -156,7 +146,6 @@ class Outcome:
     times: FloatArray | None = None
     xy: FloatArray | None = None
     passed: IntArray | None = None  # (n,) via-points each robot passed (None: no routes)
-    final_speed: FloatArray | None = None  # (n,) [m/s] speed S of the spreads at the end
 
 
 @dataclass(frozen=True)
@@ -201,8 +190,7 @@ def problem_of(rows: Rows, world: World, peers: bool = True) -> BatchProblem:
         min_x_oa=avoid.min_x_oa,
         smoothing=avoid.smoothing_m,
         start_delay=rows.delay,
-        start_speed=rows.speed,
-        **batch_safety(world.safety),
+        safety=batch_filter(world.safety),
         routes=None if rows.route is None else list(rows.route),
         pass_radius=world.pass_m,
     )
@@ -312,7 +300,6 @@ def _own(result: SimResult, rows: slice, times: FloatArray | None, dt: float) ->
         times=times,
         xy=xy,
         passed=None if result.passed is None else result.passed[rows].copy(),
-        final_speed=None if result.final_speed is None else result.final_speed[rows].copy(),
     )
 
 
@@ -336,7 +323,6 @@ class Live:
         self.steps = 0
         self.distance = np.zeros(n)
         self.passed = np.zeros(n, dtype=np.int64)  # via-points passed (the routes go on)
-        self.speed = np.zeros(n) if rows.speed is None else rows.speed.copy()  # the spreads'
         self.stopped = n == 0
         self._xy: list[FloatArray] = []
         self._times: list[FloatArray] = []
@@ -360,7 +346,6 @@ class Live:
             delay=np.where(self.done, STANDING_DELAY, np.maximum(r.delay - self.elapsed, 0.0)),
             limits=r.limits,
             route=route,
-            speed=self.speed,
         )
 
     def absorb(self, o: Outcome, dt: float) -> None:
@@ -375,8 +360,6 @@ class Live:
             self._xy.append(o.xy[keep])
             self._times.append(o.times[keep] + self.elapsed)
         self.pose = o.final
-        if o.final_speed is not None:
-            self.speed = o.final_speed
         self.distance += o.distance
         if o.passed is not None:
             self.passed += o.passed

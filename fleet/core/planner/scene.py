@@ -80,7 +80,6 @@ class Movers:
     keep_delay: FloatArray  # (k,) start delay left when the plan arrives [s]
     keep_hold: BoolArray  # (k,) held now
     limits: FloatArray  # (k, 4) each robot's own profile (``Rows.limits``; NaN: the world's)
-    speed: FloatArray  # (k,) [m/s] speed of the spreads when the plan reaches it (``Rows.speed``)
     #: each mover's via-points (m_i, 2) [m] (``Rows.route``; (0, 2): straight to its goal)
     route: tuple[FloatArray, ...] = ()
     #: (k,) movers on the last leg of the route they were sent: their route is empty because
@@ -229,7 +228,6 @@ def build_fleet(
     moving_ids = {r.robot_id for r in owners}
     standing = [r for r in snapshot.robots if r.robot_id not in moving_ids]
     pose0 = np.array([r.pose for r in owners], dtype=np.float64).reshape(k, 3)
-    speed0 = np.array([r.speed_m_s for r in owners], dtype=np.float64)
     kind = np.array(kinds, dtype=np.int64)
     law_now = np.array(
         [
@@ -278,7 +276,6 @@ def build_fleet(
                     delay=np.where(still, STANDING_DELAY, delay_now),
                     limits=limits,
                     route=_standing_still(route, np.arange(k), still),
-                    speed=speed0,
                 ),
                 Rows.standing(standing_xy),
             ]
@@ -286,8 +283,6 @@ def build_fleet(
         (result,) = roll_out([rows], world, dt=snapshot.control_dt, max_time=lead)
         start = result.final[:k].copy()
         start[still] = pose0[still]
-        if result.final_speed is not None:
-            speed0 = np.where(still, speed0, result.final_speed[:k])
         assert result.min_pair is not None
         involved = np.zeros(rows.size, dtype=bool)
         involved[:k] = driving
@@ -302,7 +297,7 @@ def build_fleet(
         """Movers ``idx`` alone on ``routes`` (:func:`_solo`)."""
         return _solo(
             start[idx], goal[idx], gains[idx], tolerance[idx], allowed[idx], world,
-            snapshot.control_dt, config, limits[idx], routes, speed0[idx],
+            snapshot.control_dt, config, limits[idx], routes,
         )  # fmt: skip
 
     everyone = np.arange(k)
@@ -340,7 +335,6 @@ def build_fleet(
         keep_delay=delay_now,
         keep_hold=kind == HELD,
         limits=limits,
-        speed=speed0,
         route=route,
         last_leg=last_leg,
         must_hold=gates.must_hold,
@@ -478,10 +472,8 @@ def _solo(
     config: PlannerConfig,
     limits: FloatArray | None = None,
     route: Sequence[FloatArray] = (),
-    speed: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Each mover alone with each allowed law: arrival times (k, 2) and sampled paths
-    (``speed`` [m/s]: each one's speed of the spreads at the start)."""
+    """Each mover alone with each allowed law: arrival times (k, 2) and sampled paths."""
     k = start.shape[0]
     solo_time = np.full((k, 2), np.inf)
     step = max(dt, config.solo_dt)
@@ -497,7 +489,6 @@ def _solo(
         delay=np.zeros(2 * k),
         limits=None if limits is None else np.repeat(limits, 2, axis=0),
         route=tuple(r for r in route for _ in range(2)) if route else None,
-        speed=None if speed is None else np.repeat(speed, 2),
     )
     (result,) = roll_out(
         [rows], world, dt=step, max_time=config.max_horizon_s, peers=False, record_every=every
@@ -527,7 +518,6 @@ def scene_rows(fleet: Fleet, cluster: Cluster, c: Candidate) -> Rows:
         delay=np.where(c.hold, STANDING_DELAY, c.delay),
         limits=m.limits[idx],
         route=m.routes(idx, c.hold),
-        speed=m.speed[idx],
     )
     still = [fleet.standing_xy[np.asarray(cluster.standing, dtype=np.int64)].reshape(-1, 2)]
     still.append(np.array([p[:2] for p in cluster.phantoms], dtype=np.float64).reshape(-1, 2))

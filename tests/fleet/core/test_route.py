@@ -14,7 +14,7 @@ from pydantic import ValidationError
 from fleet.core import step
 from fleet.core.params import RobotProfile, SafetyConfig
 from fleet.core.route import remaining, route_table
-from fleet.core.simulate import BatchProblem, batch_safety, obstacle_columns, simulate
+from fleet.core.simulate import BatchProblem, batch_filter, obstacle_columns, simulate
 from fleet.core.types import Law, Posture
 from fleet.core.wire import Obstacle, ParkAssignment, parse_assignment
 from robot_agent.logic import AgentTask, apply_assignment, decide, obstacle_arrays
@@ -61,7 +61,7 @@ def batch_run(a: ParkAssignment, steps: int) -> tuple[np.ndarray, bool]:
         [START], [GOAL], a.gains, a.law, a.tolerance, PROFILE, **obstacle_columns([WALL]),
         k_avoid=a.avoidance.k_avoid, min_x_oa=a.avoidance.min_x_oa,
         smoothing=a.avoidance.smoothing_m,
-        **batch_safety(SafetyConfig()), routes=[a.route], pass_radius=a.pass_m,
+        safety=batch_filter(SafetyConfig()), routes=[a.route], pass_radius=a.pass_m,
     )  # fmt: skip
     result = simulate(problem, dt=DT, max_time=steps * DT, record=True)
     assert result.trajectory is not None

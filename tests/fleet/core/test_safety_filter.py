@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from fleet.core import reference as ref
 from fleet.core import step
 from fleet.core.params import Avoidance, RobotProfile, SafetyConfig, Tolerance
-from fleet.core.simulate import BatchProblem, batch_safety, simulate
+from fleet.core.simulate import BatchProblem, batch_filter, simulate
 from fleet.core.tasks import DEFAULT_GAINS
 
 RADIUS = 0.2
@@ -114,23 +114,7 @@ def test_a_silent_peer_s_spread_grows_until_it_is_stale_then_is_a_standing_robot
         assert safety.peer_spread(speed, early) <= safety.peer_spread(speed, late)
         assert safety.peer_spread(speed, late) >= safety.own_spread(0.0)
     if late > safety.peer_stale_s:
-        assert safety.peer_spread(speed, late) == standing
-
-
-@given(speed=st.floats(0.0, 2.0, allow_nan=False))
-def test_the_batch_s_spreads_are_the_agents_at_every_speed(speed: float) -> None:
-    """The planner's rollouts give a robot moving at |u| the own spread an agent deciding
-    on its measured pose has, and as a peer the spread an agent gives a peer just heard."""
-    config = SafetyConfig()
-    batch = batch_safety(config)
-    own_s, peer_extra, peer_s, fall = batch["spreads"]
-    own = batch["safety"].spread + own_s * speed
-    peer = batch["safety"].spread + peer_extra + peer_s * speed
-    assert math.isclose(own, config.own_spread(speed), abs_tol=1e-12)
-    assert math.isclose(peer, config.peer_spread(speed, 0.0), abs_tol=1e-12)
-    assert fall == config.max_accel_m_s2
-    off = batch_safety(config.model_copy(update={"enabled": False}))
-    assert off["safety"].margin < 0 and off["spreads"][:3] == (0.0, 0.0, 0.0)
+        assert safety.peer_spread(speed, late) == standing == safety.batch_spread()
 
 
 half_plane = st.tuples(heading, st.floats(0.0, 1.0, allow_nan=False))
@@ -164,10 +148,7 @@ def test_the_filter_s_command_is_the_closest_feasible_one_in_the_wheels_metric(
 
 def _omega_reversals_beside_a_standing_peer(seed: int) -> int:
     """Reversals of omega (both sides beyond 0.3 rad/s) of a robot driving past a standing
-    peer 0.6-0.9 m away for 3 s: the defaults (Eq. (27) smoothed, the filter on), every
-    spread fixed at a standing peer's (the filter's metric alone: with spreads that grow
-    with the robot's speed, docs/benchmarks.md "The rollouts' spreads")."""
-    config = SafetyConfig()
+    peer 0.6-0.9 m away for 3 s: the defaults (Eq. (27) smoothed, the filter on)."""
     rng = np.random.default_rng(seed)
     law = "cw" if rng.random() < 0.5 else "ccw"
     d, bearing, theta = rng.uniform(0.6, 0.9), rng.uniform(-1, 1), rng.uniform(-math.pi, math.pi)
@@ -179,7 +160,7 @@ def _omega_reversals_beside_a_standing_peer(seed: int) -> int:
         [(0.0, 0.0, theta), peer], [goal, peer], [DEFAULT_GAINS[law]] * 2, [law] * 2,
         Tolerance(position=0.1, heading=0.1), RobotProfile(), k_avoid=a.k_avoid,
         peer_radius=a.peer_radius, min_x_oa=a.min_x_oa, smoothing=a.smoothing_m,
-        start_delay=[0.0, 1e6], safety=step.Safety(*config.filter_terms(config.peer_spread(0, 0))),
+        start_delay=[0.0, 1e6], safety=batch_filter(SafetyConfig()),
     )  # fmt: skip
     result = simulate(problem, dt=0.02, max_time=3.0, record=True)
     assert result.trajectory is not None

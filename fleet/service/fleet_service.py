@@ -85,7 +85,7 @@ from fleet.core.wire import (
     RobotDescription,
     RobotState,
 )
-from fleet.core.zones import ZoneShape, declared
+from fleet.core.zones import Point, ZoneShape, declared
 from fleet.io.settings import Settings
 from fleet.service.bus import FleetBus
 from fleet.service.clock import Clock, SystemClock
@@ -161,7 +161,9 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         )
         site = settings.site  # the site map's obstacles are the initial ones (PUT replaces)
         self._obstacles: list[Obstacle] = [] if site is None else site.static_obstacles()
-        self._ledger.zones.set_zones(self._zone_shapes(self._obstacles))
+        self._ledger.zones.set_zones(
+            self._zone_shapes(self._obstacles), self._zone_bodies(self._obstacles)
+        )
         self._desk = ControlDesk()  # what the operator asked (pause, e-stop), held to
         self._keys_in_flight: dict[str, threading.Event] = {}  # idempotency keys being stored
         self._obstacles_version = 0  # rises with every set_obstacles
@@ -626,11 +628,17 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         zones = self._zone_shapes(msg.obstacles)
         with self._lock:
             self._obstacles = list(msg.obstacles)
-            self._ledger.zones.set_zones(zones)
+            self._ledger.zones.set_zones(zones, self._zone_bodies(msg.obstacles))
             self._obstacles_version += 1
             batch = self._queue([Publish(msg)], self._clock.monotonic())
         self._settle(batch, wait=True)
         self._planner.request("obstacles")
+
+    def _zone_bodies(self, obstacles: list[Obstacle]) -> list[tuple[Point, Point, float]]:
+        """The obstacles' bodies grown by the host profile's radius, for the zone book (a
+        way through one is no path: :mod:`fleet.service.zones`)."""
+        radius = self.settings.profile.radius
+        return [((o.x, o.y), o.far_end, o.body_radius + radius) for o in obstacles]
 
     def _zone_shapes(self, obstacles: list[Obstacle]) -> tuple[ZoneShape, ...]:
         """The fleet's single-robot zones: the site map's, then (``narrow_passages``) the

@@ -13,8 +13,11 @@ passes (:class:`fleet.core.zones.ZonePass`):
 * every state of a robot: a zone it stands in that nobody holds becomes its own (a robot
   that got there without a plan: lost on its way, an older release; it goes no way, so
   nobody may join it); a zone it holds is given back once it stands outside it and the
-  rest of its way does not enter it (:meth:`ZoneBook.observe`); a robot standing in a zone
-  keeps it, whatever its task;
+  rest of its way does not enter it (:meth:`ZoneBook.observe`) -- unless that way is no
+  path: a leg of it passes through an obstacle's body grown by the robot's radius (the law
+  and Eq. (27) will take the robot round the post, perhaps through the zone: a robot swung
+  wide of a passage's mouth, whose straight line to its goal cuts past a post, keeps the
+  passage); a robot standing in a zone keeps it, whatever its task;
 * a robot removed from the fleet gives back every zone (:meth:`ZoneBook.release_robot`).
 
 Pure and not thread-safe: the task ledger keeps it and the service calls it under its lock.
@@ -22,13 +25,27 @@ Pure and not thread-safe: the task ledger keeps it and the service calls it unde
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
+from fleet.core.geometry import segments_distance
 from fleet.core.zones import Point, ZonePass, ZoneShape, may_join
 
 #: Zone -> the robots holding it, each with its pass (None: it stands in the zone).
 Holders = Mapping[str, Mapping[str, ZonePass | None]]
+#: An obstacle's body as the zone book sees it: the segment (a post: both ends equal) and
+#: its radius [m], the body's grown by the robots' radius.
+Body = tuple[Point, Point, float]
+
+
+def _through_a_body(way: Sequence[Point], bodies: Sequence[Body]) -> bool:
+    """Whether a leg of ``way`` passes through one of ``bodies`` (it is no path)."""
+    return any(
+        segments_distance(a, b, start, end) < radius
+        for a, b in itertools.pairwise(way)
+        for start, end, radius in bodies
+    )
 
 
 @dataclass(frozen=True)
@@ -45,15 +62,18 @@ class ZoneBook:
 
     def __init__(self, shapes: Iterable[ZoneShape] = ()) -> None:
         self._shapes: dict[str, ZoneShape] = {}
+        self._bodies: tuple[Body, ...] = ()
         self._holders: dict[str, dict[str, ZonePass | None]] = {}  # zone -> robot -> pass
         self._held: dict[str, set[str]] = {}  # robot -> zones
         self.set_zones(shapes)
 
     # -- the zones ---------------------------------------------------------------------
 
-    def set_zones(self, shapes: Iterable[ZoneShape]) -> None:
-        """The fleet's zones from now on; holders of zones that are gone are forgotten."""
+    def set_zones(self, shapes: Iterable[ZoneShape], bodies: Iterable[Body] = ()) -> None:
+        """The fleet's zones from now on, and the obstacles' ``bodies`` (each grown by the
+        robots' radius); holders of zones that are gone are forgotten."""
         self._shapes = {z.name: z for z in shapes}
+        self._bodies = tuple(bodies)
         for name in [n for n in self._holders if n not in self._shapes]:
             for robot in list(self._holders[name]):
                 self._drop(name, robot)
@@ -125,7 +145,7 @@ class ZoneBook:
             if way is not None:
                 if rest is None:
                     rest = way()
-                if shape.entered_by(rest):
+                if shape.entered_by(rest) or _through_a_body(rest, self._bodies):
                     continue
             self._drop(name, robot_id)
             changed = True

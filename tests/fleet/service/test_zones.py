@@ -43,6 +43,22 @@ def test_a_robot_takes_a_free_zone_it_stands_in_and_gives_it_back_once_out_and_p
     assert book.release_robot("r2") and book.holding("gate") == ()
 
 
+def test_a_robot_whose_way_runs_through_a_post_keeps_its_zone() -> None:
+    """The law and Eq. (27) may swing a robot wide of a passage's mouth, to where the
+    straight line to its goal passes through a post (case III with four robots: the zone
+    went to a robot coming the other way, and both stood at the mouth for the rest of the
+    run). That line is no path: the robot keeps the zone until its way is clear."""
+    book = ZoneBook()
+    book.set_zones([GATE], [((0.75, 2.5), (0.75, 2.5), 0.3)])
+    book.take("r1", [EAST])
+    goal = (3.0, 3.0)
+    assert not GATE.entered_by([(-1.5, 2.0), goal])  # its straight way misses the zone...
+    assert not book.observe("r1", -1.5, 2.0, lambda: [(-1.5, 2.0), goal])  # ...through a post
+    assert book.holding("gate") == ("r1",) and not book.can_take("r2", [WEST])
+    assert book.observe("r1", 2.0, 1.5, lambda: [(2.0, 1.5), goal])  # a clear way: given back
+    assert book.holding("gate") == ()
+
+
 def test_a_convoy_zone_is_held_by_robots_going_one_way_only() -> None:
     book = ZoneBook([ZoneShape("gate", GATE.outline, convoys=True)])
     assert book.take("r1", [EAST])

@@ -29,7 +29,10 @@ import itertools
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 from fleet.core.geometry import segments_distance
+from fleet.core.types import FloatArray
 from fleet.core.zones import Point, ZonePass, ZoneShape, may_join
 
 #: Zone -> the robots holding it, each with its pass (None: it stands in the zone).
@@ -39,13 +42,34 @@ Holders = Mapping[str, Mapping[str, ZonePass | None]]
 Body = tuple[Point, Point, float]
 
 
-def _through_a_body(way: Sequence[Point], bodies: Sequence[Body]) -> bool:
-    """Whether a leg of ``way`` passes through one of ``bodies`` (it is no path)."""
-    return any(
-        segments_distance(a, b, start, end) < radius
-        for a, b in itertools.pairwise(way)
-        for start, end, radius in bodies
-    )
+def _boxes(bodies: Sequence[Body]) -> FloatArray:
+    """(M, 4) each body's bounding box [m]: min x, min y, max x, max y."""
+    out = np.empty((len(bodies), 4))
+    for k, ((x0, y0), (x1, y1), radius) in enumerate(bodies):
+        out[k] = (
+            min(x0, x1) - radius,
+            min(y0, y1) - radius,
+            max(x0, x1) + radius,
+            max(y0, y1) + radius,
+        )
+    return out
+
+
+def _through_a_body(way: Sequence[Point], bodies: Sequence[Body], boxes: FloatArray) -> bool:
+    """Whether a leg of ``way`` passes through one of ``bodies`` (it is no path); only the
+    bodies whose bounding box (``boxes``, :func:`_boxes`) meets the leg's are measured."""
+    for (ax, ay), (bx, by) in itertools.pairwise(way):
+        near = (
+            (boxes[:, 0] <= max(ax, bx))
+            & (boxes[:, 2] >= min(ax, bx))
+            & (boxes[:, 1] <= max(ay, by))
+            & (boxes[:, 3] >= min(ay, by))
+        )
+        for k in np.flatnonzero(near):
+            start, end, radius = bodies[int(k)]
+            if segments_distance((ax, ay), (bx, by), start, end) < radius:
+                return True
+    return False
 
 
 @dataclass(frozen=True)
@@ -63,6 +87,7 @@ class ZoneBook:
     def __init__(self, shapes: Iterable[ZoneShape] = ()) -> None:
         self._shapes: dict[str, ZoneShape] = {}
         self._bodies: tuple[Body, ...] = ()
+        self._boxes = _boxes(())
         self._holders: dict[str, dict[str, ZonePass | None]] = {}  # zone -> robot -> pass
         self._held: dict[str, set[str]] = {}  # robot -> zones
         self.set_zones(shapes)
@@ -74,6 +99,7 @@ class ZoneBook:
         robots' radius); holders of zones that are gone are forgotten."""
         self._shapes = {z.name: z for z in shapes}
         self._bodies = tuple(bodies)
+        self._boxes = _boxes(self._bodies)
         for name in [n for n in self._holders if n not in self._shapes]:
             for robot in list(self._holders[name]):
                 self._drop(name, robot)
@@ -145,7 +171,7 @@ class ZoneBook:
             if way is not None:
                 if rest is None:
                     rest = way()
-                if shape.entered_by(rest) or _through_a_body(rest, self._bodies):
+                if shape.entered_by(rest) or _through_a_body(rest, self._bodies, self._boxes):
                     continue
             self._drop(name, robot_id)
             changed = True

@@ -37,7 +37,8 @@ def register(commands: Any, bench: Any) -> None:
         help="search gains for a paper case or the yard (differential evolution)",
         description="Searches (kx, ky, ktheta) for one law by scipy's differential evolution, "
         "every generation simulated in one batch. The cost is a weighted sum of mean "
-        "control effort (Eq. 25), distance and time over the target's trips; the robot has "
+        "control effort (Eq. 25), distance, time and turns (the robot's whole rotation, in "
+        "revolutions) over the target's trips; the robot has "
         "the fleet's 20 rad/s wheel limit. CASE is a paper scenario (its start, goal and "
         "tolerance, dt = 0.01 s; the paper's gains are the reference) or 'yard': random "
         "yard trips at the agents' 50 Hz, time first (the service's default gains).",
@@ -48,6 +49,7 @@ def register(commands: Any, bench: Any) -> None:
         ("effort", "(Eq. 25)", CASE_WEIGHTS.effort, YARD_WEIGHTS.effort),
         ("distance", "[1/m]", CASE_WEIGHTS.distance, YARD_WEIGHTS.distance),
         ("time", "[1/s]", CASE_WEIGHTS.time, YARD_WEIGHTS.time),
+        ("turns", "[1/revolution]", CASE_WEIGHTS.turns, YARD_WEIGHTS.turns),
     ):
         p.add_argument(
             f"--w-{name}",
@@ -81,6 +83,7 @@ def _weights(args: argparse.Namespace, default: Weights) -> Weights:
         effort=default.effort if args.w_effort is None else args.w_effort,
         distance=default.distance if args.w_distance is None else args.w_distance,
         time=default.time if args.w_time is None else args.w_time,
+        turns=default.turns if args.w_turns is None else args.w_turns,
     )
 
 
@@ -136,5 +139,6 @@ def run(args: argparse.Namespace) -> int:
 def _scores(label: str, s: dict[str, float]) -> None:
     print(
         f"  {label:<6} effort {s['effort']:.4f}  distance {s['distance']:.4f} m  "
-        f"time {s['time']:.2f} s  arrived {s['done']:.0%}  cost {s['cost']:.4f}"
+        f"time {s['time']:.2f} s  turns {s['turns']:.2f} rev  arrived {s['done']:.0%}  "
+        f"cost {s['cost']:.4f}"
     )

@@ -20,8 +20,13 @@ commands a wheel above the limit. Effort (Eq. 25) and distance are properties of
 so they barely change under that scaling; time does.
 
 Cost of a candidate (smaller is better): the weighted sum of the mean effort (Eq. 25),
-mean distance [m] and mean time [s] over the trips, plus :data:`FAIL_PENALTY` times the
-fraction of trips that miss the tolerance within ``max_time``.
+mean distance [m], mean time [s] and mean turns [revolutions] over the trips, plus
+:data:`FAIL_PENALTY` times the fraction of trips that miss the tolerance within
+``max_time``. *Turns* are the robot's whole rotation on a trip: a law turns one way only
+(omega >= 0 for (17), <= 0 for (20); the wheel limit scales omega, never flips it), so it
+is |theta_end - theta_start| / 2pi of the unwrapped heading. A trip needs less than one;
+with a strong y_e^2 term (the time-first yard gains) the laws spin whole turns on the way
+and drive between them (docs/paper.md), which the turns weight prices.
 """
 
 from __future__ import annotations
@@ -59,14 +64,16 @@ GAIN_RANGE = (0.1, 1000.0)
 
 @dataclass(frozen=True)
 class Weights:
-    """Weights of the cost: effort (Eq. 25), distance [1/m] and time [1/s]."""
+    """Weights of the cost: effort (Eq. 25), distance [1/m], time [1/s] and turns
+    [1/revolution]."""
 
     effort: float = 1.0
     distance: float = 1.0
     time: float = 0.0
+    turns: float = 0.0
 
     def __post_init__(self) -> None:
-        values = (self.effort, self.distance, self.time)
+        values = (self.effort, self.distance, self.time, self.turns)
         if not all(math.isfinite(v) and v >= 0 for v in values) or not any(values):
             raise ValueError("weights must be finite, >= 0 and not all zero")
 
@@ -110,6 +117,7 @@ class Scores:
     time: FloatArray  # [s]; failed trips count max_time
     done: FloatArray  # fraction of trips within tolerance
     cost: FloatArray
+    turns: FloatArray  # [revolutions] the whole rotation of a trip (module docstring)
 
     def row(self, i: int) -> dict[str, float]:
         return {
@@ -118,6 +126,7 @@ class Scores:
             "time": float(self.time[i]),
             "done": float(self.done[i]),
             "cost": float(self.cost[i]),
+            "turns": float(self.turns[i]),
         }
 
 
@@ -252,14 +261,18 @@ def score(target: TuneTarget, gains: npt.ArrayLike) -> Scores:
     distance = result.distance.reshape(s, m).mean(axis=1)
     mean_time = time.mean(axis=1)
     done_rate = done.mean(axis=1)
+    start_heading = np.tile(target.starts[:, 2], s)
+    turned = np.abs(result.final_pose[:, 2] - start_heading) / (2.0 * math.pi)
+    turns = turned.reshape(s, m).mean(axis=1)
     w = target.weights
     cost = (
         w.effort * effort
         + w.distance * distance
         + w.time * mean_time
+        + w.turns * turns
         + FAIL_PENALTY * (1.0 - done_rate)
     )
-    return Scores(effort, distance, mean_time, done_rate, cost)
+    return Scores(effort, distance, mean_time, done_rate, cost, turns)
 
 
 def _concat(parts: list[Scores]) -> Scores:

@@ -187,3 +187,35 @@ def test_cli_rejects_a_negative_weight(capsys: pytest.CaptureFixture[str]) -> No
         main(["tune", "I", "--law", "cw", "--w-time", "-1"])
     assert exc.value.code == 2
     assert "must be >= 0" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("law", ["ccw", "cw"])
+def test_turns_are_each_trips_whole_rotation_in_the_laws_sense(law: str) -> None:
+    target = yard_target(law, trips=6, seed=11)  # type: ignore[arg-type]
+    gains = np.array([[2.0, 100.0, 10.0], [2.0, 3.0, 3.0]])
+    scores = score(target, gains)
+    for i, row in enumerate(gains):
+        run = simulate(
+            BatchProblem.build(
+                target.starts,
+                target.goals,
+                row,
+                law,  # type: ignore[arg-type]
+                tolerance=target.tolerance,
+                profile=target.profile,
+            ),
+            dt=target.dt,
+            max_time=target.max_time,
+            record=True,
+        )
+        assert run.trajectory is not None and run.done.all()
+        omega = run.trajectory.controls[..., 1]
+        assert (omega >= 0.0).all() if law == "ccw" else (omega <= 0.0).all()
+        whole = np.abs(omega).sum(axis=0) * target.dt / (2.0 * math.pi)  # [rev] per trip
+        assert scores.turns[i] == pytest.approx(whole.mean(), rel=1e-9, abs=1e-12)
+        # At least the turn the law's sense needs, less the heading tolerance.
+        need = (target.goals[:, 2] - target.starts[:, 2]) * (1.0 if law == "ccw" else -1.0)
+        least = (np.mod(need, 2.0 * math.pi) - target.tolerance.heading) / (2.0 * math.pi)
+        assert (whole >= least - 1e-9).all()
+    # The strong y_e^2 term spins: the time-first gains turn more than the gentle ones.
+    assert scores.turns[0] > scores.turns[1]

@@ -41,7 +41,8 @@ def register(commands: Any, bench: Any) -> None:
         "revolutions) over the target's trips; the robot has "
         "the fleet's 20 rad/s wheel limit. CASE is a paper scenario (its start, goal and "
         "tolerance, dt = 0.01 s; the paper's gains are the reference) or 'yard': random "
-        "yard trips at the agents' 50 Hz, time first (the service's default gains).",
+        "yard trips at the agents' 50 Hz, time first with every whole turn priced at 2 s "
+        "(the service's default gains).",
     )
     p.add_argument("case", choices=TARGETS, metavar="CASE", help=" | ".join(TARGETS))
     p.add_argument("--law", choices=LAWS, required=True, help="ccw = Eq. (17), cw = Eq. (20)")

@@ -69,15 +69,18 @@ class RobotStatus(StrEnum):
         return cls(mode.value)
 
 
-#: Default gains per law when a task names none, from ``parkfleet tune yard --law ccw|cw``:
-#: typical yard trips (10 m x 10 m, random headings) for the Table 10 robot at its 20 rad/s
-#: wheel limit, 50 Hz, 0.1 m / 0.1 rad, time first; kx capped at Table 1's (the previous
-#: defaults) so Eq. (27)'s standoff between robots is unchanged. On 1000 held-out trips
-#: (mean 5.4 m) they arrive in 9.4 s (ccw) and 10.0 s (cw) on average, against 53 s and
-#: 61 s with Table 1's gains, over 6.4 m and 6.3 m against 12.4 m and 12.0 m (docs/paper.md).
+#: Default gains per law when a task names none, from ``parkfleet tune yard --law ccw|cw
+#: --generations 15 --popsize 8`` (rounded to 3 digits): typical yard trips (10 m x 10 m,
+#: random headings) for the Table 10 robot at its 20 rad/s wheel limit, 50 Hz, 0.1 m /
+#: 0.1 rad, time first with every whole turn priced at 2 s; kx capped at Table 1's so Eq.
+#: (27)'s standoff between robots is unchanged. On 1000 held-out trips (mean 5.4 m) they
+#: arrive in 9.6 s (ccw) and 10.3 s (cw) on average, turning 1.6 and 1.5 revolutions a
+#: trip; the time-first gains before them (2.6, 72.4, 9.56) and (2.1, 129, 12.2) took 9.4 s
+#: and 10.0 s but spun 1.9 and 2.9 revolutions, and a fleet of them stopped and turned
+#: (docs/paper.md).
 DEFAULT_GAINS: dict[Law, Gains] = {
-    "ccw": Gains(kx=2.6, ky=72.4, ktheta=9.56),
-    "cw": Gains(kx=2.1, ky=129.0, ktheta=12.2),
+    "ccw": Gains(kx=2.59, ky=11.4, ktheta=10.0),
+    "cw": Gains(kx=2.06, ky=3.78, ktheta=8.72),
 }
 
 

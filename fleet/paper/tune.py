@@ -11,7 +11,8 @@ A *target* is what a candidate is scored on:
   tolerance at the paper's dt = 0.01 s;
 * ``yard``: random start/goal postures of typical yard trips (:func:`yard_trips`, the
   fleet benchmark's 10 m x 10 m yard, random headings), the fleet's tolerance
-  (0.1 m / 0.1 rad) at the agents' control period dt = 0.02 s, *time first*.
+  (0.1 m / 0.1 rad) at the agents' control period dt = 0.02 s, *time first*, every whole
+  turn (revolution) priced at 2 s.
 
 Every target drives the robot of :class:`~fleet.core.params.RobotProfile` (Table 10
 geometry, 20 rad/s wheels): the wheel limit is enforced the way the robots enforce it,
@@ -81,8 +82,10 @@ class Weights:
 #: Per-case default: the paper's own criteria ("short traveled distance and low control
 #: effort", Section 4), time as a tie-break.
 CASE_WEIGHTS = Weights(effort=1.0, distance=1.0, time=0.01)
-#: Yard default: time first, distance as a tie-break.
-YARD_WEIGHTS = Weights(effort=0.0, distance=0.05, time=1.0)
+#: Yard default: time first, every whole turn priced at 2 s (the laws spin whole turns on
+#: the way with a strong y_e^2 term; a fleet of such robots stops and turns), distance as
+#: a tie-break.
+YARD_WEIGHTS = Weights(effort=0.0, distance=0.05, time=1.0, turns=2.0)
 
 
 @dataclass(frozen=True)

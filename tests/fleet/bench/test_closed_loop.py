@@ -49,11 +49,12 @@ def test_decisions_the_ledger_refuses_move_no_robot() -> None:
 
 
 def test_a_fixed_law_that_blocks_fails_with_the_limit_as_makespan_and_no_path_ratio() -> None:
-    """ccw on a right-hand swap of 8: the robots jam at the centre and never park (the
-    bench's own case where a simple rule breaks; up to 6 robots the safety filter's
-    braking and sideways aim now get a fixed law through); the planner gets them home."""
+    """cw on a right-hand swap of 8: the robots jam at the centre and never park (the
+    bench's own case where a simple rule breaks; with the default gains ccw gets through
+    here, and up to 6 robots the safety filter's braking and sideways aim get either
+    fixed law through); the planner gets them home."""
     scenario = swap(8, "right")
-    blocked = run_closed_loop(scenario, "ccw", time_limit_s=60.0)
+    blocked = run_closed_loop(scenario, "cw", time_limit_s=60.0)
     assert blocked.success_rate == 0.0
     assert blocked.makespan_s == 60.0
     assert math.isnan(blocked.path_ratio)  # over tasks that arrived: none did

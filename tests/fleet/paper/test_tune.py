@@ -47,6 +47,7 @@ def test_score_is_one_batch_of_candidates_times_trips() -> None:
             max_time=target.max_time,
         )
         times = np.where(alone.done, alone.time, target.max_time)
+        turns = np.abs(alone.final_pose[:, 2] - target.starts[:, 2]) / (2.0 * math.pi)
         assert scores.distance[i] == pytest.approx(alone.distance.mean())
         assert scores.effort[i] == pytest.approx(alone.control_effort.mean())
         assert scores.time[i] == pytest.approx(times.mean())
@@ -55,6 +56,7 @@ def test_score_is_one_batch_of_candidates_times_trips() -> None:
             w.effort * alone.control_effort.mean()
             + w.distance * alone.distance.mean()
             + w.time * times.mean()
+            + w.turns * turns.mean()
             + FAIL_PENALTY * (1.0 - alone.done.mean())
         )
         assert scores.cost[i] == pytest.approx(expected)

@@ -49,25 +49,28 @@ CROSSING = dict(
     starts=[(-4.0, 0.0, 0.0), (0.0, -4.0, math.pi / 2)],
     goals=[(4.0, 0.0, 0.0), (0.0, 4.0, math.pi / 2)],
 )
+#: [m] what the crossing keeps: more than the default gains' cw laws keep there (0.97 m)
+CROSSING_SEPARATION = 1.2
 
 
 def test_a_robot_waits_for_a_peer_to_pass_when_it_must() -> None:
     """Two robots crossing at right angles reach the middle together; with fixed laws and
-    0.9 m to keep, the repulsion alone cannot keep them apart: one must wait."""
-    snapshot = scene(**CROSSING, separation=0.9, direction="cw")  # type: ignore[arg-type]
+    1.2 m to keep, the repulsion alone cannot keep them apart: one must wait."""
+    sep = CROSSING_SEPARATION
+    snapshot = scene(**CROSSING, separation=sep, direction="cw")  # type: ignore[arg-type]
     both_go = Plan(
         1,
         tuple(TaskDecision(f"t{i}", f"r{i}", "assign", "cw") for i in range(2)),  # no waiting
         True,
         0.0,
     )
-    assert replay(snapshot, both_go).worst_shortfall(0.9) > 0  # so waiting is needed
+    assert replay(snapshot, both_go).worst_shortfall(sep) > 0  # so waiting is needed
     result = plan(snapshot)
     assert result.safe and result.waiting == 0
     waits = [d for d in result.decisions if d.start_delay_s > 0]
     assert len(waits) == 1 and not waits[0].hold
     run = replay(snapshot, result)
-    assert run.worst_shortfall(0.9) <= 0 and run.result.done.all()
+    assert run.worst_shortfall(sep) <= 0 and run.result.done.all()
 
 
 def test_when_no_option_is_safe_the_new_robots_hold_with_the_reason() -> None:
@@ -133,9 +136,9 @@ def test_robots_under_way_that_are_safe_are_kept_with_a_fresh_corridor() -> None
 
 
 def test_a_robot_under_way_on_a_collision_course_is_revised() -> None:
-    """Both robots already drive at each other with laws that do not keep 0.9 m: the plan
+    """Both robots already drive at each other with laws that do not keep 1.2 m: the plan
     changes at least one (flip, wait or hold) as a new revision, and is safe."""
-    snapshot = scene(**CROSSING, separation=0.9)  # type: ignore[arg-type]
+    snapshot = scene(**CROSSING, separation=CROSSING_SEPARATION)  # type: ignore[arg-type]
     driving = tuple(
         dataclasses.replace(t, status=TaskStatus.DRIVING, robot_id=f"r{i}", law="cw", revision=3)
         for i, t in enumerate(snapshot.tasks)
@@ -148,7 +151,7 @@ def test_a_robot_under_way_on_a_collision_course_is_revised() -> None:
     result = plan(moving)
     revised = [d for d in result.decisions if d.action == "revise"]
     assert revised and all(d.revision == 3 for d in revised)
-    assert replay(moving, result).worst_shortfall(0.9) <= 0
+    assert replay(moving, result).worst_shortfall(CROSSING_SEPARATION) <= 0
 
 
 def test_a_lost_robot_far_away_is_not_part_of_the_plan() -> None:
@@ -326,13 +329,13 @@ def test_a_robot_past_its_last_via_point_is_predicted_straight_to_its_goal() -> 
     first = plan(snapshot)
     (d0,) = first.decisions
     run = replay(snapshot, first)
-    later = moved_on(snapshot, first, 0.75 * float(run.result.time[0]))
+    later = moved_on(snapshot, first, 0.9 * float(run.result.time[0]))
     x, y, _ = later.robots[0].pose
     assert x > d0.route[-1][0] and math.dist((x, y), (3.0, 0.0)) < 1.0  # past the pre-bay point
     (d,) = plan(later).decisions
     assert d.route == () and d.last_leg and d.action == "keep"
     assert d.predicted_arrival_s is not None
-    assert 0.75 * float(run.result.time[0]) + d.predicted_arrival_s == pytest.approx(
+    assert 0.9 * float(run.result.time[0]) + d.predicted_arrival_s == pytest.approx(
         float(run.result.time[0]), abs=0.1
     )
 

@@ -14,11 +14,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fleet.core.params import RobotProfile
-from fleet.core.simulate import BatchProblem, simulate
+from fleet.core.simulate import BatchProblem, SimResult, simulate
+from fleet.core.types import FloatArray
 from fleet.paper.scenarios import SCENARIOS
 from fleet.paper.tune import (
     FAIL_PENALTY,
     YARD_MAX_KX,
+    TuneTarget,
     Weights,
     case_target,
     pareto_front,
@@ -29,23 +31,25 @@ from fleet.paper.tune import (
 )
 
 
+def _run_alone(target: TuneTarget, gains: FloatArray, record: bool = False) -> SimResult:
+    """The target's trips under one gain triple, simulated on their own (not via score)."""
+    problem = BatchProblem.build(
+        target.starts,
+        target.goals,
+        gains,
+        target.law,
+        tolerance=target.tolerance,
+        profile=target.profile,
+    )
+    return simulate(problem, dt=target.dt, max_time=target.max_time, record=record)
+
+
 def test_score_is_one_batch_of_candidates_times_trips() -> None:
     target = yard_target("ccw", trips=3, seed=5)
     gains = np.array([[1.0, 2.0, 1.5], [2.0, 20.0, 5.0]])
     scores = score(target, gains)
     for i, row in enumerate(gains):
-        alone = simulate(
-            BatchProblem.build(
-                target.starts,
-                target.goals,
-                row,
-                "ccw",
-                tolerance=target.tolerance,
-                profile=target.profile,
-            ),
-            dt=target.dt,
-            max_time=target.max_time,
-        )
+        alone = _run_alone(target, row)
         times = np.where(alone.done, alone.time, target.max_time)
         turns = np.abs(alone.final_pose[:, 2] - target.starts[:, 2]) / (2.0 * math.pi)
         assert scores.distance[i] == pytest.approx(alone.distance.mean())
@@ -197,19 +201,7 @@ def test_turns_are_each_trips_whole_rotation_in_the_laws_sense(law: str) -> None
     gains = np.array([[2.0, 100.0, 10.0], [2.0, 3.0, 3.0]])
     scores = score(target, gains)
     for i, row in enumerate(gains):
-        run = simulate(
-            BatchProblem.build(
-                target.starts,
-                target.goals,
-                row,
-                law,  # type: ignore[arg-type]
-                tolerance=target.tolerance,
-                profile=target.profile,
-            ),
-            dt=target.dt,
-            max_time=target.max_time,
-            record=True,
-        )
+        run = _run_alone(target, row, record=True)
         assert run.trajectory is not None and run.done.all()
         omega = run.trajectory.controls[..., 1]
         assert (omega >= 0.0).all() if law == "ccw" else (omega <= 0.0).all()

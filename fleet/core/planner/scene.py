@@ -47,7 +47,7 @@ from fleet.core.planner.rollout import (
 from fleet.core.route import remaining
 from fleet.core.tasks import RobotStatus, TaskStatus
 from fleet.core.types import LAWS, BoolArray, FloatArray, IntArray, Law
-from fleet.core.wire import MAX_ROUTE_POINTS
+from fleet.core.wire import MAX_ROUTE_POINTS, Obstacle
 
 #: [m] beyond the separation: a solo path this near another mover's goal is blocked once
 #: that mover parks there (see ``Fleet.blocks``).
@@ -256,8 +256,9 @@ def build_fleet(
         config.pass_m, snapshot.lanes,
     )  # fmt: skip
     route, last_leg = _routes(
-        pose0, goal, limits, world, config, [t.route for t in tasks], [t.own_way for t in tasks]
-    )
+        pose0, goal, limits, world, config, [t.route for t in tasks], [t.own_way for t in tasks],
+        standing_xy,
+    )  # fmt: skip
 
     # Lead-in: robots under way go on as they are; new and held robots stand.
     driving = kind == UNDER_WAY
@@ -364,6 +365,7 @@ def _routes(
     config: PlannerConfig,
     sent: Sequence[Sequence[tuple[float, float]]],
     own_way: Sequence[bool],
+    standing_xy: FloatArray,
 ) -> tuple[tuple[FloatArray, ...], BoolArray]:
     """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the
     static obstacles: the rest of the route its robot was ``sent`` while its body's straight
@@ -375,7 +377,12 @@ def _routes(
     where the straight way is clear, there are no obstacles, or no route exists (the robot
     then drives straight and its safety filter stops it at the obstacle; the API refuses
     such goals) or a stuck recovery took the mover off its route (``own_way``: the law's
-    own way). Also which movers are on their last leg (``Movers.last_leg``)."""
+    own way). A route whose legs to its via-points pass a robot standing at
+    ``standing_xy`` (s, 2) [m] closer than two bodies and the contact margin (an idle robot
+    on a lane, beside a pre-bay point) or within a peer's influence radius of a via-point
+    goes round it (:func:`_round_standing`): the robot could never reach that via-point.
+    Also which movers are on their last leg
+    (``Movers.last_leg``)."""
     k = pose.shape[0]
     last_leg = np.zeros(k, dtype=bool)
     if not world.obstacles or k == 0:
@@ -386,6 +393,8 @@ def _routes(
     radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
     clearance = config.route_clearance(float(radii.max()), world.safety.contact_margin_m)
     roadmap = route_graph(world.obstacles, clearance, world.lanes)
+    standing = standing_xy
+    reach = radii + world.profile.radius + world.safety.contact_margin_m  # (k,) [m]
     out = []
     for i in range(k):
         here = (float(pose[i, 0]), float(pose[i, 1]))
@@ -400,15 +409,80 @@ def _routes(
                 last_leg[i] = True
                 continue
             rest = rest if len(rest) else remaining(sent[i], *here)
-            if roadmap.clear(here, (rest[0, 0], rest[0, 1]), float(radii[i])):
+            if roadmap.clear(here, (rest[0, 0], rest[0, 1]), float(radii[i])) and not len(
+                _in_the_way(here, rest, standing, reach[i], world.avoidance.peer_radius)
+            ):
                 out.append(rest)  # still in sight of the next via-point: drive the rest
                 continue
         points = roadmap.route(here, target, config.approach_m)
+        if points:
+            points = _round_standing(
+                points, here, target, standing, reach[i], world, clearance, config
+            )
         # At most what an assignment carries: a longer way is driven as far as that goes,
         # and routed again from there once the robot is out of the next point's sight.
         points = (points or ())[:MAX_ROUTE_POINTS]
         out.append(np.array(points, dtype=np.float64).reshape(-1, 2) if points else NO_ROUTE)
     return tuple(out), last_leg
+
+
+def _in_the_way(
+    here: tuple[float, float], via: FloatArray | Sequence[tuple[float, float]],
+    standing_xy: FloatArray, reach: float, influence: float,
+) -> FloatArray:  # fmt: skip
+    """Rows of ``standing_xy`` (s, 2) [m] a robot at ``here`` cannot drive its via-points
+    ``via`` (m, 2) [m] past: closer than ``reach`` [m] (two bodies and the contact margin)
+    to a leg from ``here`` through them, or within ``influence`` [m] (a peer's Eq. (27)
+    radius) of a via-point -- the robot near its via-point with a peer ahead stalls where
+    the repulsion -K_avoid/x_OA outweighs the law's kx x_e. The leg from the last via-point
+    to the goal is left out: the paper's law drives it, bending round a peer."""
+    if standing_xy.shape[0] == 0:
+        return standing_xy
+    points = np.asarray(via, dtype=np.float64).reshape(-1, 2)
+    ends = np.vstack([np.asarray(here, dtype=np.float64), points])
+    a, d = ends[:-1], np.diff(ends, axis=0)  # (m, 2) each leg's start and direction
+    rel = standing_xy[:, None, :] - a[None]  # (s, m, 2)
+    length_sq = np.maximum((d * d).sum(axis=1), 1e-300)
+    t = np.clip((rel * d[None]).sum(axis=2) / length_sq, 0.0, 1.0)
+    gap = rel - t[:, :, None] * d[None]
+    on_leg = ((gap * gap).sum(axis=2) < reach * reach).any(axis=1)
+    to_via = standing_xy[:, None, :] - points[None]
+    at_via: BoolArray = ((to_via * to_via).sum(axis=2) < influence * influence).any(axis=1)
+    blocked: FloatArray = standing_xy[on_leg | at_via]
+    return blocked
+
+
+#: [m] standing robots' positions are rounded to this grid (and their bodies grown by it)
+#: before they join a route graph: the graph is cached by its obstacles, and a standing
+#: robot's reported pose wanders with its pose noise.
+STANDING_GRID_M = 0.05
+
+
+def _round_standing(
+    points: tuple[tuple[float, float], ...], here: tuple[float, float],
+    target: tuple[float, float, float], standing_xy: FloatArray, reach: float, world: World,
+    clearance: float, config: PlannerConfig,
+) -> tuple[tuple[float, float], ...]:  # fmt: skip
+    """``points`` (a route from ``here`` to ``target``), or, when standing robots are in
+    its way (:func:`_in_the_way`), the route of a graph where those robots are posts
+    whose grown body (``clearance`` [m] beyond it, on a ``STANDING_GRID_M`` grid) holds
+    their body and their peers' influence radius: its via-points lie beyond both.
+    ``points`` when that graph has no way."""
+    from fleet.core.planner.lanes import route_graph
+
+    influence = world.avoidance.peer_radius
+    blockers = _in_the_way(here, points, standing_xy, reach, influence)
+    if blockers.shape[0] == 0:
+        return points
+    body = max(world.profile.radius, influence - clearance) + STANDING_GRID_M
+    posts = tuple(
+        Obstacle(x=float(x), y=float(y), radius=body, body=body)
+        for x, y in np.round(blockers / STANDING_GRID_M) * STANDING_GRID_M
+    )
+    around = route_graph(world.obstacles + posts, clearance, world.lanes).route(
+        here, target, config.approach_m
+    )
+    return points if around is None else around
 
 
 def stuck(fleet: Fleet) -> list[int]:

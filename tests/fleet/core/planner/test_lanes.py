@@ -4,13 +4,16 @@ site problems; the planner sends the lanes' way."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
 from planning import idle, queued
 from pydantic import ValidationError
 
-from fleet.core.planner import PlanningSnapshot, plan
+from fleet.core.geometry import segment_distance
+from fleet.core.params import Avoidance
+from fleet.core.planner import PlanningSnapshot, TaskDecision, plan
 from fleet.core.planner.lanes import route_graph
 from fleet.core.planner.roadmap import roadmap_of
 from fleet.core.route import lane_shapes
@@ -82,6 +85,33 @@ def test_the_planner_sends_the_lanes_way() -> None:
     )
     (decision,) = plan(snapshot).decisions
     assert decision.route and all(x > 3.9 for x, _ in decision.route[:-1])
+
+
+@pytest.mark.parametrize("one_way", [True, False], ids=["one-way", "two-way"])
+def test_a_robot_standing_on_the_lanes_way_is_driven_round(one_way: bool) -> None:
+    """An idle robot on the lane point the route turns at: the robot could never reach that
+    via-point (Eq. (27) holds it off), so the route goes round the standing robot."""
+    lanes = lane_shapes([Lane(points=LOOP[0].points, one_way=one_way)])
+    task = queued("t0", (0.0, 1.2, math.pi / 2), "r0")
+
+    def decide(*others: tuple[float, float]) -> TaskDecision:
+        robots = (idle("r0", (0.0, -1.0, 0.0)),)
+        robots += tuple(idle(f"r{k + 1}", (*xy, 0.0)) for k, xy in enumerate(others))
+        snapshot = PlanningSnapshot(
+            version=1, robots=robots, tasks=(task,), obstacles=WALL, lanes=lanes, control_dt=0.05
+        )
+        (decision,) = plan(snapshot).decisions
+        return decision
+
+    alone = decide()
+    assert (4.0, 0.0) in alone.route  # it turns on the lane at (4, 0)
+    standing = (4.0, 0.0)
+    decision = decide(standing)
+    influence = Avoidance().peer_radius
+    assert decision.route and all(math.dist(p, standing) > influence for p in decision.route)
+    way = [(0.0, -1.0), *decision.route]
+    assert all(segment_distance(*standing, a, b) > 0.45 for a, b in itertools.pairwise(way))
+    assert decision.predicted_arrival_s is not None  # the planner sees it arrive
 
 
 def test_a_wall_put_across_a_lane_closes_it() -> None:

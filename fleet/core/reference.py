@@ -90,6 +90,7 @@ def obstacle_offset(obstacle: ObstacleRow, px: float, py: float) -> tuple[float,
 
 SIDE_STEP = 0.5
 TURN_PRICE = 0.5
+HELD_TURN_RATE = 1.5  # [rad/s]
 _SQRT_HALF = math.sqrt(0.5)
 _TOL = 1e-12
 
@@ -236,7 +237,23 @@ def safety_filter(
             return 0.0, 0.0, True
         shrink = reach / math.sqrt(length_sq)
         u, w = u * shrink, w * shrink
-    return u, w / ahead if ahead > 0.0 else omega0, True
+    if ahead <= 0.0:
+        return u, omega0, True
+    # The turn capped at the nominal path's curvature at the kept speed, or HELD_TURN_RATE,
+    # moved towards the cap no further than the half-planes allow at this u.
+    cap = HELD_TURN_RATE
+    if u0 != 0.0:
+        cap = max(cap, abs(omega0) * abs(u) / abs(u0))
+    omega = w / ahead
+    if abs(omega) <= cap:
+        return u, omega, True
+    lo, hi = -math.inf, math.inf
+    for a1, a2, bound in planes:
+        if a2 > 0.0:
+            hi = min(hi, (bound - a1 * u) / a2)
+        elif a2 < 0.0:
+            lo = max(lo, (bound - a1 * u) / a2)
+    return u, min(max(math.copysign(cap * ahead, omega), lo), hi) / ahead, True
 
 
 class Step(NamedTuple):

@@ -71,7 +71,10 @@ scaled back to V (feasible: every constraint holds 0; else a standstill). Bodies
 constraint cannot bind (c >= V) are skipped -- a peer by its centre's distance, before
 its projected point is computed (|p_i - p_j| is within 2 l of it). When it binds, the
 aim is shifted sideways by ``SIDE_STEP`` |v0| in the law's rotation sense (robots meeting
-head-on pass each other).
+head-on pass each other). The turn of a command it changed is then capped at the nominal
+path's curvature at the speed it keeps (|omega0| |u| / |u0|) or ``HELD_TURN_RATE``,
+whichever is more, as far as the constraints allow at that u (:func:`_held_turn`): a body
+ahead bounds u only, and a held robot used to spin in place at the wheel limit.
 
 
 **Numerics.** IEEE double arithmetic in a fixed order with libm's ``sin``, ``cos`` and ``exp``
@@ -611,7 +614,37 @@ def safety_filter(
         side = -side
     turn_cost = _turn_cost(b, ahead, n == peer_rows)
     u, w = closest_feasible(cons, n, u0, w0 + side, turn_cost)
-    return _within_reach(cons, n, u, w, reach, ahead, omega0)
+    u, omega, _ = _within_reach(cons, n, u, w, reach, ahead, omega0)
+    return _held_turn(cons, n, u, omega, u0, omega0, ahead)
+
+
+#: [rad/s] the fastest a robot the filter holds turns beyond its nominal path's curvature.
+HELD_TURN_RATE = 1.5
+
+
+@njit(inline="always", error_model="numpy")
+def _held_turn(
+    cons: FloatArray, n: int, u: float, omega: float, u0: float, omega0: float, ahead: float
+) -> tuple[float, float, bool]:
+    """The filter's (u, omega, True) with its turn capped at the nominal path's curvature
+    at the speed it keeps (|omega0| |u| / |u0|), or ``HELD_TURN_RATE``, whichever is
+    more, moved no further towards the cap than the constraints allow at that u."""
+    if ahead <= 0.0:
+        return u, omega, True
+    cap = HELD_TURN_RATE
+    if u0 != 0.0:
+        cap = max(cap, abs(omega0) * abs(u) / abs(u0))
+    if abs(omega) <= cap:
+        return u, omega, True
+    lo, hi = -math.inf, math.inf
+    for k in range(n):
+        a1, a2, c = cons[k, 0], cons[k, 1], cons[k, 2]
+        if a2 > 0.0:
+            hi = min(hi, (c - a1 * u) / a2)
+        elif a2 < 0.0:
+            lo = max(lo, (c - a1 * u) / a2)
+    target = math.copysign(cap * ahead, omega)
+    return u, min(max(target, lo), hi) / ahead, True
 
 
 # -- THE step ---------------------------------------------------------------------------------

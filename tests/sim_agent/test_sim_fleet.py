@@ -122,7 +122,7 @@ def test_a_lockstep_fleet_among_peers_is_the_batch_simulation_of_the_same_scene(
     fleet = SimFleet(None, settings, spawns)
     for rid, goal in goals.items():
         fleet.agent(rid).submit(_park(rid, goal).model_copy(update={"law": laws[rid]}))
-    ticks = 2000  # 40 s: c arrives, a stays held off b by the filter
+    ticks = 2500  # 50 s: c arrives (42.5 s), a stays held off b by the filter
     poses, modes, controls = [], [], []
     for _ in range(ticks):
         fleet.tick()

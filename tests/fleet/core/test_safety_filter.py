@@ -176,3 +176,31 @@ def test_the_filter_slows_down_before_it_swerves_beside_a_standing_peer() -> Non
     omega), the robot slows down instead (11, in one scene, where the sideways aim at
     binding still flips omega's sign: docs/benchmarks.md)."""
     assert sum(_omega_reversals_beside_a_standing_peer(seed) for seed in range(40)) <= 20
+
+
+@given(
+    gap=st.floats(0.0, 0.3, allow_nan=False),
+    u0=st.floats(0.05, 1.0, allow_nan=False),
+    omega0=st.floats(-8.0, 8.0, allow_nan=False),
+    cw=st.booleans(),
+)
+def test_a_robot_the_filter_holds_turns_no_faster_than_its_path_or_the_held_rate(
+    gap: float, u0: float, omega0: float, cw: bool
+) -> None:
+    """A peer straight ahead bounds the closing speed only (u), not the turn: the law's
+    own omega and the sideways aim once spun a held robot at the wheel limit (whole turns
+    in place, overshooting by up to a radian under latency: docs/benchmarks.md). The turn
+    of a held robot is capped at its nominal path's curvature at the speed it keeps, or
+    ``HELD_TURN_RATE``, whichever is more."""
+    safety = ref.Safety(MARGIN, PROJECTION, 5.0)
+    distance = 2 * (RADIUS + PROJECTION) + MARGIN + gap  # projected points this far apart
+    peer = ref.Body(distance, 0.0, 0.0, RADIUS)  # ahead, facing the same way
+    u, omega, acted = ref.safety_filter(
+        (0.0, 0.0, 0.0), u0, omega0, cw=cw, radius=RADIUS, limit=LIMIT, peers=[peer],
+        obstacles=[], safety=safety, dt=DT,
+    )  # fmt: skip
+    if not acted:
+        return
+    assert u < u0  # it slowed
+    cap = max(ref.HELD_TURN_RATE, abs(omega0) * abs(u) / u0)
+    assert abs(omega) <= cap + 1e-9

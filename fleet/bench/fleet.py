@@ -37,6 +37,7 @@ import subprocess
 import tempfile
 import threading
 import time
+import warnings
 import zlib
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
@@ -61,6 +62,7 @@ from fleet.bench.plots import plot_run
 from fleet.bench.scenarios import Scenario, random_yard, swap
 from fleet.bench.solo_floor import law_alone, zone_floor
 from fleet.core.params import Avoidance, SafetyConfig
+from fleet.core.simulate import warm_parallel_kernel
 from fleet.core.tasks import (
     Direction,
     FleetEvent,
@@ -88,7 +90,9 @@ POLICIES: tuple[str, ...] = (*FLEET_POLICIES, *PEER_POLICIES)
 DISTURBED_FLAGS: tuple[str, ...] = ("--disturbed",)
 #: The unmeasured fleet run before the first measured one: the planner's compiled code is
 #: built (numba, first use in a fresh checkout: seconds of wall time, which at time scale
-#: 5 were 15-23 s of a robot's wait for its first plan) or loaded from its cache.
+#: 5 were 15-23 s of a robot's wait for its first plan) or loaded from its cache. Before
+#: it the bench builds the parallel kernel of large rollouts (about a minute, once per
+#: install; built inside a plan it once held a 32-robot swap's robots for 40 s).
 WARM_UP = swap(2, "left").model_copy(update={"name": "warm-up", "time_limit_s": 5.0})
 #: Seeds of a scenario's disturbance sets lie this far apart (any yard seed is smaller).
 DISTURBANCE_SEED_STRIDE = 1_000_003
@@ -631,6 +635,11 @@ def run_fleet_bench(
             session = stack.enter_context(open_session(load_settings(listen=[LOOPBACK]), "router"))
             endpoint = tcp_endpoint(listening_locators(session))
         if options.warm_up and any(p in FLEET_POLICIES for _, _, p in fleet_runs):
+            # The planner's kernel for large rollouts, into numba's cache: otherwise each
+            # planner process of a fresh install plans on one thread while it compiles.
+            kernel = warm_parallel_kernel()
+            if kernel != "ready":
+                warnings.warn(f"large rollouts run on one thread: {kernel}", stacklevel=1)
             run_fleet_policy(
                 session,
                 endpoint,

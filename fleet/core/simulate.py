@@ -38,6 +38,7 @@ from fleet.core.step import (
     DISTANCE,
     EFFORT,
     OBSTACLE_ROWS,
+    PARALLEL_MIN_WORK,
     RECORD_COLUMNS,
     SAFETY_OFF,
     Interaction,
@@ -45,6 +46,7 @@ from fleet.core.step import (
     Schedule,
     advance_batch,
     lower_min_separation,
+    parallel_kernel,
     robot_params,
 )
 from fleet.core.types import BoolArray, FloatArray, IntArray, Law
@@ -332,6 +334,7 @@ def simulate(
     track_separation: bool = False,
     group: int = 0,
     record_every: int = 1,
+    parallel: bool | None = None,
 ) -> SimResult:
     """Simulate the closed-loop batch until every robot is done or ``max_time`` [s] passes.
 
@@ -343,7 +346,9 @@ def simulate(
     ``group`` > 0 splits the batch into independent consecutive blocks of ``group`` rows
     (e.g. copies of one scene): peers repel, guard against contact and are tracked only
     within a block (cost N x group per step instead of N^2); pairs across blocks get an
-    infinite ``min_pair_distance``. Static obstacles still act on every row.
+    infinite ``min_pair_distance``. Static obstacles still act on every row. ``parallel``:
+    whether large batches take the parallel kernel (``advance_batch``; None: once it is
+    built, :func:`warm_parallel_kernel`).
     """
     if dt <= 0 or not np.isfinite(dt):
         raise ValueError("dt must be a positive finite number of seconds")
@@ -389,7 +394,7 @@ def simulate(
             buffer = np.empty((rows, n, RECORD_COLUMNS))
         taken = advance_batch(
             pose, params, done_step, metrics, obstacles, interaction,
-            Schedule(dt, step, steps, record_every), buffer, min_pair_sq, route, leg,
+            Schedule(dt, step, steps, record_every), buffer, min_pair_sq, route, leg, parallel,
         )  # fmt: skip
         if buffer is not None:  # rows after the last robot was done are not part of the run
             recorded.append(buffer[: _recorded_steps(step, step + taken, record_every)])
@@ -426,3 +431,18 @@ def simulate(
         trajectory=trajectory,
         passed=None if problem.route is None else np.where(leg >= 0, leg - problem.legs(), 0),
     )
+
+
+def warm_parallel_kernel() -> str:
+    """Build the kernel that spreads large batches over the threads now, compiling it or
+    loading it from numba's cache (:func:`fleet.core.step.parallel_kernel`): one step of a
+    batch just large enough to take that path. About a minute on a fresh install, once
+    (later processes load it from the cache); until a process has it, its large batches
+    run on one thread -- so the edges call this off their planning threads. Returns the
+    kernel's state ("ready", or why it is unusable)."""
+    n = PARALLEL_MIN_WORK + 1
+    spots = np.zeros((n, 3))
+    spots[:, 0] = np.arange(n, dtype=np.float64)
+    problem = BatchProblem.build(spots, spots, Gains(kx=1.0, ky=1.0, ktheta=1.0), "ccw")
+    simulate(problem, dt=0.02, max_time=0.02, parallel=True)
+    return parallel_kernel()

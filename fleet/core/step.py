@@ -94,7 +94,11 @@ package's ``__pycache__``, or numba's per-user cache directory when that is read
 The entry points of the agent and the drive carry explicit signatures: they are compiled,
 or loaded from the cache, when this module is imported -- never inside a control tick --
 and a call with other types raises instead of compiling. The batch kernel compiles at a
-process's first batch simulation. All compiled code lives in this one file on purpose:
+process's first batch simulation. The parallel kernel of large batches (the whole step
+inlined again under ``prange``: about a minute's compile) is taken only once it is built
+(:func:`parallel_kernel`; ``fleet.core.simulate.warm_parallel_kernel``, which the planner's
+process and the benchmark call off their planning threads); until then large batches run on
+one thread, the same results. All compiled code lives in this one file on purpose:
 numba's cache is invalidated by a change of the file a function was compiled from, not by
 changes in the files it calls into.
 """
@@ -185,8 +189,11 @@ _PRANGE_ONLY = {
 }
 
 
-#: Whether a thread-safe threading layer loaded (set once, at the first parallel batch).
-_threads = {"usable": True}
+#: The parallel kernel in this process: whether it is compiled (or loaded from numba's
+#: cache) and usable, and why not. Its compile takes about a minute on a fresh install (the
+#: whole step inlined again under ``prange``), so a batch only takes it once it is ready
+#: (:func:`advance_batch`'s ``parallel``): the edges build it off their planning threads.
+_parallel = {"ready": False, "error": ""}
 
 
 # -- the pieces of one step (scalar, compiled) ----------------------------------------------
@@ -1087,7 +1094,7 @@ def lower_min_separation(
                     min_pair_sq[block, b, a] = d_sq
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def advance_chunk(
     lo: int,
     hi: int,
@@ -1192,6 +1199,14 @@ def _advance_chunks_in_parallel(chunk: int, n: int, *args: Any) -> int:
     return most
 
 
+def parallel_kernel() -> str:
+    """The state of this process's parallel kernel: "ready", "cold" (not built yet) or
+    "unusable: why" (no thread-safe threading layer, or its compile failed)."""
+    if _parallel["ready"]:
+        return "ready"
+    return f"unusable: {_parallel['error']}" if _parallel["error"] else "cold"
+
+
 def advance_batch(
     pose: FloatArray,
     params: FloatArray,
@@ -1204,6 +1219,7 @@ def advance_batch(
     min_pair_sq: FloatArray | None = None,
     route: FloatArray | None = None,
     leg: npt.NDArray[np.int64] | None = None,
+    parallel: bool | None = None,
 ) -> int:
     """Advance N robots as ``schedule`` says, stopping when every robot is done; returns the
     steps taken (until the last one was done).
@@ -1219,7 +1235,9 @@ def advance_batch(
 
     Robots are simulated in independent chunks (whole blocks when they interact or
     separations are tracked), each through all its steps; large batches spread the chunks
-    over the threads, so no thread waits for another between steps.
+    over the threads, so no thread waits for another between steps: once the parallel
+    kernel is ready (``parallel`` None), always (True: building it first if it is not,
+    which takes a minute on a fresh install) or never (False).
     """
     n = pose.shape[1]
     record = np.zeros((0, n, RECORD_COLUMNS)) if record is None else record
@@ -1233,13 +1251,17 @@ def advance_batch(
     spare = np.empty_like(pose)
     args = (pose, spare, params, done_step, metrics, obstacles, interaction, schedule, record,
             min_pair_sq, route, leg)  # fmt: skip
-    if n > chunk and n * (group if peers else 1) >= PARALLEL_MIN_WORK and _threads["usable"]:
+    large = n > chunk and n * (group if peers else 1) >= PARALLEL_MIN_WORK
+    if large and (_parallel["ready"] if parallel is None else parallel):
         try:
-            return int(_advance_chunks_in_parallel(chunk, n, *args))
+            taken = int(_advance_chunks_in_parallel(chunk, n, *args))
         except ValueError as error:  # raised while compiling, before any step ran
             if "threading layer" not in str(error):
                 raise
-            _threads["usable"] = False  # no OpenMP or TBB here: one thread it is
+            _parallel["error"] = str(error)  # no OpenMP or TBB here: one thread it is
+        else:
+            _parallel["ready"] = True
+            return taken
     return max(
         (int(advance_chunk(lo, min(n, lo + chunk), *args)) for lo in range(0, n, chunk)),
         default=0,

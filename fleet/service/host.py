@@ -36,7 +36,7 @@ from fleet.io.transport import listening_locators, open_session
 from fleet.service.bus import FleetBus
 from fleet.service.clock import Clock
 from fleet.service.fleet_service import FleetService
-from fleet.service.planner_process import PlannerProcess
+from fleet.service.planner_process import PlannerProcess, start_parallel_kernel
 from fleet.service.store import SqliteTaskStore, TaskStore
 from fleet.service.zenoh_bus import ZenohFleetBus
 
@@ -83,8 +83,10 @@ def open_fleet(
     with ExitStack() as stack:
         planner: PlannerProcess | None = None
         if settings.planner_process:
-            planner = PlannerProcess(plan)
+            planner = PlannerProcess(plan)  # builds its kernels in its own process
             stack.callback(planner.close)  # after the service stopped planning
+        else:
+            start_parallel_kernel()  # the planner plans here, on the service's threads
         locators: list[str] = []
         if session is None:
             session = open_session(settings, "router")

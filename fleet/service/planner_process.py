@@ -74,6 +74,17 @@ def _warm_up() -> None:
         "warm-up", (1.0, 0.0, 0.0), "auto", dict(DEFAULT_GAINS), Tolerance(), TaskStatus.QUEUED, 0.0
     )
     plan(PlanningSnapshot(version=0, robots=(robot,), tasks=(task,)))
+    start_parallel_kernel()
+
+
+def start_parallel_kernel() -> None:
+    """Build the planner's kernel for large rollouts (:func:`fleet.core.simulate.
+    warm_parallel_kernel`: a minute's compile on a fresh install, then loaded from the
+    cache) on a thread of this process: meanwhile large rollouts run on one thread, and
+    no plan waits for the compile."""
+    from fleet.core.simulate import warm_parallel_kernel
+
+    threading.Thread(target=warm_parallel_kernel, name="parallel-kernel", daemon=True).start()
 
 
 class PlannerProcess:

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from fleet.core import step
 from fleet.core.control import lyapunov_p, lyapunov_v, wheel_speeds
 from fleet.core.params import Gains, RobotProfile, Tolerance
-from fleet.core.simulate import BatchProblem, simulate
+from fleet.core.simulate import BatchProblem, simulate, warm_parallel_kernel
 from fleet.paper.reproduce import run_scenario
 from fleet.paper.scenarios import SCENARIOS
 
@@ -280,8 +280,9 @@ def test_record_every_keeps_every_kth_step_and_the_final_pose() -> None:
 
 
 def test_a_large_batch_spread_over_threads_equals_its_robots_simulated_alone() -> None:
-    """Above ``PARALLEL_MIN_WORK`` robots run in chunks on several threads; each robot's run
-    is exactly the one it has in a small (single-threaded) batch."""
+    """Above ``PARALLEL_MIN_WORK`` robots run in chunks on several threads once the parallel
+    kernel is built; each robot's run is exactly the one it has in a small batch, on one
+    thread or several."""
     rng = np.random.default_rng(11)
     n = step.PARALLEL_MIN_WORK + 100
     starts = np.column_stack([rng.uniform(-5, 5, (n, 2)), rng.uniform(-3, 3, n)])
@@ -289,7 +290,11 @@ def test_a_large_batch_spread_over_threads_equals_its_robots_simulated_alone() -
     gains = Gains(kx=1.0, ky=2.0, ktheta=1.0)
     laws = [["ccw", "cw"][int(b)] for b in rng.integers(0, 2, n)]
     tol = Tolerance(position=0.1, heading=0.1)
-    big = simulate(BatchProblem.build(starts, goals, gains, laws, tol), dt=0.02, max_time=30.0)
+    problem = BatchProblem.build(starts, goals, gains, laws, tol)
+    one_thread = simulate(problem, dt=0.02, max_time=30.0, parallel=False)
+    assert warm_parallel_kernel() == "ready"
+    big = simulate(problem, dt=0.02, max_time=30.0)  # now spread over the threads
+    assert np.array_equal(big.final_pose, one_thread.final_pose)
     picked = rng.choice(n, 40, replace=False)
     small = simulate(
         BatchProblem.build(starts[picked], goals[picked], gains, [laws[i] for i in picked], tol),

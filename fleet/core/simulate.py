@@ -347,8 +347,8 @@ def simulate(
     (e.g. copies of one scene): peers repel, guard against contact and are tracked only
     within a block (cost N x group per step instead of N^2); pairs across blocks get an
     infinite ``min_pair_distance``. Static obstacles still act on every row. ``parallel``:
-    whether large batches take the parallel kernel (``advance_batch``; None: once it is
-    built, :func:`warm_parallel_kernel`).
+    whether large batches take the parallel kernel (``advance_batch``; None: as this
+    process does, building it at the first or, deferred, once built).
     """
     if dt <= 0 or not np.isfinite(dt):
         raise ValueError("dt must be a positive finite number of seconds")
@@ -437,9 +437,9 @@ def warm_parallel_kernel() -> str:
     """Build the kernel that spreads large batches over the threads now, compiling it or
     loading it from numba's cache (:func:`fleet.core.step.parallel_kernel`): one step of a
     batch just large enough to take that path. About a minute on a fresh install, once
-    (later processes load it from the cache); until a process has it, its large batches
-    run on one thread -- so the edges call this off their planning threads. Returns the
-    kernel's state ("ready", or why it is unusable)."""
+    (later processes load it from the cache); a process that defers it
+    (:func:`fleet.core.step.defer_parallel_kernel`) calls this on a thread of its own.
+    Returns the kernel's state ("ready", or why it is unusable)."""
     n = PARALLEL_MIN_WORK + 1
     spots = np.zeros((n, 3))
     spots[:, 0] = np.arange(n, dtype=np.float64)

@@ -94,11 +94,11 @@ package's ``__pycache__``, or numba's per-user cache directory when that is read
 The entry points of the agent and the drive carry explicit signatures: they are compiled,
 or loaded from the cache, when this module is imported -- never inside a control tick --
 and a call with other types raises instead of compiling. The batch kernel compiles at a
-process's first batch simulation. The parallel kernel of large batches (the whole step
-inlined again under ``prange``: about a minute's compile) is taken only once it is built
-(:func:`parallel_kernel`; ``fleet.core.simulate.warm_parallel_kernel``, which the planner's
-process and the benchmark call off their planning threads); until then large batches run on
-one thread, the same results. All compiled code lives in this one file on purpose:
+process's first batch simulation, the parallel kernel of large batches (the whole step
+inlined again under ``prange``: about a minute's compile) at its first large batch --
+except in a process that defers it (:func:`defer_parallel_kernel`: the planner's), whose
+large batches run on one thread, with the same results, until another thread has built it
+(``fleet.core.simulate.warm_parallel_kernel``). All compiled code lives in this one file on purpose:
 numba's cache is invalidated by a change of the file a function was compiled from, not by
 changes in the files it calls into.
 """
@@ -190,10 +190,12 @@ _PRANGE_ONLY = {
 
 
 #: The parallel kernel in this process: whether it is compiled (or loaded from numba's
-#: cache) and usable, and why not. Its compile takes about a minute on a fresh install (the
-#: whole step inlined again under ``prange``), so a batch only takes it once it is ready
-#: (:func:`advance_batch`'s ``parallel``): the edges build it off their planning threads.
-_parallel = {"ready": False, "error": ""}
+#: cache), why it is unusable, and whether building it is deferred. Its compile takes about
+#: a minute on a fresh install (the whole step inlined again under ``prange``): a process
+#: that must not wait for it (the planner's) defers it -- its large batches run on one
+#: thread until another thread has built it (:func:`defer_parallel_kernel`); otherwise the
+#: first large batch builds it.
+_parallel = {"ready": False, "error": "", "defer": False}
 
 
 # -- the pieces of one step (scalar, compiled) ----------------------------------------------
@@ -1199,6 +1201,13 @@ def _advance_chunks_in_parallel(chunk: int, n: int, *args: Any) -> int:
     return most
 
 
+def defer_parallel_kernel() -> None:
+    """From now on, large batches of this process take the parallel kernel only once it is
+    built (``fleet.core.simulate.warm_parallel_kernel``, on a thread of the caller's):
+    none of them waits for its compile."""
+    _parallel["defer"] = True
+
+
 def parallel_kernel() -> str:
     """The state of this process's parallel kernel: "ready", "cold" (not built yet) or
     "unusable: why" (no thread-safe threading layer, or its compile failed)."""
@@ -1235,9 +1244,10 @@ def advance_batch(
 
     Robots are simulated in independent chunks (whole blocks when they interact or
     separations are tracked), each through all its steps; large batches spread the chunks
-    over the threads, so no thread waits for another between steps: once the parallel
-    kernel is ready (``parallel`` None), always (True: building it first if it is not,
-    which takes a minute on a fresh install) or never (False).
+    over the threads, so no thread waits for another between steps: with ``parallel``
+    None, building the parallel kernel at the first one (a minute on a fresh install) or,
+    deferred (:func:`defer_parallel_kernel`), once it is built; True: always (building it
+    first if need be); False: never.
     """
     n = pose.shape[1]
     record = np.zeros((0, n, RECORD_COLUMNS)) if record is None else record
@@ -1252,7 +1262,9 @@ def advance_batch(
     args = (pose, spare, params, done_step, metrics, obstacles, interaction, schedule, record,
             min_pair_sq, route, leg)  # fmt: skip
     large = n > chunk and n * (group if peers else 1) >= PARALLEL_MIN_WORK
-    if large and (_parallel["ready"] if parallel is None else parallel):
+    if parallel is None:  # built, or to be built now unless deferred or unusable
+        parallel = bool(_parallel["ready"] or not (_parallel["defer"] or _parallel["error"]))
+    if large and parallel:
         try:
             taken = int(_advance_chunks_in_parallel(chunk, n, *args))
         except ValueError as error:  # raised while compiling, before any step ran

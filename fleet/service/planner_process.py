@@ -80,10 +80,12 @@ def _warm_up() -> None:
 def start_parallel_kernel() -> None:
     """Build the planner's kernel for large rollouts (:func:`fleet.core.simulate.
     warm_parallel_kernel`: a minute's compile on a fresh install, then loaded from the
-    cache) on a thread of this process: meanwhile large rollouts run on one thread, and
-    no plan waits for the compile."""
+    cache) on a thread of this process, deferred: meanwhile large rollouts run on one
+    thread, and no plan waits for the compile."""
     from fleet.core.simulate import warm_parallel_kernel
+    from fleet.core.step import defer_parallel_kernel
 
+    defer_parallel_kernel()
     threading.Thread(target=warm_parallel_kernel, name="parallel-kernel", daemon=True).start()
 
 

@@ -339,3 +339,22 @@ def test_a_wall_across_the_way_is_never_touched_with_the_filter_and_crossed_with
     kept = run(safety)
     assert clearance(kept).min() >= margin - 1e-9
     assert (kept[:, 0] < 1.5).all() or (np.abs(kept[kept[:, 0] >= 1.5, 1]) > 1.0).all()
+
+
+def test_a_process_that_defers_the_parallel_kernel_never_builds_it_in_a_batch(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The planner's process defers the parallel kernel (a minute's compile on a fresh
+    install): its large batches run on one thread until another thread built it; any other
+    process builds it at its first large batch."""
+    n = step.PARALLEL_MIN_WORK + 1
+    spots = np.column_stack([np.arange(n, dtype=np.float64), np.zeros(n), np.zeros(n)])
+    problem = BatchProblem.build(spots, spots + 0.5, Gains(kx=1.0, ky=1.0, ktheta=1.0), "ccw")
+    monkeypatch.setitem(step._parallel, "ready", False)
+    monkeypatch.setitem(step._parallel, "defer", True)
+    deferred = simulate(problem, dt=0.02, max_time=0.2)
+    assert step.parallel_kernel() == "cold"
+    monkeypatch.setitem(step._parallel, "defer", False)
+    built = simulate(problem, dt=0.02, max_time=0.2)
+    assert step.parallel_kernel() == "ready"
+    assert np.array_equal(built.final_pose, deferred.final_pose)

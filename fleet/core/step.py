@@ -94,13 +94,13 @@ package's ``__pycache__``, or numba's per-user cache directory when that is read
 The entry points of the agent and the drive carry explicit signatures: they are compiled,
 or loaded from the cache, when this module is imported -- never inside a control tick --
 and a call with other types raises instead of compiling. The batch kernel compiles at a
-process's first batch simulation, the parallel kernel of large batches (the whole step
+process's first batch simulation; the parallel kernel of large batches (the whole step
 inlined again under ``prange``: about a minute's compile) at its first large batch --
 except in a process that defers it (:func:`defer_parallel_kernel`: the planner's), whose
 large batches run on one thread, with the same results, until another thread has built it
-(``fleet.core.simulate.warm_parallel_kernel``). All compiled code lives in this one file on purpose:
-numba's cache is invalidated by a change of the file a function was compiled from, not by
-changes in the files it calls into.
+(``fleet.core.simulate.warm_parallel_kernel``). All compiled code lives in this one file
+on purpose: numba's cache is invalidated by a change of the file a function was compiled
+from, not by changes in the files it calls into.
 """
 
 from __future__ import annotations

@@ -381,8 +381,7 @@ def _routes(
     ``standing_xy`` (s, 2) [m] closer than two bodies and the contact margin (an idle robot
     on a lane, beside a pre-bay point) or within a peer's influence radius of a via-point
     goes round it (:func:`_round_standing`): the robot could never reach that via-point.
-    Also which movers are on their last leg
-    (``Movers.last_leg``)."""
+    Also which movers are on their last leg (``Movers.last_leg``)."""
     k = pose.shape[0]
     last_leg = np.zeros(k, dtype=bool)
     if not world.obstacles or k == 0:
@@ -393,7 +392,6 @@ def _routes(
     radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
     clearance = config.route_clearance(float(radii.max()), world.safety.contact_margin_m)
     roadmap = route_graph(world.obstacles, clearance, world.lanes)
-    standing = standing_xy
     reach = radii + world.profile.radius + world.safety.contact_margin_m  # (k,) [m]
     out = []
     for i in range(k):
@@ -410,14 +408,14 @@ def _routes(
                 continue
             rest = rest if len(rest) else remaining(sent[i], *here)
             if roadmap.clear(here, (rest[0, 0], rest[0, 1]), float(radii[i])) and not len(
-                _in_the_way(here, rest, standing, reach[i], world.avoidance.peer_radius)
+                _in_the_way(here, rest, standing_xy, reach[i], world.avoidance.peer_radius)
             ):
                 out.append(rest)  # still in sight of the next via-point: drive the rest
                 continue
         points = roadmap.route(here, target, config.approach_m)
         if points:
             points = _round_standing(
-                points, here, target, standing, reach[i], world, clearance, config
+                points, here, target, standing_xy, reach[i], world, clearance, config
             )
         # At most what an assignment carries: a longer way is driven as far as that goes,
         # and routed again from there once the robot is out of the next point's sight.

@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from fleet.core.geometry import segment_distances
 from fleet.core.types import BoolArray, FloatArray, IntArray
 from fleet.core.wire import Obstacle
 from fleet.io.trace import NO_MODE, ModeArray, TraceChunk
@@ -70,20 +71,6 @@ MOVING_SPEED_M_S = 0.02
 STOP_MIN_S = 0.2
 #: Pair-distance entries computed at once (bounds the scratch memory).
 _BLOCK = 1_000_000
-
-
-def segment_distances(xy: FloatArray, starts: FloatArray, ends: FloatArray) -> FloatArray:
-    """Distances [m] (T, N, K) from points ``xy`` (T, N, 2) to the K segments from
-    ``starts`` (K, 2) to ``ends`` (K, 2) (a point where they coincide):
-    :func:`fleet.core.geometry.segment_distance`, vectorised."""
-    edge = ends - starts  # (K, 2)
-    length_sq = (edge * edge).sum(axis=1)  # (K,)
-    rel = xy[:, :, None, :] - starts[None, None, :, :]  # (T, N, K, 2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(length_sq > 0.0, (rel * edge).sum(axis=3) / length_sq, 0.0)
-    t = np.clip(t, 0.0, 1.0)
-    offset = rel - t[..., None] * edge[None, None, :, :]
-    return np.asarray(np.hypot(offset[..., 0], offset[..., 1]))
 
 
 def percentile(values: npt.ArrayLike, q: float) -> float:

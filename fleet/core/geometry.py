@@ -1,5 +1,5 @@
-"""Plane geometry of the site (pure): distance to a segment, whether segments cross, and
-whether a point lies in a polygon.
+"""Plane geometry of the site (pure): distance to a segment (one point, or many points
+to many segments at once), whether segments cross, and whether a point lies in a polygon.
 
 World frame, metres. The compiled control step has its own copy of the segment distance
 inside the step (:func:`fleet.core.step.obstacle_offset`, the same arithmetic); this module
@@ -10,6 +10,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+
+import numpy as np
+
+from fleet.core.types import FloatArray
 
 Point = tuple[float, float]
 
@@ -102,3 +106,17 @@ def first_self_crossing(points: Sequence[Point], closed: bool) -> tuple[int, int
             if segments_cross(a, b, c, d):
                 return i, j
     return None
+
+
+def segment_distances(xy: FloatArray, starts: FloatArray, ends: FloatArray) -> FloatArray:
+    """Distances [m] (T, N, K) from points ``xy`` (T, N, 2) to the K segments from
+    ``starts`` (K, 2) to ``ends`` (K, 2) (a point where they coincide):
+    :func:`segment_distance`, vectorised."""
+    edge = ends - starts  # (K, 2)
+    length_sq = (edge * edge).sum(axis=1)  # (K,)
+    rel = xy[:, :, None, :] - starts[None, None, :, :]  # (T, N, K, 2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(length_sq > 0.0, (rel * edge).sum(axis=3) / length_sq, 0.0)
+    t = np.clip(t, 0.0, 1.0)
+    offset = rel - t[..., None] * edge[None, None, :, :]
+    return np.asarray(np.hypot(offset[..., 0], offset[..., 1]))

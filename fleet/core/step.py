@@ -624,7 +624,7 @@ def safety_filter(
     turn_cost = _turn_cost(b, ahead, n == peer_rows)
     u, w = closest_feasible(cons, n, u0, w0 + side, turn_cost)
     u, omega, _ = _within_reach(cons, n, u, w, reach, ahead, omega0)
-    return _held_turn(cons, n, u, omega, u0, omega0, ahead)
+    return u, _held_turn(cons, n, u, omega, u0, omega0, ahead), True
 
 
 #: [rad/s] the fastest a robot the filter holds turns beyond its nominal path's curvature.
@@ -634,17 +634,17 @@ HELD_TURN_RATE = 1.5
 @njit(inline="always", error_model="numpy")
 def _held_turn(
     cons: FloatArray, n: int, u: float, omega: float, u0: float, omega0: float, ahead: float
-) -> tuple[float, float, bool]:
-    """The filter's (u, omega, True) with its turn capped at the nominal path's curvature
-    at the speed it keeps (|omega0| |u| / |u0|), or ``HELD_TURN_RATE``, whichever is
-    more, moved no further towards the cap than the constraints allow at that u."""
+) -> float:
+    """The filter's omega [rad/s] capped at the nominal path's curvature at the speed it
+    keeps (|omega0| |u| / |u0|), or ``HELD_TURN_RATE``, whichever is more, moved no
+    further towards the cap than the constraints allow at that u."""
     if ahead <= 0.0:
-        return u, omega, True
+        return omega
     cap = HELD_TURN_RATE
     if u0 != 0.0:
         cap = max(cap, abs(omega0) * abs(u) / abs(u0))
     if abs(omega) <= cap:
-        return u, omega, True
+        return omega
     lo, hi = -math.inf, math.inf
     for k in range(n):
         a1, a2, c = cons[k, 0], cons[k, 1], cons[k, 2]
@@ -653,7 +653,7 @@ def _held_turn(
         elif a2 < 0.0:
             lo = max(lo, (c - a1 * u) / a2)
     target = math.copysign(cap * ahead, omega)
-    return u, min(max(target, lo), hi) / ahead, True
+    return min(max(target, lo), hi) / ahead
 
 
 # -- THE step ---------------------------------------------------------------------------------

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fleet.core.geometry import segment_distances
 from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
 from fleet.core.planner.gates import Gates, gate, holders_of
@@ -438,12 +439,7 @@ def _in_the_way(
         return standing_xy
     points = np.asarray(via, dtype=np.float64).reshape(-1, 2)
     ends = np.vstack([np.asarray(here, dtype=np.float64), points])
-    a, d = ends[:-1], np.diff(ends, axis=0)  # (m, 2) each leg's start and direction
-    rel = standing_xy[:, None, :] - a[None]  # (s, m, 2)
-    length_sq = np.maximum((d * d).sum(axis=1), 1e-300)
-    t = np.clip((rel * d[None]).sum(axis=2) / length_sq, 0.0, 1.0)
-    gap = rel - t[:, :, None] * d[None]
-    on_leg = ((gap * gap).sum(axis=2) < reach * reach).any(axis=1)
+    on_leg = (segment_distances(standing_xy[None], ends[:-1], ends[1:])[0] < reach).any(axis=1)
     to_via = standing_xy[:, None, :] - points[None]
     at_via: BoolArray = ((to_via * to_via).sum(axis=2) < influence * influence).any(axis=1)
     blocked: FloatArray = standing_xy[on_leg | at_via]

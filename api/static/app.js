@@ -807,7 +807,9 @@ function renderDialogFacts() {
 async function loadPlot() {
   const task = state.tasks.get(dialogTaskId);
   const img = $("dialog-plot");
-  if (!task?.robot_id) {
+  // No path is recorded before the robot reports the task (queued, or assigned and not
+  // yet acknowledged): asking for the plot then would only fetch a 409.
+  if (!task?.robot_id || task.status === "assigned") {
     img.removeAttribute("src");
     img.hidden = true;
     showMessage("dialog-message", "No plot until a robot drives the task.");

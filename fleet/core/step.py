@@ -106,6 +106,7 @@ from, not by changes in the files it calls into.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numba
@@ -190,12 +191,14 @@ _PRANGE_ONLY = {
 
 
 #: The parallel kernel in this process: whether it is compiled (or loaded from numba's
-#: cache), why it is unusable, and whether building it is deferred. Its compile takes about
-#: a minute on a fresh install (the whole step inlined again under ``prange``): a process
-#: that must not wait for it (the planner's) defers it -- its large batches run on one
-#: thread until another thread has built it (:func:`defer_parallel_kernel`); otherwise the
-#: first large batch builds it.
-_parallel = {"ready": False, "error": "", "defer": False}
+#: cache) and why it is unusable. Its compile takes about a minute on a fresh install (the
+#: whole step inlined again under ``prange``): a process that must not wait for it (the
+#: planner's) defers it -- its large batches run on one thread until another thread has
+#: built it (:func:`defer_parallel_kernel`); otherwise the first large batch builds it.
+_parallel = {"ready": False, "error": ""}
+#: Empty: not deferred; else how to build the kernel off the batch's thread, until the
+#: first large batch calls it (then None: it is called once).
+_deferral: list[Callable[[], None] | None] = []
 
 
 # -- the pieces of one step (scalar, compiled) ----------------------------------------------
@@ -1201,11 +1204,13 @@ def _advance_chunks_in_parallel(chunk: int, n: int, *args: Any) -> int:
     return most
 
 
-def defer_parallel_kernel() -> None:
+def defer_parallel_kernel(build: Callable[[], None]) -> None:
     """From now on, large batches of this process take the parallel kernel only once it is
-    built (``fleet.core.simulate.warm_parallel_kernel``, on a thread of the caller's):
-    none of them waits for its compile."""
-    _parallel["defer"] = True
+    built: the first one calls ``build``, which must build it off the calling thread
+    (``fleet.core.simulate.warm_parallel_kernel`` on a thread of the caller's), and runs
+    on one thread, as do the others until it is built. None of them waits for its
+    compile, and a process without large batches never builds it."""
+    _deferral[:] = [build]
 
 
 def parallel_kernel() -> str:
@@ -1263,7 +1268,11 @@ def advance_batch(
             min_pair_sq, route, leg)  # fmt: skip
     large = n > chunk and n * (group if peers else 1) >= PARALLEL_MIN_WORK
     if parallel is None:  # built, or to be built now unless deferred or unusable
-        parallel = bool(_parallel["ready"] or not (_parallel["defer"] or _parallel["error"]))
+        parallel = bool(_parallel["ready"] or not (_deferral or _parallel["error"]))
+    build = _deferral[0] if large and not parallel and _deferral else None
+    if build is not None:
+        _deferral[0] = None
+        build()  # elsewhere, once
     if large and parallel:
         try:
             taken = int(_advance_chunks_in_parallel(chunk, n, *args))

@@ -78,15 +78,19 @@ def _warm_up() -> None:
 
 
 def start_parallel_kernel() -> None:
-    """Build the planner's kernel for large rollouts (:func:`fleet.core.simulate.
-    warm_parallel_kernel`: a minute's compile on a fresh install, then loaded from the
-    cache) on a thread of this process, deferred: meanwhile large rollouts run on one
-    thread, and no plan waits for the compile."""
+    """Defer the planner's kernel for large rollouts (:func:`fleet.core.step.
+    defer_parallel_kernel`): the first large rollout of this process builds it
+    (:func:`fleet.core.simulate.warm_parallel_kernel`: a minute's compile on a fresh
+    install, then loaded from the cache) on a thread of its own; meanwhile large rollouts
+    run on one thread, and no plan waits for the compile. A fleet too small for large
+    rollouts never builds it."""
     from fleet.core.simulate import warm_parallel_kernel
     from fleet.core.step import defer_parallel_kernel
 
-    defer_parallel_kernel()
-    threading.Thread(target=warm_parallel_kernel, name="parallel-kernel", daemon=True).start()
+    def build() -> None:
+        threading.Thread(target=warm_parallel_kernel, name="parallel-kernel", daemon=True).start()
+
+    defer_parallel_kernel(build)
 
 
 class PlannerProcess:

@@ -345,16 +345,21 @@ def test_a_process_that_defers_the_parallel_kernel_never_builds_it_in_a_batch(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """The planner's process defers the parallel kernel (a minute's compile on a fresh
-    install): its large batches run on one thread until another thread built it; any other
-    process builds it at its first large batch."""
+    install): its first large batch asks for it to be built elsewhere, and its large
+    batches run on one thread until it is; any other process builds it at its first large
+    batch."""
     n = step.PARALLEL_MIN_WORK + 1
     spots = np.column_stack([np.arange(n, dtype=np.float64), np.zeros(n), np.zeros(n)])
     problem = BatchProblem.build(spots, spots + 0.5, Gains(kx=1.0, ky=1.0, ktheta=1.0), "ccw")
     monkeypatch.setitem(step._parallel, "ready", False)
-    monkeypatch.setitem(step._parallel, "defer", True)
+    asked: list[str] = []
+    monkeypatch.setattr(step, "_deferral", [lambda: asked.append("build")])
     deferred = simulate(problem, dt=0.02, max_time=0.2)
+    deferred_again = simulate(problem, dt=0.02, max_time=0.2)
     assert step.parallel_kernel() == "cold"
-    monkeypatch.setitem(step._parallel, "defer", False)
+    assert asked == ["build"]  # the first large batch asked for it, once
+    monkeypatch.setattr(step, "_deferral", [])
     built = simulate(problem, dt=0.02, max_time=0.2)
     assert step.parallel_kernel() == "ready"
     assert np.array_equal(built.final_pose, deferred.final_pose)
+    assert np.array_equal(deferred_again.final_pose, deferred.final_pose)

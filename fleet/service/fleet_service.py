@@ -432,9 +432,20 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         recovered = 0
         for task in stuck:
             cause = self._stuck_cause(task, now)
-            self._queue(self._ledger.recover_stuck(task.id, cause, now, wall), now)
+            by_post = self._by_post(task)
+            self._queue(self._ledger.recover_stuck(task.id, cause, now, wall, by_post), now)
             recovered += task.id in self._ledger.active
         return len(stuck), recovered
+
+    def _by_post(self, task: Task) -> bool:
+        """Whether the task's robot stands within a post's Eq. (27) influence radius."""
+        rec = None if task.robot_id is None else self._roster.record(task.robot_id)
+        if rec is None or rec.state is None:
+            return False
+        p = rec.state.pose
+        return any(
+            o.end is None and math.hypot(o.x - p.x, o.y - p.y) <= o.radius for o in self._obstacles
+        )
 
     def _break_standoffs(self, now: float, wall: float) -> list[str]:
         """Break every standoff (call with the lock held): the robots in one (within the

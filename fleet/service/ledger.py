@@ -222,6 +222,7 @@ class TaskLedger:
         self._avoid: dict[str, str] = {}  # task -> robot it was taken from (stuck)
         self._pinned: dict[str, Law] = {}  # task under way -> the law a recovery chose
         self._own_way: set[str] = set()  # tasks under way a recovery took off their route
+        self._wide_way: set[str] = set()  # tasks under way a recovery sent round posts' zones
         self._active: dict[str, Task] = {}  # every non-final task, by id
         self._queued: dict[str, Task] = {}
         self._under_way: dict[str, Task] = {}  # assigned, driving, waiting (with a robot)
@@ -293,6 +294,11 @@ class TaskLedger:
         """Tasks under way a stuck recovery took off their route (the planner routes them
         no more: their robot stalled on it)."""
         return frozenset(self._own_way)
+
+    def wide_way(self) -> frozenset[str]:
+        """Tasks under way a stuck recovery, finding them without a route, sent round the
+        posts' Eq. (27) zones (the planner routes them so: their robot stalled in one)."""
+        return frozenset(self._wide_way)
 
     def acknowledged_at(self) -> dict[str, float]:
         """Tasks under way whose robot reports their current revision -> when it first did
@@ -369,6 +375,7 @@ class TaskLedger:
         self._avoid.pop(task.id, None)
         self._pinned.pop(task.id, None)
         self._own_way.discard(task.id)
+        self._wide_way.discard(task.id)
         self._tracking.pop(task.id, None)
         self.paths.finish(task.id)
         self._finished[task.id] = task.status
@@ -695,6 +702,7 @@ class TaskLedger:
         self._tracking.pop(task.id, None)
         self._pinned.pop(task.id, None)  # another robot may take it: its own best law
         self._own_way.discard(task.id)
+        self._wide_way.discard(task.id)
         effects: Effects = []
         self._transition(requeued, event, effects)
         if stop_robot and task.robot_id is not None:
@@ -835,12 +843,16 @@ class TaskLedger:
         """No state of the task's robot for the whole stuck window."""
         return self.stuck_watch.silent(task_id, now)
 
-    def recover_stuck(self, task_id: str, cause: str, now: float, wall: float) -> Effects:
+    def recover_stuck(
+        self, task_id: str, cause: str, now: float, wall: float, by_post: bool = False
+    ) -> Effects:
         """The next recovery of a stuck task (:data:`~fleet.service.stuck.RECOVERIES`):
         ``flip`` -- another way past: a held revision with the other law (``auto`` tasks),
         the law pinned for the planner (:meth:`pinned`), and off its route when it has
         one (:meth:`own_way`: the law's own way; a robot stalls on a route where Eq. (27)
-        holds it off a via-point); ``wait`` -- a held revision, so a
+        holds it off a via-point), or, without one and within a post's influence radius
+        (``by_post``), routed round the posts' Eq. (27) zones (:meth:`wide_way`: two posts'
+        terms can hold a robot in a gap's mouth for good); ``wait`` -- a held revision, so a
         peer passes; either way the robot stands until a plan resumes it through the plan's
         check (:meth:`apply`), with the start delay the plan chooses. ``requeue`` -- queued
         again, its robot told to stop, planned for another robot if there is one; after
@@ -860,6 +872,9 @@ class TaskLedger:
         if step == "flip" and task.route:
             self._own_way.add(task_id)
             reason += " (off its route: the law's own way)"
+        elif step == "flip" and by_post:
+            self._wide_way.add(task_id)
+            reason += " (routed round the posts' Eq. (27) zones)"
         return self._held_revision(task, law, reason, "recovery", now, wall)
 
     def robot_removed(self, robot_id: str, wall: float) -> Effects:

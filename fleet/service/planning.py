@@ -59,6 +59,7 @@ class PlannerGlue(ServiceState):
             avoided = self._ledger.avoided()
             pinned = self._ledger.pinned()
             own_way = self._ledger.own_way()
+            wide_way = self._ledger.wide_way()
             acknowledged = {t: now - at for t, at in self._ledger.acknowledged_at().items()}
             obstacles = list(self._obstacles)
             zones = self._ledger.zones.shapes
@@ -81,6 +82,7 @@ class PlannerGlue(ServiceState):
             acknowledged,
             pinned,
             own_way=own_way,
+            wide_way=wide_way,
             zones=zones,
             zone_holders=zone_holders,
         )

@@ -67,6 +67,7 @@ def _task_snapshot(
     running_s: Mapping[str, float],
     pinned: Mapping[str, Law],
     own_way: Collection[str],
+    wide_way: Collection[str],
 ) -> TaskSnapshot:
     request = task.request
     under_way = task.status.under_way
@@ -86,6 +87,7 @@ def _task_snapshot(
         start_delay_s=task.start_delay_s,
         route=tuple(task.route) if under_way else (),
         own_way=under_way and task.id in own_way,
+        wide_way=under_way and task.id in wide_way,
         avoid_robot=avoided.get(task.id),
         start_delay_left_s=(
             max(0.0, task.start_delay_s - running_s[task.id]) if task.id in running_s else None
@@ -107,6 +109,7 @@ def planning_input(
     pinned: Mapping[str, Law] | None = None,
     *,
     own_way: Collection[str] = (),
+    wide_way: Collection[str] = (),
     zones: Sequence[ZoneShape] = (),
     zone_holders: Mapping[str, Mapping[str, ZonePass | None]] | None = None,
 ) -> PlanInput:
@@ -119,7 +122,8 @@ def planning_input(
     monotonic] its robot first reported the current revision (so the planner knows how much
     of the start delay is left, in robot time); ``pinned``: task under way -> the law a
     stuck recovery chose (the planner may only use it); ``own_way``: tasks under way a
-    stuck recovery took off their route (the planner routes them no more); ``zones``: the
+    stuck recovery took off their route (the planner routes them no more); ``wide_way``:
+    tasks under way a stuck recovery sent round the posts' Eq. (27) zones; ``zones``: the
     single-robot zones, ``zone_holders``: zone -> robot -> its pass, the robots holding each."""
     hz = settings.control_rate_hz
     available = {r.state.robot_id for r in robots if r.available}
@@ -151,7 +155,7 @@ def planning_input(
         version=version,
         robots=tuple(robot_snaps),
         tasks=tuple(
-            _task_snapshot(t, held, avoided or {}, running, pinned or {}, own_way)
+            _task_snapshot(t, held, avoided or {}, running, pinned or {}, own_way, wide_way)
             for t in sorted(tasks, key=lambda t: t.created_at)
         ),
         obstacles=tuple(obstacles),

@@ -113,6 +113,9 @@ class TaskSnapshot:
     #: a stuck recovery took it off its route (its robot stalled on it): the plan gives it
     #: no via-points, its robot drives the law's own way (under way only)
     own_way: bool = False
+    #: a stuck recovery found its robot stalled without a route: the plan routes it round
+    #: the posts' Eq. (27) zones, not only their bodies (under way only)
+    wide_way: bool = False
 
 
 @dataclass(frozen=True)

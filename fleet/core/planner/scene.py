@@ -26,6 +26,8 @@ A :class:`Candidate` gives every mover of a cluster a law, a start delay and a h
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -258,7 +260,7 @@ def build_fleet(
     )  # fmt: skip
     route, last_leg = _routes(
         pose0, goal, limits, world, config, [t.route for t in tasks], [t.own_way for t in tasks],
-        standing_xy,
+        standing_xy, [t.wide_way for t in tasks],
     )  # fmt: skip
 
     # Lead-in: robots under way go on as they are; new and held robots stand.
@@ -367,6 +369,7 @@ def _routes(
     sent: Sequence[Sequence[tuple[float, float]]],
     own_way: Sequence[bool],
     standing_xy: FloatArray,
+    wide_way: Sequence[bool] = (),
 ) -> tuple[tuple[FloatArray, ...], BoolArray]:
     """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the
     static obstacles: the rest of the route its robot was ``sent`` while its body's straight
@@ -382,7 +385,9 @@ def _routes(
     ``standing_xy`` (s, 2) [m] closer than two bodies and the contact margin (an idle robot
     on a lane, beside a pre-bay point) or within a peer's influence radius of a via-point
     goes round it (:func:`_round_standing`): the robot could never reach that via-point.
-    Also which movers are on their last leg (``Movers.last_leg``)."""
+    A mover a stuck recovery found stalled without a route (``wide_way``) is routed round
+    the posts' Eq. (27) zones, not only their bodies (:func:`_wide`). Also which movers
+    are on their last leg (``Movers.last_leg``)."""
     k = pose.shape[0]
     last_leg = np.zeros(k, dtype=bool)
     if not world.obstacles or k == 0:
@@ -392,10 +397,15 @@ def _routes(
 
     radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
     clearance = config.route_clearance(float(radii.max()), world.safety.contact_margin_m)
-    roadmap = route_graph(world.obstacles, clearance, world.lanes)
+    plain = route_graph(world.obstacles, clearance, world.lanes)
+    beyond = world.avoidance.smoothing_m
     reach = radii + world.profile.radius + world.safety.contact_margin_m  # (k,) [m]
     out = []
     for i in range(k):
+        roadmap = plain
+        if i < len(wide_way) and wide_way[i]:
+            wide = _wide(world.obstacles, clearance, beyond)
+            roadmap = route_graph(wide, clearance, world.lanes)
         here = (float(pose[i, 0]), float(pose[i, 1]))
         target = (float(goal[i, 0]), float(goal[i, 1]), float(goal[i, 2]))
         if own_way[i]:
@@ -414,6 +424,10 @@ def _routes(
                 out.append(rest)  # still in sight of the next via-point: drive the rest
                 continue
         points = roadmap.route(here, target, config.approach_m)
+        if points is None and roadmap is not plain:  # in a closed gap's mouth: back out
+            away = _backed_out(here, _wide(world.obstacles, clearance, beyond), clearance)
+            after = None if away is None else roadmap.route(away, target, config.approach_m)
+            points = None if after is None or away is None else (away, *after)
         if points:
             points = _round_standing(
                 points, here, target, standing_xy, reach[i], world, clearance, config
@@ -423,6 +437,49 @@ def _routes(
         points = (points or ())[:MAX_ROUTE_POINTS]
         out.append(np.array(points, dtype=np.float64).reshape(-1, 2) if points else NO_ROUTE)
     return tuple(out), last_leg
+
+
+@functools.lru_cache(maxsize=8)
+def _wide(obstacles: tuple[Obstacle, ...], clearance: float, beyond: float) -> tuple[Obstacle, ...]:
+    """``obstacles`` with every post's body grown to its influence radius + ``beyond`` [m]
+    (Eq. (27)'s fade-in width) less the route ``clearance`` [m], so that a route's
+    via-points (``clearance`` beyond a body) lie outside the post's Eq. (27) zone and a gap
+    whose middle two posts' zones cover is closed. Inside a zone the repulsion can hold a
+    robot short of a via-point, and in such a gap's mouth the two posts' terms hold a robot
+    driving the law for good (docs/benchmarks.md, ninth stop: case III with four robots).
+    Walls keep their body (corridors stay open). Only for robots found stalled: the way
+    round is longer, and robots sent round together meet each other there."""
+    return tuple(
+        o
+        if o.end is not None or o.radius + beyond - clearance <= o.body_radius
+        else o.model_copy(update={"body": o.radius + beyond - clearance})
+        for o in obstacles
+    )
+
+
+def _backed_out(
+    here: tuple[float, float], obstacles: Sequence[Obstacle], clearance: float
+) -> tuple[float, float] | None:
+    """The nearest point straight away from the posts whose body + ``clearance`` [m]
+    ``here`` lies within (the sum of the directions from their centres), 0.1 m steps, up
+    to 2 m; None: none within that (or nothing to back out of)."""
+    hx, hy = here
+    dx = dy = 0.0
+    for o in obstacles:
+        d = math.hypot(hx - o.x, hy - o.y)
+        if o.end is None and 0.0 < d < o.body_radius + clearance:
+            dx, dy = dx + (hx - o.x) / d, dy + (hy - o.y) / d
+    norm = math.hypot(dx, dy)
+    if norm == 0.0:
+        return None
+    for k in range(1, 21):
+        p = (hx + 0.1 * k * dx / norm, hy + 0.1 * k * dy / norm)
+        if all(
+            o.end is not None or math.hypot(p[0] - o.x, p[1] - o.y) >= o.body_radius + clearance
+            for o in obstacles
+        ):
+            return p
+    return None
 
 
 def _in_the_way(

@@ -3,10 +3,13 @@ another robot) each stored in the task's history and counted, then failure."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
+from itertools import pairwise
 
 import pytest
 
+from fleet.core.geometry import segments_cross
 from fleet.core.planner import Plan, PlanningSnapshot, plan
 from fleet.core.tasks import RobotStatus, RobotView, TaskStatus
 from fleet.core.wire import Obstacle, Pose, RobotMode
@@ -245,3 +248,33 @@ def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_pla
         assert [e for _, e, _ in f.service.history(second.id)][-1] == "standoff"
     finally:
         f.service.close()
+
+
+def test_a_robot_stuck_by_posts_without_a_route_is_routed_round_their_zones(
+    fleet: Fleet, planner: RecordingPlanner
+) -> None:
+    """The paper's case III pair: in the gap's mouth both posts' Eq. (27) terms hold a
+    robot facing through it; the flip routes it round the pair's zones, not through them."""
+    posts = [Obstacle(x=x, y=0.0, radius=1.0, body=0.2) for x in (0.8, -0.8)]
+    fleet.service.set_obstacles(posts)
+    fleet.join("r1", 0.0, 0.5)
+    fleet.robot("r1", 0.0, 0.5, -math.pi / 2)
+    task = fleet.service.submit(req(0.0, -2.0))
+    fleet.service.tick()
+    assigned = fleet.service.task(task.id)
+    assert assigned.robot_id == "r1" and assigned.route == []  # straight through the gap
+
+    for _ in range(3):
+        fleet.robot("r1", 0.0, 0.5, -math.pi / 2, mode=RobotMode.DRIVING, task_id=task.id)
+        fleet.clock.advance(WINDOW / 2)
+    fleet.service.tick()
+    (recovery,) = [t for _, e, t in fleet.service.history(task.id) if e == "recovery"]
+    assert recovery.reason is not None and recovery.reason.endswith(
+        "recovery 1: flip (routed round the posts' Eq. (27) zones)"
+    )
+    (seen,) = [t for t in planner.snapshots[-1].tasks if t.task_id == task.id]
+    assert seen.wide_way and not seen.own_way
+    held, resumed = fleet.parks("r1")[-2:]
+    assert held.hold and not resumed.hold and resumed.route
+    way = [(0.0, 0.5), *resumed.route, (0.0, -2.0)]
+    assert not any(segments_cross(a, b, (-0.8, 0.0), (0.8, 0.0)) for a, b in pairwise(way))

@@ -443,9 +443,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         if rec is None or rec.state is None:
             return False
         p = rec.state.pose
-        return any(
-            o.end is None and math.hypot(o.x - p.x, o.y - p.y) <= o.radius for o in self._obstacles
-        )
+        return any(o.end is None and o.distance(p.x, p.y) <= o.radius for o in self._obstacles)
 
     def _break_standoffs(self, now: float, wall: float) -> list[str]:
         """Break every standoff (call with the lock held): the robots in one (within the

@@ -369,7 +369,7 @@ def _routes(
     sent: Sequence[Sequence[tuple[float, float]]],
     own_way: Sequence[bool],
     standing_xy: FloatArray,
-    wide_way: Sequence[bool] = (),
+    wide_way: Sequence[bool],
 ) -> tuple[tuple[FloatArray, ...], BoolArray]:
     """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the
     static obstacles: the rest of the route its robot was ``sent`` while its body's straight
@@ -398,14 +398,11 @@ def _routes(
     radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
     clearance = config.route_clearance(float(radii.max()), world.safety.contact_margin_m)
     plain = route_graph(world.obstacles, clearance, world.lanes)
-    beyond = world.avoidance.smoothing_m
+    wide = _wide(world.obstacles, clearance, world.avoidance.smoothing_m) if any(wide_way) else ()
     reach = radii + world.profile.radius + world.safety.contact_margin_m  # (k,) [m]
     out = []
     for i in range(k):
-        roadmap = plain
-        if i < len(wide_way) and wide_way[i]:
-            wide = _wide(world.obstacles, clearance, beyond)
-            roadmap = route_graph(wide, clearance, world.lanes)
+        roadmap = route_graph(wide, clearance, world.lanes) if wide_way[i] else plain
         here = (float(pose[i, 0]), float(pose[i, 1]))
         target = (float(goal[i, 0]), float(goal[i, 1]), float(goal[i, 2]))
         if own_way[i]:
@@ -424,10 +421,11 @@ def _routes(
                 out.append(rest)  # still in sight of the next via-point: drive the rest
                 continue
         points = roadmap.route(here, target, config.approach_m)
-        if points is None and roadmap is not plain:  # in a closed gap's mouth: back out
-            away = _backed_out(here, _wide(world.obstacles, clearance, beyond), clearance)
+        if points is None and wide_way[i]:  # in a closed gap's mouth: back out first
+            away = _backed_out(here, wide, clearance)
             after = None if away is None else roadmap.route(away, target, config.approach_m)
-            points = None if after is None or away is None else (away, *after)
+            if away is not None and after is not None:
+                points = (away, *after)
         if points:
             points = _round_standing(
                 points, here, target, standing_xy, reach[i], world, clearance, config

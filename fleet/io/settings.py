@@ -292,7 +292,7 @@ class Settings(RobotSettings):
     # A robot reporting ``avoiding`` with no progress this long [s, on its own clock: its
     # state seq over the control rate] is in a standoff: the service makes one robot of
     # each standoff give way (a held revision, the other law), for a plan to resume.
-    standoff_after_s: Annotated[float, Field(gt=0)] = 4.0
+    standoff_after_s: Annotated[float, Field(gt=0)] = 8.0
     # Site map (fleet/core/site.py: yard, obstacles, keep-out zones, bays), TOML or JSON;
     # its yard replaces ``yard``. Loaded and checked when the settings are.
     site_file: Path | None = None

@@ -230,16 +230,16 @@ def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_pla
                 )  # fmt: skip
 
         states(100)  # nose to nose, both avoiding, no progress; "far" avoids alone
-        states(299)
+        states(499)
         f.service.tick()
-        assert f.service.counters.get("standoffs_broken", 0) == 0  # 3.98 s: not yet
-        states(300)  # 4 s of the robots' own time (50 Hz)
+        assert f.service.counters.get("standoffs_broken", 0) == 0  # 7.98 s: not yet
+        states(500)  # 8 s of the robots' own time (50 Hz)
         f.service.tick()
         assert f.service.counters["standoffs_broken"] == 1
         gave = f.service.task(second.id)
         assert gave.hold and gave.law == "cw" and gave.revision == 1
         assert gave.reason is not None and gave.reason.startswith(
-            "standoff: no progress for 4 s while avoiding old at 0.60 m; gives way (cw)"
+            "standoff: no progress for 8 s while avoiding old at 0.60 m; gives way (cw)"
         )
         assert not f.service.task(first.id).hold and f.service.task(first.id).revision == 0
         assert not f.service.task(third.id).hold  # alone: the stuck watch's, not a standoff

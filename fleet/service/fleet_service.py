@@ -391,7 +391,8 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             timeouts = self._ledger.timeouts(now, wall)
             self._queue(timeouts, now)
             stuck, recovered = self._recover_stuck(now, wall)
-            standoffs = self._break_standoffs(now, wall)
+            standoffs, early = self._break_standoffs(now, wall)
+            stuck, recovered = stuck + early, recovered + early
             resends = self._ledger.resends(now)
             self._outbox.enqueue(resends)
             points = self._positions()
@@ -431,11 +432,14 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         stuck = self._ledger.stuck(now)
         recovered = 0
         for task in stuck:
-            cause = self._stuck_cause(task, now)
-            by_post = self._by_post(task)
-            self._queue(self._ledger.recover_stuck(task.id, cause, now, wall, by_post), now)
+            self._recover(task, now, wall)
             recovered += task.id in self._ledger.active
         return len(stuck), recovered
+
+    def _recover(self, task: Task, now: float, wall: float) -> None:
+        """The task's next stuck recovery, with the cause the roster shows (lock held)."""
+        cause = self._stuck_cause(task, now)
+        self._queue(self._ledger.recover_stuck(task.id, cause, now, wall, self._by_post(task)), now)
 
     def _by_post(self, task: Task) -> bool:
         """Whether the task's robot stands within a post's Eq. (27) influence radius."""
@@ -445,15 +449,17 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         p = rec.state.pose
         return any(o.end is None and o.distance(p.x, p.y) <= o.radius for o in self._obstacles)
 
-    def _break_standoffs(self, now: float, wall: float) -> list[str]:
+    def _break_standoffs(self, now: float, wall: float) -> tuple[list[str], int]:
         """Break every standoff (call with the lock held): the robots in one (within the
         peer radius of each other) are a group, the one with the youngest task gives way
-        and the others' windows restart; returns what was done, one line per standoff. A
-        robot alone (no robot within the peer radius: held by the repulsion of an obstacle)
-        is left to the stuck watch."""
+        and the others' windows restart; returns what was done, one line per standoff, and
+        how many stuck recoveries it began. A robot alone (no robot within the peer radius:
+        held by an obstacle's repulsion or body) is stuck, not in a standoff: it gets its
+        first stuck recovery now (flip, off its route or round the posts' zones), the
+        others after the stuck watch's whole window."""
         tasks = self._ledger.standoffs()
         if not tasks:
-            return []
+            return [], 0
         radius = self.settings.avoidance.peer_radius
         where: dict[str, tuple[float, float]] = {}
         for task in tasks:
@@ -466,21 +472,25 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             for i, j in itertools.combinations(range(len(tasks)), 2)
             if math.dist(where[tasks[i].id], where[tasks[j].id]) <= radius
         ]
-        done = []
+        done, early = [], 0
         for members in components(len(tasks), links):
             group = [tasks[i] for i in members]
             gives = max(group, key=lambda t: (t.created_at, t.robot_id or ""))
             assert gives.robot_id is not None
             cause = self._standoff_cause(gives.robot_id, where[gives.id], radius)
-            if cause is None:  # alone (by an obstacle): the stuck watch's, not a standoff
-                self._ledger.stuck_watch.restart(gives.id)
+            if cause is None:  # alone (by an obstacle): stuck, not a standoff
+                if self._ledger.stuck_watch.attempts(gives.id) == 0:
+                    self._recover(gives, now, wall)
+                    early += 1
+                else:
+                    self._ledger.stuck_watch.restart(gives.id)
                 continue
             self._queue(self._ledger.break_standoff(gives.id, cause, now, wall), now)
             for other in group:
                 if other is not gives:
                     self._ledger.stuck_watch.restart(other.id)
             done.append(f"{gives.robot_id} gives way ({cause})")
-        return done
+        return done, early
 
     def _standoff_cause(self, robot_id: str, at: tuple[float, float], radius: float) -> str | None:
         """The robot nearest ``robot_id`` (at ``at``) within ``radius`` [m], as words (None:

@@ -206,7 +206,7 @@ def test_a_standoff_is_avoiding_without_progress_on_the_robots_own_clock() -> No
     assert watch.standoff("t")
 
 
-def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_plan() -> None:
+def test_in_a_standoff_the_younger_task_gives_way_and_one_alone_is_stuck() -> None:
     from fleet.core.wire import RobotState
     from tests.fleet.service.conftest import ScriptedPlanner, assign_queued
 
@@ -242,10 +242,62 @@ def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_pla
             "standoff: no progress for 8 s while avoiding old at 0.60 m; gives way (cw)"
         )
         assert not f.service.task(first.id).hold and f.service.task(first.id).revision == 0
-        assert not f.service.task(third.id).hold  # alone: the stuck watch's, not a standoff
+        # alone (nothing within the peer radius): stuck by what holds it, not a standoff --
+        # its first stuck recovery now, not after the stuck watch's 30 s
+        (recovery,) = [t for _, e, t in f.service.history(third.id) if e == "recovery"]
+        assert recovery.hold and recovery.reason is not None
+        assert recovery.reason.endswith("recovery 1: flip")
+        assert f.service.counters["stuck"] == f.service.counters["recoveries"] == 1
         (held,) = [p for p in f.parks("new") if p.revision == 1]
         assert held.hold and held.law == "cw"
         assert [e for _, e, _ in f.service.history(second.id)][-1] == "standoff"
+    finally:
+        f.service.close()
+
+
+def test_a_robot_alone_gets_only_its_first_stuck_recovery_early() -> None:
+    """Held by an obstacle with no robot near, without progress for the standoff window:
+    the first stuck recovery comes then; once resumed, standing as long again is not
+    another early recovery (the later ones wait for the stuck watch's whole window)."""
+    from fleet.core.planner import TaskDecision
+    from fleet.core.wire import RobotState
+    from tests.fleet.service.conftest import ScriptedPlanner
+
+    def decide(snapshot: PlanningSnapshot) -> list[TaskDecision]:
+        out = []
+        for t in snapshot.tasks:  # assign queued tasks, resume held ones
+            if t.status is TaskStatus.QUEUED:
+                out.append(TaskDecision(t.task_id, "alone", "assign", "cw"))
+            elif t.hold and t.robot_id is not None and t.law is not None:
+                out.append(TaskDecision(t.task_id, t.robot_id, "revise", t.law,
+                                        revision=t.revision))  # fmt: skip
+        return out
+
+    f = Fleet(planner=ScriptedPlanner(decide), task_timeout_s=1000.0)
+    try:
+        f.join("alone", 0.0, 0.5)
+        task = f.service.submit(req(0.0, -2.0, robot="alone"))
+        f.service.tick()
+
+        def state(seq: int) -> None:
+            revision = f.service.task(task.id).revision
+            f.bus.deliver_state(
+                RobotState(robot_id="alone", seq=seq, stamp=f.clock.wall(),
+                           pose=Pose(x=0.0, y=0.5), mode=RobotMode.AVOIDING,
+                           task_id=task.id, revision=revision)
+            )  # fmt: skip
+
+        for seq in (100, 300, 500):  # 8 s of its own time (50 Hz), not a metre nearer
+            state(seq)
+        f.service.tick()
+        assert [e for _, e, _ in f.service.history(task.id)].count("recovery") == 1
+        f.service.tick()  # the plan resumes it
+        assert not f.service.task(task.id).hold
+        for seq in (600, 800, 1000, 1100):  # 8 s more, resumed, still no progress
+            state(seq)
+            f.service.tick()
+        assert [e for _, e, _ in f.service.history(task.id)].count("recovery") == 1
+        assert f.service.counters["recoveries"] == 1
     finally:
         f.service.close()
 

@@ -454,9 +454,10 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         peer radius of each other) are a group, the one with the youngest task gives way
         and the others' windows restart; returns what was done, one line per standoff, and
         how many stuck recoveries it began. A robot alone (no robot within the peer radius:
-        held by an obstacle's repulsion or body) is stuck, not in a standoff: it gets its
-        first stuck recovery now (flip, off its route or round the posts' zones), the
-        others after the stuck watch's whole window."""
+        held by an obstacle's repulsion or body) is stuck, not in a standoff: within a
+        post's influence radius it gets its first stuck recovery now (flip, off its route
+        or round the posts' zones: two posts' terms can hold it in a gap's mouth for good),
+        the others after the stuck watch's whole window."""
         tasks = self._ledger.standoffs()
         if not tasks:
             return [], 0
@@ -479,7 +480,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             assert gives.robot_id is not None
             cause = self._standoff_cause(gives.robot_id, where[gives.id], radius)
             if cause is None:  # alone (by an obstacle): stuck, not a standoff
-                if self._ledger.stuck_watch.attempts(gives.id) == 0:
+                if self._ledger.stuck_watch.attempts(gives.id) == 0 and self._by_post(gives):
                     self._recover(gives, now, wall)
                     early += 1
                 else:

@@ -399,10 +399,11 @@ def _routes(
     clearance = config.route_clearance(float(radii.max()), world.safety.contact_margin_m)
     plain = route_graph(world.obstacles, clearance, world.lanes)
     wide = _wide(world.obstacles, clearance, world.avoidance.smoothing_m) if any(wide_way) else ()
+    wide_map = route_graph(wide, clearance, world.lanes) if wide else plain
     reach = radii + world.profile.radius + world.safety.contact_margin_m  # (k,) [m]
     out = []
     for i in range(k):
-        roadmap = route_graph(wide, clearance, world.lanes) if wide_way[i] else plain
+        roadmap = wide_map if wide_way[i] else plain
         here = (float(pose[i, 0]), float(pose[i, 1]))
         target = (float(goal[i, 0]), float(goal[i, 1]), float(goal[i, 2]))
         if own_way[i]:
@@ -464,7 +465,7 @@ def _backed_out(
     hx, hy = here
     dx = dy = 0.0
     for o in obstacles:
-        d = math.hypot(hx - o.x, hy - o.y)
+        d = o.distance(hx, hy)
         if o.end is None and 0.0 < d < o.body_radius + clearance:
             dx, dy = dx + (hx - o.x) / d, dy + (hy - o.y) / d
     norm = math.hypot(dx, dy)
@@ -472,10 +473,7 @@ def _backed_out(
         return None
     for k in range(1, 21):
         p = (hx + 0.1 * k * dx / norm, hy + 0.1 * k * dy / norm)
-        if all(
-            o.end is not None or math.hypot(p[0] - o.x, p[1] - o.y) >= o.body_radius + clearance
-            for o in obstacles
-        ):
+        if all(o.end is not None or o.distance(*p) >= o.body_radius + clearance for o in obstacles):
             return p
     return None
 

@@ -455,8 +455,8 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         and the others' windows restart; returns what was done, one line per standoff, and
         how many stuck recoveries it began. A robot alone (no robot within the peer radius:
         held by an obstacle's repulsion or body) is stuck, not in a standoff: within a
-        post's influence radius it gets its first stuck recovery now (flip, off its route
-        or round the posts' zones: two posts' terms can hold it in a gap's mouth for good),
+        post's influence radius it gets its first stuck recovery now (flip, routed round the
+        posts' zones: two posts' terms can hold it in a gap's mouth for good),
         the others after the stuck watch's whole window."""
         tasks = self._ledger.standoffs()
         if not tasks:

@@ -848,16 +848,17 @@ class TaskLedger:
     ) -> Effects:
         """The next recovery of a stuck task (:data:`~fleet.service.stuck.RECOVERIES`):
         ``flip`` -- another way past: a held revision with the other law (``auto`` tasks),
-        the law pinned for the planner (:meth:`pinned`), and off its route when it has
-        one (:meth:`own_way`: the law's own way; a robot stalls on a route where Eq. (27)
-        holds it off a via-point), or, without one and within a post's influence radius
-        (``by_post``), routed round the posts' Eq. (27) zones (:meth:`wide_way`: two posts'
-        terms can hold a robot in a gap's mouth for good); ``wait`` -- a held revision, so a
-        peer passes; either way the robot stands until a plan resumes it through the plan's
-        check (:meth:`apply`), with the start delay the plan chooses. ``requeue`` -- queued
-        again, its robot told to stop, planned for another robot if there is one; after
-        the last the task fails. ``cause`` (what the service sees) goes into the reason and
-        the history (``recovery``)."""
+        the law pinned for the planner (:meth:`pinned`), and -- within a post's influence
+        radius (``by_post``) -- routed round the posts' Eq. (27) zones (:meth:`wide_way`:
+        two posts' terms can hold a robot in a gap's mouth for good, on a route through
+        the gap as well as without one; the law's own way from the mouth may circle there),
+        else off its route when it has one (:meth:`own_way`: the law's own way; a robot
+        stalls on a route where Eq. (27) holds it off a via-point); ``wait`` -- a held
+        revision, so a peer passes; either way the robot stands until a plan resumes it
+        through the plan's check (:meth:`apply`), with the start delay the plan chooses.
+        ``requeue`` -- queued again, its robot told to stop, planned for another robot if
+        there is one; after the last the task fails. ``cause`` (what the service sees) goes
+        into the reason and the history (``recovery``)."""
         task = self._under_way[task_id]
         assert task.robot_id is not None and task.law is not None
         step = self.stuck_watch.next_recovery(task_id, now)
@@ -869,12 +870,12 @@ class TaskLedger:
             self._avoid[task_id] = task.robot_id
             return self._requeue(task, reason, "recovery", wall, stop_robot=True)
         law = self._other_law(task) if step == "flip" else task.law
-        if step == "flip" and task.route:
-            self._own_way.add(task_id)
-            reason += " (off its route: the law's own way)"
-        elif step == "flip" and by_post:
+        if step == "flip" and by_post:
             self._wide_way.add(task_id)
             reason += " (routed round the posts' Eq. (27) zones)"
+        elif step == "flip" and task.route:
+            self._own_way.add(task_id)
+            reason += " (off its route: the law's own way)"
         return self._held_revision(task, law, reason, "recovery", now, wall)
 
     def robot_removed(self, robot_id: str, wall: float) -> Effects:

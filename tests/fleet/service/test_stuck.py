@@ -10,6 +10,7 @@ from itertools import pairwise
 import pytest
 
 from fleet.core.geometry import segments_cross
+from fleet.core.params import Gains
 from fleet.core.planner import Plan, PlanningSnapshot, plan
 from fleet.core.tasks import RobotStatus, RobotView, TaskStatus
 from fleet.core.wire import Obstacle, Pose, RobotMode
@@ -329,4 +330,38 @@ def test_a_robot_stuck_by_posts_without_a_route_is_routed_round_their_zones(
     held, resumed = fleet.parks("r1")[-2:]
     assert held.hold and not resumed.hold and resumed.route
     way = [(0.0, 0.5), *resumed.route, (0.0, -2.0)]
+    assert not any(segments_cross(a, b, (-0.8, 0.0), (0.8, 0.0)) for a, b in pairwise(way))
+
+
+def test_a_robot_stuck_by_posts_on_a_route_through_their_gap_is_routed_round_their_zones(
+    fleet: Fleet, planner: RecordingPlanner
+) -> None:
+    """A route through the case III pair's gap, the robot held in the gap's mouth facing
+    the via-point: leaving the route for the law's own way leaves it in the mouth (a
+    benchmark run circled there for 100 s); the flip routes it round the pair's zones."""
+    posts = [Obstacle(x=x, y=0.0, radius=1.0, body=0.2) for x in (0.8, -0.8)]
+    fleet.service.set_obstacles(posts)
+    fleet.join("r1", -0.5, 1.3)
+    fleet.robot("r1", -0.5, 1.3, -math.pi / 3)
+    gains = {"ccw": Gains(kx=0.6, ky=2.9, ktheta=2.4), "cw": Gains(kx=2.0, ky=6.0, ktheta=6.0)}
+    task = fleet.service.submit(req(0.0, -2.0, direction="cw", law_gains=gains))  # Table 8's
+    fleet.service.tick()
+    routed = fleet.service.task(task.id)
+    assert routed.robot_id == "r1" and routed.route
+    first = [(-0.5, 1.3), *routed.route]
+    assert any(segments_cross(a, b, (-0.8, 0.0), (0.8, 0.0)) for a, b in pairwise(first))
+    mouth = (-0.13, 0.62)
+    for _ in range(3):
+        fleet.robot("r1", *mouth, -math.pi / 2, mode=RobotMode.DRIVING, task_id=task.id)
+        fleet.clock.advance(WINDOW / 2)
+    fleet.service.tick()
+    (recovery,) = [t for _, e, t in fleet.service.history(task.id) if e == "recovery"]
+    assert recovery.reason is not None and recovery.reason.endswith(
+        "recovery 1: flip (routed round the posts' Eq. (27) zones)"
+    )
+    (seen,) = [t for t in planner.snapshots[-1].tasks if t.task_id == task.id]
+    assert seen.wide_way and not seen.own_way
+    held, resumed = fleet.parks("r1")[-2:]
+    assert held.hold and not resumed.hold and resumed.route
+    way = [mouth, *resumed.route, (0.0, -2.0)]
     assert not any(segments_cross(a, b, (-0.8, 0.0), (0.8, 0.0)) for a, b in pairwise(way))

@@ -429,8 +429,9 @@ def _routes(
                 points = (away, *after)
         if points:
             points = _round_standing(
-                points, here, target, standing_xy, reach[i], world, clearance, config
-            )
+                points, here, target, standing_xy, reach[i], world, clearance, config,
+                wide if wide_way[i] else world.obstacles,
+            )  # fmt: skip
         # At most what an assignment carries: a longer way is driven as far as that goes,
         # and routed again from there once the robot is out of the next point's sight.
         points = (points or ())[:MAX_ROUTE_POINTS]
@@ -508,13 +509,14 @@ STANDING_GRID_M = 0.05
 def _round_standing(
     points: tuple[tuple[float, float], ...], here: tuple[float, float],
     target: tuple[float, float, float], standing_xy: FloatArray, reach: float, world: World,
-    clearance: float, config: PlannerConfig,
+    clearance: float, config: PlannerConfig, obstacles: tuple[Obstacle, ...],
 ) -> tuple[tuple[float, float], ...]:  # fmt: skip
-    """``points`` (a route from ``here`` to ``target``), or, when standing robots are in
-    its way (:func:`_in_the_way`), the route of a graph where those robots are posts
-    whose grown body (``clearance`` [m] beyond it, on a ``STANDING_GRID_M`` grid) holds
-    their body and their peers' influence radius: its via-points lie beyond both.
-    ``points`` when that graph has no way."""
+    """``points`` (a route from ``here`` to ``target`` round ``obstacles``: the world's, or
+    :func:`_wide`'s for a robot routed round the posts' zones), or, when standing robots
+    are in its way (:func:`_in_the_way`), the route of a graph of ``obstacles`` where those
+    robots are posts too, whose grown body (``clearance`` [m] beyond it, on a
+    ``STANDING_GRID_M`` grid) holds their body and their peers' influence radius: its
+    via-points lie beyond both. ``points`` when that graph has no way."""
     from fleet.core.planner.lanes import route_graph
 
     influence = world.avoidance.peer_radius
@@ -526,7 +528,7 @@ def _round_standing(
         Obstacle(x=float(x), y=float(y), radius=body, body=body)
         for x, y in np.round(blockers / STANDING_GRID_M) * STANDING_GRID_M
     )
-    around = route_graph(world.obstacles + posts, clearance, world.lanes).route(
+    around = route_graph(obstacles + posts, clearance, world.lanes).route(
         here, target, config.approach_m
     )
     return points if around is None else around

@@ -4,12 +4,15 @@ robots under way (keep, revise), lost robots, corridors."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import replace
 
 import pytest
 from planning import TOL, idle, moved_on, queued, replay, scene, swap2
 
+from fleet.core.geometry import segments_cross
+from fleet.core.params import Avoidance
 from fleet.core.planner import (
     Plan,
     PlannerConfig,
@@ -289,6 +292,42 @@ def test_a_route_the_robot_cannot_drive_is_dropped_for_the_straight_way_it_can()
     run = replay(snapshot, result)
     assert run.result.done.all()
     assert float(run.result.time[0]) == pytest.approx(d.predicted_arrival_s, abs=1e-6)
+
+
+def test_a_robot_routed_round_the_posts_zones_goes_round_a_standing_robot_outside_them() -> None:
+    """A robot a stuck recovery sent round case III's posts' Eq. (27) zones (``wide_way``),
+    with a robot parked on that way round: the way round the parked robot stays outside
+    the zones too (through the gap, the posts' terms stalled it in the mouth again)."""
+    posts = (
+        Obstacle(x=0.8, y=0.0, radius=1.0, body=0.2),
+        Obstacle(x=-0.8, y=0.0, radius=1.0, body=0.2),
+    )
+    start = (-0.6, -1.5, math.pi / 2)
+    task = replace(
+        queued("t0", (0.0, 3.2, math.pi / 2), "r0", direction="ccw"),
+        status=TaskStatus.DRIVING,
+        robot_id="r0",
+        law="ccw",
+        wide_way=True,
+    )
+    driving = RobotSnapshot("r0", start, RobotStatus.DRIVING, False, "t0", "ccw")
+
+    def route(*standing: tuple[float, float]) -> tuple[tuple[float, float], ...]:
+        robots = (driving, *(idle(f"s{k}", (*xy, 0.0)) for k, xy in enumerate(standing)))
+        snapshot = PlanningSnapshot(
+            version=1, robots=robots, tasks=(task,), obstacles=posts, control_dt=0.05
+        )
+        (d,) = plan(snapshot).decisions
+        assert d.predicted_arrival_s is not None
+        return d.route
+
+    parked = (-2.1, 0.0)
+    assert parked in route()  # its way round the left post's zone
+    way = route(parked)
+    assert way and all(math.dist(p, parked) > Avoidance().peer_radius for p in way)
+    assert all(math.dist(p, (o.x, o.y)) >= o.radius for p in way for o in posts)
+    legs = itertools.pairwise([start[:2], *way])
+    assert not any(segments_cross(a, b, (-0.8, 0.0), (0.8, 0.0)) for a, b in legs)
 
 
 def test_a_task_taken_from_a_stuck_robot_goes_to_another_one_and_keeps_its_revision() -> None:

@@ -439,7 +439,8 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
     def _recover(self, task: Task, now: float, wall: float) -> None:
         """The task's next stuck recovery, with the cause the roster shows (lock held)."""
         cause = self._stuck_cause(task, now)
-        self._queue(self._ledger.recover_stuck(task.id, cause, now, wall, self._by_post(task)), now)
+        by_post, alone = self._by_post(task), self._alone(task)
+        self._queue(self._ledger.recover_stuck(task.id, cause, now, wall, by_post, alone), now)
 
     def _by_post(self, task: Task) -> bool:
         """Whether the task's robot stands within a post's Eq. (27) influence radius."""
@@ -448,6 +449,15 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             return False
         p = rec.state.pose
         return any(o.end is None and o.distance(p.x, p.y) <= o.radius for o in self._obstacles)
+
+    def _alone(self, task: Task) -> bool:
+        """Whether no other robot is within the peer radius of the task's robot."""
+        rec = None if task.robot_id is None else self._roster.record(task.robot_id)
+        if rec is None or rec.state is None:
+            return True
+        at = (rec.state.pose.x, rec.state.pose.y)
+        radius = self.settings.avoidance.peer_radius
+        return self._standoff_cause(rec.robot_id, at, radius) is None
 
     def _break_standoffs(self, now: float, wall: float) -> tuple[list[str], int]:
         """Break every standoff (call with the lock held): the robots in one (within the

@@ -844,16 +844,24 @@ class TaskLedger:
         return self.stuck_watch.silent(task_id, now)
 
     def recover_stuck(
-        self, task_id: str, cause: str, now: float, wall: float, by_post: bool = False
+        self,
+        task_id: str,
+        cause: str,
+        now: float,
+        wall: float,
+        by_post: bool = False,
+        alone: bool = True,
     ) -> Effects:
         """The next recovery of a stuck task (:data:`~fleet.service.stuck.RECOVERIES`):
         ``flip`` -- another way past: a held revision with the other law (``auto`` tasks),
         the law pinned for the planner (:meth:`pinned`), and -- within a post's influence
-        radius (``by_post``) -- routed round the posts' Eq. (27) zones (:meth:`wide_way`:
-        two posts' terms can hold a robot in a gap's mouth for good, on a route through
-        the gap as well as without one; the law's own way from the mouth may circle there),
-        else off its route when it has one (:meth:`own_way`: the law's own way; a robot
-        stalls on a route where Eq. (27) holds it off a via-point); ``wait`` -- a held
+        radius (``by_post``), without a route or ``alone`` (no robot within the peer
+        radius) -- routed round the posts' Eq. (27) zones (:meth:`wide_way`: two posts'
+        terms can hold a robot in a gap's mouth for good, on a route through the gap as
+        well as without one; the law's own way from the mouth may circle there), else off
+        its route when it has one (:meth:`own_way`: the law's own way; a robot stalls on a
+        route where Eq. (27) holds it off a via-point; robots near each other sent round the
+        posts meet again there); ``wait`` -- a held
         revision, so a peer passes; either way the robot stands until a plan resumes it
         through the plan's check (:meth:`apply`), with the start delay the plan chooses.
         ``requeue`` -- queued again, its robot told to stop, planned for another robot if
@@ -870,7 +878,7 @@ class TaskLedger:
             self._avoid[task_id] = task.robot_id
             return self._requeue(task, reason, "recovery", wall, stop_robot=True)
         law = self._other_law(task) if step == "flip" else task.law
-        if step == "flip" and by_post:
+        if step == "flip" and by_post and (alone or not task.route):
             self._wide_way.add(task_id)
             reason += " (routed round the posts' Eq. (27) zones)"
         elif step == "flip" and task.route:

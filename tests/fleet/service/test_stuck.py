@@ -333,12 +333,15 @@ def test_a_robot_stuck_by_posts_without_a_route_is_routed_round_their_zones(
     assert not any(segments_cross(a, b, (-0.8, 0.0), (0.8, 0.0)) for a, b in pairwise(way))
 
 
+@pytest.mark.parametrize("peer_near", [False, True], ids=["alone", "a-peer-near"])
 def test_a_robot_stuck_by_posts_on_a_route_through_their_gap_is_routed_round_their_zones(
-    fleet: Fleet, planner: RecordingPlanner
+    fleet: Fleet, planner: RecordingPlanner, peer_near: bool
 ) -> None:
     """A route through the case III pair's gap, the robot held in the gap's mouth facing
     the via-point: leaving the route for the law's own way leaves it in the mouth (a
-    benchmark run circled there for 100 s); the flip routes it round the pair's zones."""
+    benchmark run circled there for 100 s); the flip routes it round the pair's zones --
+    when it is alone: robots near each other sent round the posts meet again there, so
+    with a peer near it leaves its route for the law's own way."""
     posts = [Obstacle(x=x, y=0.0, radius=1.0, body=0.2) for x in (0.8, -0.8)]
     fleet.service.set_obstacles(posts)
     fleet.join("r1", -0.5, 1.3)
@@ -351,17 +354,24 @@ def test_a_robot_stuck_by_posts_on_a_route_through_their_gap_is_routed_round_the
     first = [(-0.5, 1.3), *routed.route]
     assert any(segments_cross(a, b, (-0.8, 0.0), (0.8, 0.0)) for a, b in pairwise(first))
     mouth = (-0.13, 0.62)
+    if peer_near:
+        fleet.join("r2", -0.13, 1.42)  # 0.8 m behind it, idle
     for _ in range(3):
         fleet.robot("r1", *mouth, -math.pi / 2, mode=RobotMode.DRIVING, task_id=task.id)
+        if peer_near:
+            fleet.robot("r2", -0.13, 1.42)
         fleet.clock.advance(WINDOW / 2)
     fleet.service.tick()
     (recovery,) = [t for _, e, t in fleet.service.history(task.id) if e == "recovery"]
-    assert recovery.reason is not None and recovery.reason.endswith(
-        "recovery 1: flip (routed round the posts' Eq. (27) zones)"
-    )
     (seen,) = [t for t in planner.snapshots[-1].tasks if t.task_id == task.id]
-    assert seen.wide_way and not seen.own_way
     held, resumed = fleet.parks("r1")[-2:]
-    assert held.hold and not resumed.hold and resumed.route
+    assert held.hold and not resumed.hold
+    assert recovery.reason is not None
+    if peer_near:
+        assert recovery.reason.endswith("recovery 1: flip (off its route: the law's own way)")
+        assert seen.own_way and not seen.wide_way and resumed.route == []
+        return
+    assert recovery.reason.endswith("recovery 1: flip (routed round the posts' Eq. (27) zones)")
+    assert seen.wide_way and not seen.own_way and resumed.route
     way = [mouth, *resumed.route, (0.0, -2.0)]
     assert not any(segments_cross(a, b, (-0.8, 0.0), (0.8, 0.0)) for a, b in pairwise(way))

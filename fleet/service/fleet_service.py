@@ -442,22 +442,23 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         by_post, alone = self._by_post(task), self._alone(task)
         self._queue(self._ledger.recover_stuck(task.id, cause, now, wall, by_post, alone), now)
 
+    def _where(self, task: Task) -> tuple[float, float] | None:
+        """Where the task's robot last said it was [m] (None: unknown)."""
+        rec = None if task.robot_id is None else self._roster.record(task.robot_id)
+        return None if rec is None or rec.state is None else (rec.state.pose.x, rec.state.pose.y)
+
     def _by_post(self, task: Task) -> bool:
         """Whether the task's robot stands within a post's Eq. (27) influence radius."""
-        rec = None if task.robot_id is None else self._roster.record(task.robot_id)
-        if rec is None or rec.state is None:
-            return False
-        p = rec.state.pose
-        return any(o.end is None and o.distance(p.x, p.y) <= o.radius for o in self._obstacles)
+        at = self._where(task)
+        return at is not None and any(
+            o.end is None and o.distance(*at) <= o.radius for o in self._obstacles
+        )
 
     def _alone(self, task: Task) -> bool:
         """Whether no other robot is within the peer radius of the task's robot."""
-        rec = None if task.robot_id is None else self._roster.record(task.robot_id)
-        if rec is None or rec.state is None:
-            return True
-        at = (rec.state.pose.x, rec.state.pose.y)
+        at = self._where(task)
         radius = self.settings.avoidance.peer_radius
-        return self._standoff_cause(rec.robot_id, at, radius) is None
+        return at is None or self._standoff_cause(task.robot_id or "", at, radius) is None
 
     def _break_standoffs(self, now: float, wall: float) -> tuple[list[str], int]:
         """Break every standoff (call with the lock held): the robots in one (within the
@@ -474,9 +475,9 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         radius = self.settings.avoidance.peer_radius
         where: dict[str, tuple[float, float]] = {}
         for task in tasks:
-            rec = None if task.robot_id is None else self._roster.record(task.robot_id)
-            if rec is not None and rec.state is not None:
-                where[task.id] = (rec.state.pose.x, rec.state.pose.y)
+            at = self._where(task)
+            if at is not None:
+                where[task.id] = at
         tasks = [t for t in tasks if t.id in where]
         links = [
             (i, j)

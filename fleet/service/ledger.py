@@ -850,7 +850,7 @@ class TaskLedger:
         now: float,
         wall: float,
         by_post: bool = False,
-        alone: bool = True,
+        alone: bool = False,
     ) -> Effects:
         """The next recovery of a stuck task (:data:`~fleet.service.stuck.RECOVERIES`):
         ``flip`` -- another way past: a held revision with the other law (``auto`` tasks),
@@ -861,12 +861,12 @@ class TaskLedger:
         well as without one; the law's own way from the mouth may circle there), else off
         its route when it has one (:meth:`own_way`: the law's own way; a robot stalls on a
         route where Eq. (27) holds it off a via-point; robots near each other sent round the
-        posts meet again there); ``wait`` -- a held
-        revision, so a peer passes; either way the robot stands until a plan resumes it
-        through the plan's check (:meth:`apply`), with the start delay the plan chooses.
-        ``requeue`` -- queued again, its robot told to stop, planned for another robot if
-        there is one; after the last the task fails. ``cause`` (what the service sees) goes
-        into the reason and the history (``recovery``)."""
+        posts meet again there); ``wait`` -- a held revision, so a peer passes; either way
+        the robot stands until a plan resumes it through the plan's check (:meth:`apply`),
+        with the start delay the plan chooses. ``requeue`` -- queued again, its robot told
+        to stop, planned for another robot if there is one; after the last the task fails.
+        ``cause`` (what the service sees) goes into the reason and the history
+        (``recovery``)."""
         task = self._under_way[task_id]
         assert task.robot_id is not None and task.law is not None
         step = self.stuck_watch.next_recovery(task_id, now)

@@ -334,7 +334,7 @@ def test_a_robot_stuck_by_posts_without_a_route_is_routed_round_their_zones(
 
 
 @pytest.mark.parametrize("peer_near", [False, True], ids=["alone", "a-peer-near"])
-def test_a_robot_stuck_by_posts_on_a_route_through_their_gap_is_routed_round_their_zones(
+def test_a_robot_stuck_by_posts_on_a_route_through_their_gap_goes_round_their_zones_when_alone(
     fleet: Fleet, planner: RecordingPlanner, peer_near: bool
 ) -> None:
     """A route through the case III pair's gap, the robot held in the gap's mouth facing

@@ -458,7 +458,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         """Whether no other robot is within the peer radius of the task's robot."""
         at = self._where(task)
         radius = self.settings.avoidance.peer_radius
-        return at is None or self._standoff_cause(task.robot_id or "", at, radius) is None
+        return at is None or self._nearest_robot(task.robot_id or "", at, radius) is None
 
     def _break_standoffs(self, now: float, wall: float) -> tuple[list[str], int]:
         """Break every standoff (call with the lock held): the robots in one (within the
@@ -504,9 +504,11 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             done.append(f"{gives.robot_id} gives way ({cause})")
         return done, early
 
-    def _standoff_cause(self, robot_id: str, at: tuple[float, float], radius: float) -> str | None:
-        """The robot nearest ``robot_id`` (at ``at``) within ``radius`` [m], as words (None:
-        no robot is that near)."""
+    def _nearest_robot(
+        self, robot_id: str, at: tuple[float, float], radius: float
+    ) -> tuple[float, str] | None:
+        """(distance [m], id) of the robot nearest ``robot_id`` (at ``at``) within
+        ``radius`` [m]; None: no robot is that near."""
         near = []
         for rec in self._roster.records():
             s = rec.state
@@ -515,10 +517,16 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             d = math.hypot(s.pose.x - at[0], s.pose.y - at[1])
             if d <= radius:
                 near.append((d, rec.robot_id))
-        if not near:
+        return min(near) if near else None
+
+    def _standoff_cause(self, robot_id: str, at: tuple[float, float], radius: float) -> str | None:
+        """The robot nearest ``robot_id`` (at ``at``) within ``radius`` [m], as words (None:
+        no robot is that near)."""
+        nearest = self._nearest_robot(robot_id, at, radius)
+        if nearest is None:
             return None
+        d, other = nearest
         seconds = self.settings.standoff_after_s
-        d, other = min(near)
         return f"no progress for {seconds:g} s while avoiding {other} at {d:.2f} m"
 
     def _stuck_cause(self, task: Task, now: float) -> str:

@@ -136,6 +136,7 @@ class FleetBenchRow(BaseModel):
     planning_sim_s: float | None = None  # every plan's wall time x the time scale [sim s]
     time_scale: float | None = None  # simulated s per wall s of the run (fleet policies)
     disturbance_seed: int = 0  # which of the scenario's disturbance sets (scenario_seed)
+    repeat: int = 0  # which run of the same scenario, seed and policy (``repeats``)
     #: the largest sum over robots of the time each, alone, spends in one single-robot zone
     #: [sim s]: the floor one-at-a-time zones put under the makespan (solo_floor.py)
     zone_solo_s: float | None = None
@@ -150,7 +151,9 @@ class BenchOptions:
     sim`` flags; empty: perfect robots), time-limit override [s, simulated], plot folder,
     folder keeping the sim traces and task stores (else deleted), whether navground runs in a worker
     process beside the fleet runs,
-    how many disturbance seeds each scenario runs with (every policy on each), whether a
+    how many disturbance seeds each scenario runs with (every policy on each), how many
+    times each (scenario, seed, policy) runs (the spread of one tree: a fleet run varies with
+    the service's timing, the navground peers repeat exactly), whether a
     short unmeasured fleet run comes first (:data:`WARM_UP`), the
     robots' settings (profile, avoidance, control
     rate), and the robots the navground peers drive (the same as ``disturbances`` give
@@ -163,6 +166,7 @@ class BenchOptions:
     traces: Path | None = None
     peer_worker: bool = True
     disturbance_seeds: int = 1
+    repeats: int = 1
     warm_up: bool = True
     settings: Settings = field(default_factory=load_settings)
     robots: PeerRobots | None = None
@@ -368,8 +372,10 @@ def run_fleet_policy(
     fleet_name: str,
     workdir: Path,
     seed: int | None = None,
+    repeat: int = 0,
 ) -> Outcome:
-    """One run of ``scenario`` through a fresh service and fresh ``parkfleet sim`` robots."""
+    """One run of ``scenario`` through a fresh service and fresh ``parkfleet sim`` robots
+    (``repeat`` > 0: another run of the same seed, its trace named so)."""
     began = time.monotonic()
     base = options.settings
     update: dict[str, Any] = {
@@ -400,7 +406,8 @@ def run_fleet_policy(
     )
     other = seed is not None and seed != scenario_seed(scenario)  # another disturbance set
     trace = (options.traces or workdir) / (
-        f"{scenario.name}--{policy}{f'--seed{seed}' if other else ''}.trace"
+        f"{scenario.name}--{policy}{f'--seed{seed}' if other else ''}"
+        f"{f'--r{repeat}' if repeat else ''}.trace"
     )
     keys = Keys(fleet_name)
     clock = _SimClock(1.0 / settings.control_rate_hz)
@@ -580,11 +587,16 @@ def run_fleet_bench(
     unknown = [p for p in policies if p not in POLICIES]
     if unknown:
         raise ValueError(f"unknown policy {unknown}; expected some of {list(POLICIES)}")
-    cases = [(s, d) for s in scenarios for d in range(options.disturbance_seeds)]
-    runs = [(k, options.limit(s), p) for k, (s, _) in enumerate(cases) for p in policies]
+    cases = [
+        (s, d, r)
+        for s in scenarios
+        for d in range(options.disturbance_seeds)
+        for r in range(options.repeats)
+    ]
+    runs = [(k, options.limit(s), p) for k, (s, _, _) in enumerate(cases) for p in policies]
 
     def seed(k: int) -> int:
-        return scenario_seed(*cases[k])
+        return scenario_seed(cases[k][0], cases[k][1])
 
     fleet_runs = [r for r in runs if r[2] in FLEET_POLICIES]
     peer_runs = [r for r in runs if r[2] not in FLEET_POLICIES]
@@ -594,15 +606,18 @@ def run_fleet_bench(
     alone = {s.name: law_alone(s, options.settings) for s in scenarios}
 
     def finish(k: int, scenario: Scenario, policy: str, outcome: Outcome) -> None:
+        _, disturbance, repeat = cases[k]
         row = make_row(scenario, policy, outcome).model_copy(
             update={
-                "disturbance_seed": cases[k][1],
+                "disturbance_seed": disturbance,
+                "repeat": repeat,
                 "zone_solo_s": floors[scenario.name],
                 "law_solo_s": alone[scenario.name],
             }
         )
         if options.plots is not None:
-            name = f"{scenario.name}--{policy}{f'--d{cases[k][1]}' if cases[k][1] else ''}.png"
+            tail = (f"--d{disturbance}" if disturbance else "") + (f"--r{repeat}" if repeat else "")
+            name = f"{scenario.name}--{policy}{tail}.png"
             plot_run(scenario, outcome.result, metrics_title(row), options.plots / name)
         done[k, policy] = row
         if progress is not None:
@@ -663,6 +678,7 @@ def run_fleet_bench(
                     fleet_name=name,
                     workdir=Path(tmp),
                     seed=seed(k),
+                    repeat=cases[k][2],
                 )
             else:
                 outcome = run_peer_policy(scenario, policy, options, seed(k))

@@ -84,6 +84,15 @@ def register(commands: Any, bench: Any) -> None:
         help="run every scenario with N sets of disturbances (seeds), every policy on each "
         "(default 1; the issue's targets use 3)",
     )
+    p.add_argument(
+        "--repeats",
+        type=positive_int,
+        default=1,
+        metavar="N",
+        help="run every (scenario, seed, policy) N times: the spread of one tree under the "
+        "same disturbances (a fleet run varies with the service's timing; navground's peers "
+        "repeat exactly) (default 1)",
+    )
     p.add_argument("--plots", type=Path, metavar="DIR", help="one PNG per (scenario, policy)")
     p.add_argument(
         "--markdown",
@@ -207,6 +216,7 @@ def run(args: argparse.Namespace) -> int:
         settings=load_settings(),
         robots=SimRobots() if args.perfect else SimRobots.realistic(),
         disturbance_seeds=args.disturbance_seeds,
+        repeats=args.repeats,
     )
     progress_out = sys.stderr if args.json else sys.stdout
     print(

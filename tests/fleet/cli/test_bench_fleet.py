@@ -78,3 +78,20 @@ def test_disturbance_seeds_run_every_policy_on_each_set_of_the_same_robots(
     assert main([*args, "--perfect", "--disturbance-seeds", "2"]) == 0
     perfect = json.loads(capsys.readouterr().out)["rows"]
     assert perfect[0]["stops_per_trip"] == 0.0 and perfect[0]["cusps_per_trip"] == 0.0
+
+
+def test_repeats_run_each_seed_again_and_navgrounds_peers_repeat_exactly(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "mine.json"
+    path.write_text(dump_scenarios([swap(2, "left")]))
+    args = ["bench", "fleet", "--scenario-file", str(path), "--policy", "orca", "--json"]
+    assert main([*args, "--disturbance-seeds", "2", "--repeats", "2"]) == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    assert [(r["disturbance_seed"], r["repeat"]) for r in rows] == [(0, 0), (0, 1), (1, 0), (1, 1)]
+    assert rows[0]["makespan_s"] == rows[1]["makespan_s"] != rows[2]["makespan_s"]
+    assert rows[2]["makespan_s"] == rows[3]["makespan_s"]
+    saved = tmp_path / "run.json"
+    saved.write_text(json.dumps({"rows": rows}))
+    assert main(["bench", "fleet", "--from-json", str(saved)]) == 0
+    assert "| swap-2 | 2 | 4 |" in capsys.readouterr().out  # four runs in the family's row

@@ -62,12 +62,17 @@ def test_bad_requests_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert "not a bench fleet --json output" in capsys.readouterr().err
 
 
+def _orca_on_swap_2_left(tmp_path: Path) -> list[str]:
+    """The arguments of a JSON run of ORCA on a scenario file holding swap-2-left."""
+    path = tmp_path / "mine.json"
+    path.write_text(dump_scenarios([swap(2, "left")]))
+    return ["bench", "fleet", "--scenario-file", str(path), "--policy", "orca", "--json"]
+
+
 def test_disturbance_seeds_run_every_policy_on_each_set_of_the_same_robots(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    path = tmp_path / "mine.json"
-    path.write_text(dump_scenarios([swap(2, "left")]))
-    args = ["bench", "fleet", "--scenario-file", str(path), "--policy", "orca", "--json"]
+    args = _orca_on_swap_2_left(tmp_path)
     assert main([*args, "--disturbance-seeds", "2"]) == 0
     rows = json.loads(capsys.readouterr().out)["rows"]
     assert [(r["policy"], r["disturbance_seed"]) for r in rows] == [("orca", 0), ("orca", 1)]
@@ -83,9 +88,7 @@ def test_disturbance_seeds_run_every_policy_on_each_set_of_the_same_robots(
 def test_repeats_run_each_seed_again_and_navgrounds_peers_repeat_exactly(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    path = tmp_path / "mine.json"
-    path.write_text(dump_scenarios([swap(2, "left")]))
-    args = ["bench", "fleet", "--scenario-file", str(path), "--policy", "orca", "--json"]
+    args = _orca_on_swap_2_left(tmp_path)
     assert main([*args, "--disturbance-seeds", "2", "--repeats", "2"]) == 0
     rows = json.loads(capsys.readouterr().out)["rows"]
     assert [(r["disturbance_seed"], r["repeat"]) for r in rows] == [(0, 0), (0, 1), (1, 0), (1, 1)]

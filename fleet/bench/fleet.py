@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import math
 import multiprocessing
 import os
@@ -39,7 +40,7 @@ import threading
 import time
 import warnings
 import zlib
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from multiprocessing.pool import AsyncResult
 from pathlib import Path
@@ -82,6 +83,7 @@ from fleet.io.trace import TraceChunk, read_header, read_trace
 from fleet.io.transport import listening_locators, open_session, tcp_endpoint
 from fleet.service.fleet_service import FleetService
 from fleet.service.host import open_fleet
+from fleet.service.planner_worker import plans_log
 
 FLEET_POLICIES: tuple[str, ...] = ("auto", "cw", "ccw", "none")
 PEER_POLICIES: tuple[str, ...] = tuple(BEHAVIOURS)
@@ -149,8 +151,8 @@ class FleetBenchRow(BaseModel):
 class BenchOptions:
     """How the bench runs: time scale of the sim robots, their disturbances (``parkfleet
     sim`` flags; empty: perfect robots), time-limit override [s, simulated], plot folder,
-    folder keeping the sim traces and task stores (else deleted), whether navground runs in a worker
-    process beside the fleet runs,
+    folder keeping the sim traces, task stores and plans logs (else deleted), whether
+    navground runs in a worker process beside the fleet runs,
     how many disturbance seeds each scenario runs with (every policy on each), how many
     times each (scenario, seed, policy) runs (the spread of one tree: a fleet run varies with
     the service's timing, the navground peers repeat exactly), whether a
@@ -358,6 +360,27 @@ class _PlanLatency:
         self._plans, self._wall_ms = plans, wall
 
 
+@contextlib.contextmanager
+def _plans_kept_in(path: Path) -> Iterator[None]:
+    """The service's plans log (one JSON line per plan,
+    :mod:`fleet.service.planner_worker`) written to ``path`` while the run lasts, and
+    nowhere else."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handler = logging.FileHandler(path, encoding="utf-8")
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    level, propagate = plans_log.level, plans_log.propagate
+    plans_log.addHandler(handler)
+    plans_log.setLevel(logging.DEBUG)
+    plans_log.propagate = False
+    try:
+        yield
+    finally:
+        plans_log.removeHandler(handler)
+        handler.close()
+        plans_log.setLevel(level)
+        plans_log.propagate = propagate
+
+
 def _direction(policy: str) -> Direction:
     return "cw" if policy == "cw" else "auto" if policy == "auto" else "ccw"
 
@@ -435,6 +458,8 @@ def run_fleet_policy(
     submitted: dict[int, float] = {}  # simulated time [s] of each task's submission
     rejected = 0
     with contextlib.ExitStack() as stack:  # closed in reverse: sim, subscriber, the fleet
+        if options.traces is not None:
+            stack.enter_context(_plans_kept_in(options.traces / fleet_name / "plans.jsonl"))
         service = stack.enter_context(open_fleet(settings, session=session)).service
         service.add_listener(on_event)
         stack.callback(session.declare_subscriber(keys.state(ids[0]), clock.on_sample).undeclare)

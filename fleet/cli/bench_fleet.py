@@ -109,8 +109,9 @@ def register(commands: Any, bench: Any) -> None:
         "--traces",
         type=Path,
         metavar="DIR",
-        help="keep the fleet runs' sim traces (fleet/io/trace.py format) and task stores "
-        "(a folder per run: its SQLite task history) there",
+        help="keep the fleet runs' sim traces (fleet/io/trace.py format), task stores and "
+        "plans logs there (a folder per run: its SQLite task history and plans.jsonl, one "
+        "JSON line per plan)",
     )
     p.set_defaults(func=run)
 

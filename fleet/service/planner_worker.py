@@ -20,10 +20,16 @@ one more cycle right after it. A burst of submissions is planned together: after
 
 Without a thread (the service's single-threaded test mode) the caller runs
 :meth:`PlannerWorker.step` itself.
+
+**The plans log**: with the ``fleet.plans`` logger at DEBUG, every plan applied is one
+JSON line there -- the wall-clock time it was applied [s, epoch], its planning time
+``took_s`` [s], the snapshot's robot count and :meth:`~fleet.core.planner.model.Plan.summary`
+(``parkfleet bench fleet --traces`` keeps it per run in ``plans.jsonl``).
 """
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import threading
@@ -35,6 +41,8 @@ from fleet.service.snapshot import PlanInput
 from fleet.service.stats import Counters, LatencyWindow
 
 _log = logging.getLogger(__name__)
+#: one JSON line per plan at DEBUG (module docstring)
+plans_log = logging.getLogger("fleet.plans")
 
 PlanFunction = Callable[[PlanningSnapshot], Plan]
 
@@ -135,6 +143,11 @@ class PlannerWorker:
         self._counters.add("plans")
         self._counters.add("plan_us", round(took * 1e6))  # total planning time [µs]
         _log.debug("planned %d decision(s) in %.3f s", len(plan.decisions), took)
+        if plans_log.isEnabledFor(logging.DEBUG):
+            line: dict[str, object] = {"at": round(self._clock.wall(), 3)}
+            line |= {"took_s": round(took, 4), "robots": len(work.snapshot.robots)}
+            line |= plan.summary()
+            plans_log.debug("%s", json.dumps(line))
         self._apply(plan, work)
         return True
 

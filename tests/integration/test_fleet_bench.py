@@ -12,6 +12,7 @@ worker and its sessions.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -61,6 +62,12 @@ def test_three_noisy_robots_crossing_under_auto_all_park_without_touching(
     period = read_header(tmp_path / "crossing-3--auto.trace").period_s
     np.testing.assert_allclose(np.diff(t), period, rtol=1e-6)
     assert t[-1] - t[0] >= row.makespan_s - period
+    # and the plans log: one JSON line per plan the service made, which assigned every task
+    (log,) = tmp_path.glob("*-0-auto/plans.jsonl")  # the run (the warm-up has its own)
+    plans = [json.loads(line) for line in log.read_text().splitlines()]
+    assert plans and all(p["robots"] == 3 and p["took_s"] > 0 for p in plans)
+    assert sum(p["actions"].get("assign", 0) for p in plans) >= 3
+    assert [p["at"] for p in plans] == sorted(p["at"] for p in plans)
 
 
 def test_sigterm_stops_the_bench_its_sim_child_and_its_navground_worker() -> None:

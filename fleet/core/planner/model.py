@@ -202,3 +202,25 @@ class Plan:
     #: [s, robot time] re-plan after this long even without a trigger (robots hold and
     #: should be tried again); None: only on triggers and the service's own period
     replan_in_s: float | None = None
+
+    def summary(self) -> dict[str, object]:
+        """The plan in numbers, for the plans log (JSON-ready): decisions by action, robots
+        held, robots it starts or keeps that it predicts short of their goals within its
+        horizon (``short``: a jam shows here first), the search's size and its notes."""
+        actions: dict[str, int] = {}
+        for d in self.decisions:
+            actions[d.action] = actions.get(d.action, 0) + 1
+        short = sum(1 for d in self.decisions if not d.hold and d.predicted_arrival_s is None)
+        sep = self.min_separation_m
+        return {
+            "snapshot_version": self.snapshot_version,
+            "decisions": len(self.decisions),
+            "actions": actions,
+            "held": sum(1 for d in self.decisions if d.hold),
+            "short": short,
+            "safe": self.safe,
+            "min_separation_m": round(sep, 3) if sep != float("inf") else None,
+            "rollouts": self.rollouts,
+            "clusters": self.clusters,
+            "notes": list(self.notes),
+        }

@@ -8,13 +8,15 @@ No test here waits on time: only on conditions (``wait_for``) or on a fake clock
 
 from __future__ import annotations
 
+import json
+import logging
 import threading
 from collections.abc import Callable, Iterator
 
 import pytest
 from support import wait_for
 
-from fleet.core.planner import PlanningSnapshot, TaskDecision
+from fleet.core.planner import Plan, PlanningSnapshot, TaskDecision
 from fleet.core.tasks import TaskStatus
 from fleet.core.types import Law
 from fleet.core.wire import ParkAssignment, Pose, RobotMode, RobotState
@@ -179,6 +181,34 @@ def test_a_plan_that_is_not_relaxed_leaves_the_reason_empty(yards: Callable[...,
     assigned = [t for _, event, t in y.store.history(task.id) if event == "assigned"]
     assert [t.reason for t in assigned] == [None]
     assert y.service.planner_stats().relaxed == 0
+
+
+def test_with_the_plans_log_on_every_plan_is_one_json_line_of_what_it_decided(
+    yards: Callable[..., Yard], caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.DEBUG, logger="fleet.plans")
+    y = yards(ScriptedPlanner(assign_queued(predicted_arrival_s=6.0)))
+    y.join("r1", 0.0)
+    y.join("r2", 5.0)
+    y.service.submit(req(3.0, 0.0, robot="r1"))
+    y.service.submit(req(-3.0, 0.0, robot="r2"))
+    y.service.tick()
+    (line,) = [json.loads(r.getMessage()) for r in caplog.records if r.name == "fleet.plans"]
+    assert line["at"] == pytest.approx(y.clock.wall()) and line["took_s"] >= 0
+    assert line["robots"] == 2 and line["decisions"] == 2 and line["actions"] == {"assign": 2}
+    assert line["held"] == 0 and line["short"] == 0 and line["safe"] is True
+
+
+def test_a_plan_summary_counts_the_robots_it_predicts_short_of_their_goals() -> None:
+    decisions = (
+        TaskDecision("t1", "r1", "assign", "cw", predicted_arrival_s=9.0),
+        TaskDecision("t2", "r2", "keep", "ccw"),  # no arrival within the horizon: short
+        TaskDecision("t3", "r3", "assign", "cw", hold=True),  # held: not short
+    )
+    summary = Plan(4, decisions, True, float("inf"), rollouts=7, clusters=2).summary()
+    assert summary["actions"] == {"assign": 2, "keep": 1}
+    assert (summary["held"], summary["short"], summary["min_separation_m"]) == (1, 1, None)
+    assert json.loads(json.dumps(summary)) == summary
 
 
 def test_the_worker_replans_as_the_yard_changes_and_resends_only_changes(

@@ -22,9 +22,10 @@ Without a thread (the service's single-threaded test mode) the caller runs
 :meth:`PlannerWorker.step` itself.
 
 **The plans log**: with the ``fleet.plans`` logger at DEBUG, every plan applied is one
-JSON line there -- the wall-clock time it was applied [s, epoch], its planning time
-``took_s`` [s], the snapshot's robot count and :meth:`~fleet.core.planner.model.Plan.summary`
-(``parkfleet bench fleet --traces`` keeps it per run in ``plans.jsonl``).
+JSON line there -- the wall-clock time it was made [s, epoch], its planning time
+``took_s`` [s, to the µs], the snapshot's robot count and
+:meth:`~fleet.core.planner.model.Plan.summary` (``parkfleet bench fleet --traces`` keeps
+it per run in ``plans.jsonl``).
 """
 
 from __future__ import annotations
@@ -145,7 +146,7 @@ class PlannerWorker:
         _log.debug("planned %d decision(s) in %.3f s", len(plan.decisions), took)
         if plans_log.isEnabledFor(logging.DEBUG):
             line: dict[str, object] = {"at": round(self._clock.wall(), 3)}
-            line |= {"took_s": round(took, 4), "robots": len(work.snapshot.robots)}
+            line |= {"took_s": round(took, 6), "robots": len(work.snapshot.robots)}
             line |= plan.summary()
             plans_log.debug("%s", json.dumps(line))
         self._apply(plan, work)

@@ -40,6 +40,7 @@ What the service does with a plan (the receding horizon):
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -207,9 +208,7 @@ class Plan:
         """The plan in numbers, for the plans log (JSON-ready): decisions by action, robots
         held, robots it starts or keeps that it predicts short of their goals within its
         horizon (``short``: a jam shows here first), the search's size and its notes."""
-        actions: dict[str, int] = {}
-        for d in self.decisions:
-            actions[d.action] = actions.get(d.action, 0) + 1
+        actions = dict(Counter(d.action for d in self.decisions))
         short = sum(1 for d in self.decisions if not d.hold and d.predicted_arrival_s is None)
         sep = self.min_separation_m
         return {

@@ -47,6 +47,12 @@ Built-in families (:func:`full_suite`, :func:`quick_suite`):
 * ``corridor-6`` -- two 8 x 10 m rooms joined by an 8 m corridor 1.2 m wide (two robots
   cannot pass in it: a narrow passage, held by one robot at a time); three robots in each
   room, each bound for a bay in the other room. Named.
+* ``ring-8-post``, ``ring-12-post``, ``ring-6-posts`` -- robots on a circle round posts
+  park at the antipodal point (:func:`rings`); named.
+* ``cross-8``, ``cross-16`` -- two lanes crossing, one and two rows deep
+  (:func:`crossing_lanes`); named.
+* ``stagger-12-right`` / ``-left`` -- a 12-robot swap whose tasks arrive 1.5 s apart;
+  named.
 * ``case-III`` -- the paper's comparative case III with two obstacles at (+-0.8, 0) (the
   paper gives only the figure), Table 8 gains; ``case-III-4`` -- four robots crossing the
   same pair of obstacles.
@@ -482,6 +488,70 @@ def case_iii_crossing() -> Scenario:
     )
 
 
+def ring_round_posts(
+    n: int, radius: float, posts: Sequence[ObstacleSpec], name: str, seed: int = 0
+) -> Scenario:
+    """``n`` robots on a circle of ``radius`` [m] round ``posts`` park at the antipodal
+    point, facing the way they cross; each starts facing the centre within +-0.4 rad
+    (seeded): every straight way is blocked, the ways round the posts meet. Named."""
+    rng = np.random.default_rng(seed)
+    robots = []
+    for i in range(n):
+        a = 2 * math.pi * i / n
+        c, s = radius * math.cos(a), radius * math.sin(a)
+        heading = a + math.pi
+        robots.append(
+            RobotSpec(start=(c, s, heading + float(rng.uniform(-0.4, 0.4))), goal=(-c, -s, heading))
+        )
+    return Scenario(name=name, robots=robots, obstacles=list(posts), family=name, seed=seed)
+
+
+def rings() -> list[Scenario]:
+    """The rings round posts: 8 robots round one post (body 0.6 m, influence 1.2 m), 12 round
+    a larger one (0.8 m, 1.6 m), 6 round three small ones (0.3 m, 0.7 m) 1.2 m off centre."""
+    small = [
+        ObstacleSpec(x=1.2 * math.cos(a), y=1.2 * math.sin(a), radius=0.7, body=0.3)
+        for a in (0.3, 2.4, 4.5)
+    ]
+    return [
+        ring_round_posts(8, 5.0, [ObstacleSpec(x=0.0, y=0.0, radius=1.2, body=0.6)], "ring-8-post"),
+        ring_round_posts(
+            12, 6.0, [ObstacleSpec(x=0.0, y=0.0, radius=1.6, body=0.8)], "ring-12-post"
+        ),
+        ring_round_posts(6, 5.0, small, "ring-6-posts"),
+    ]
+
+
+def crossing_lanes(per_lane: int, rows: int = 1, row_delay_s: float = 2.0) -> Scenario:
+    """Two crossing lanes: ``per_lane`` robots 1.5 m apart drive east across the yard and as
+    many north, ``rows`` deep (each row 1.5 m behind the one before, its tasks
+    ``row_delay_s`` [s] later, parking 1.5 m short of it: the first row parks deepest);
+    the northbound lane 0.3 m off the eastbound one's grid. Named."""
+    robots = []
+    offsets = [(k - (per_lane - 1) / 2) * 1.5 for k in range(per_lane)]
+    for row in range(rows):
+        start, goal, at = 7.0 + 1.5 * row, 7.0 - 1.5 * row, row * row_delay_s
+        for o in offsets:
+            robots.append(RobotSpec(start=(-start, o, 0.0), goal=(goal, o, 0.0), arrival_s=at))
+            north = math.pi / 2
+            robots.append(
+                RobotSpec(start=(o + 0.3, -start, north), goal=(o + 0.3, goal, north), arrival_s=at)
+            )
+    name = f"cross-{len(robots)}"
+    return Scenario(name=name, robots=robots, family=name)
+
+
+def staggered_swap(n: int, chirality: str = "right", gap_s: float = 1.5) -> Scenario:
+    """:func:`swap` with the tasks arriving one by one, ``gap_s`` [s] apart round the circle:
+    robots start while others are under way. Named."""
+    base = swap(n, chirality)
+    robots = [
+        r.model_copy(update={"arrival_s": round(k * gap_s, 2)}) for k, r in enumerate(base.robots)
+    ]
+    name = f"stagger-{n}-{chirality}"
+    return Scenario(name=name, robots=robots, family=f"stagger-{n}")
+
+
 # -- suites --------------------------------------------------------------------------------
 
 SWAP_SIZES = (2, 4, 8, 16, 32)
@@ -493,7 +563,7 @@ STREAM_SEEDS = tuple(range(1, 6))
 def full_suite() -> list[Scenario]:
     """Every built-in scenario: swaps in both chiralities, yards x 10 seeds, streams, the car
     park (at once, as a stream, with walls), the garage, the corridor, case III alone and
-    with four robots."""
+    with four robots, rings round posts, crossing lanes, staggered swaps."""
     return [
         *(swap(n, c) for n in SWAP_SIZES for c in ("right", "left")),
         *(random_yard(n, s) for n in YARD_SIZES for s in YARD_SEEDS),
@@ -505,6 +575,11 @@ def full_suite() -> list[Scenario]:
         corridor(),
         case_iii(),
         case_iii_crossing(),
+        *rings(),
+        crossing_lanes(4),
+        crossing_lanes(4, rows=2),
+        staggered_swap(12, "right"),
+        staggered_swap(12, "left"),
     ]
 
 

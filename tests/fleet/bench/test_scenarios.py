@@ -7,6 +7,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from fleet.bench.scenarios import (
@@ -14,14 +15,18 @@ from fleet.bench.scenarios import (
     car_park,
     case_iii,
     case_iii_crossing,
+    crossing_lanes,
     dump_scenarios,
     full_suite,
     load_scenarios,
     quick_suite,
     random_yard,
+    rings,
+    staggered_swap,
     stream,
     swap,
 )
+from fleet.core.geometry import segment_distances
 
 ISSUE_SHAPE = """
 {"name": "my-yard", "named": true,
@@ -123,6 +128,42 @@ def test_case_iii_alone_and_with_four_robots() -> None:
     assert four.law_gains == alone.law_gains and four.law_gains is not None
 
 
+def test_every_ring_robot_has_a_post_body_across_its_straight_way() -> None:
+    for ring in rings():
+        assert ring.named and ring.obstacles
+        centres = np.array([[o.x, o.y] for o in ring.obstacles])
+        bodies = np.array([o.body for o in ring.obstacles])
+        for (x, y, heading), (gx, gy, goal_heading) in zip(ring.starts, ring.goals, strict=True):
+            assert math.isclose(gx, -x, abs_tol=1e-9) and math.isclose(gy, -y, abs_tol=1e-9)
+            facing = math.atan2(-y, -x)
+            assert abs(math.remainder(heading - facing, 2 * math.pi)) <= 0.4
+            assert math.isclose(math.remainder(goal_heading - facing, 2 * math.pi), 0, abs_tol=1e-9)
+            gaps = segment_distances(centres[None], np.array([[x, y]]), np.array([[gx, gy]]))[0]
+            assert (gaps[:, 0] < bodies + 0.2).any()  # a robot's radius: it cannot pass straight
+
+
+def test_crossing_lanes_cross_and_the_first_row_parks_deepest() -> None:
+    one, two = crossing_lanes(4), crossing_lanes(4, rows=2, row_delay_s=2.0)
+    assert (one.name, len(one.robots), two.name, len(two.robots)) == ("cross-8", 8, "cross-16", 16)
+    east = [r for r in two.robots if r.start[2] == 0.0]
+    north = [r for r in two.robots if r.start[2] != 0.0]
+    assert len(east) == len(north) == 8
+    for r in east:  # driving east along its row, parking 7 m (first row) or 5.5 m east
+        assert r.start[1] == r.goal[1] and r.start[0] < 0 < r.goal[0]
+        assert (r.start[0], r.goal[0], r.arrival_s) in {(-7.0, 7.0, 0.0), (-8.5, 5.5, 2.0)}
+    for r in north:
+        assert r.start[0] == r.goal[0] and r.start[1] < 0 < r.goal[1]
+    xs = {r.start[0] for r in north}
+    assert not xs & {r.start[1] for r in east}  # lanes off each other's grid
+
+
+def test_a_staggered_swap_is_the_swap_with_arrivals_apart() -> None:
+    base, late = swap(12, "left"), staggered_swap(12, "left", gap_s=1.5)
+    assert late.starts == base.starts and late.goals == base.goals
+    assert [r.arrival_s for r in late.robots] == [round(1.5 * k, 2) for k in range(12)]
+    assert late.name == "stagger-12-left" and late.family == "stagger-12"
+
+
 def test_the_suites_cover_the_benchmark() -> None:
     names = [s.name for s in full_suite()]
     for n in (2, 4, 8, 16, 32):
@@ -130,6 +171,7 @@ def test_the_suites_cover_the_benchmark() -> None:
     for n in (10, 20, 40):
         assert len([s for s in full_suite() if s.family == f"yard-{n}"]) >= 10
     assert {"carpark-12", "case-III", "case-III-4"} <= set(names)
+    assert {"ring-8-post", "cross-16", "stagger-12-right", "stagger-12-left"} <= set(names)
     assert any(s.startswith("stream-") for s in names)
     assert len(set(names)) == len(names)
     assert {s.name for s in quick_suite()} <= set(names)

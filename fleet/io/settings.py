@@ -293,6 +293,9 @@ class Settings(RobotSettings):
     # state seq over the control rate] is in a standoff: the service makes one robot of
     # each standoff give way (a held revision, the other law), for a plan to resume.
     standoff_after_s: Annotated[float, Field(gt=0)] = 8.0
+    # [m] what counts as progress in that window: a robot held off by another creeps and
+    # dithers, a few centimetres nearer its goal now and then, and stays in the standoff.
+    standoff_progress_m: Annotated[float, Field(gt=0, le=5.0)] = 0.25
     # Site map (fleet/core/site.py: yard, obstacles, keep-out zones, bays), TOML or JSON;
     # its yard replaces ``yard``. Loaded and checked when the settings are.
     site_file: Path | None = None

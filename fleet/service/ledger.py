@@ -129,6 +129,8 @@ class LedgerConfig:
     stuck_after_s: float = 30.0  # [s] no progress this long: stuck (recoveries, then failed)
     #: [s, robot time] avoiding with no progress this long: a standoff (one robot gives way)
     standoff_after_s: float = math.inf
+    #: [m] progress that restarts the standoff window (less in it: no way out)
+    standoff_progress_m: float = 0.05
 
 
 def ledger_config(settings: Settings) -> LedgerConfig:
@@ -143,6 +145,7 @@ def ledger_config(settings: Settings) -> LedgerConfig:
         control_hz=settings.control_rate_hz,
         stuck_after_s=settings.stuck_after_s,
         standoff_after_s=settings.standoff_after_s,
+        standoff_progress_m=settings.standoff_progress_m,
     )
 
 
@@ -216,7 +219,9 @@ class TaskLedger:
         self.zones = ZoneBook(declared(site))  # single-robot zone -> the robot holding it
         # progress of tasks under way (stuck robots, standoffs)
         self.stuck_watch = StuckWatch(
-            config.stuck_after_s, standoff_after_s=config.standoff_after_s
+            config.stuck_after_s,
+            standoff_after_s=config.standoff_after_s,
+            standoff_progress_m=config.standoff_progress_m,
         )
         self._held: dict[str, str] = {}  # robots an operator holds still -> why
         self._avoid: dict[str, str] = {}  # task -> robot it was taken from (stuck)

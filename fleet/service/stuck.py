@@ -19,8 +19,9 @@ while (a start delay, so the peer passes), requeue to another robot; after the l
 task fails.
 
 **Standoffs** are found sooner, on the robots' own clock: a robot that reports ``avoiding``
-(its safety filter or the repulsion of Eq. (27) acts) and has made no progress for
-``standoff_after_s`` robot seconds (its state's ``seq`` over the control rate, so a
+(its safety filter or the repulsion of Eq. (27) acts) and has not come ``standoff_progress_m``
+nearer its goal in ``standoff_after_s`` robot seconds (a robot held off creeps and dithers:
+a few centimetres of it are no way out) (its state's ``seq`` over the control rate, so a
 time-scaled simulation is judged like a real robot) is in a standoff with the robots near
 it -- typically two robots nose to nose, each one's filter holding it off the other.
 :meth:`StuckWatch.standoff` lists it; the service breaks each standoff by making one robot
@@ -74,9 +75,11 @@ class StuckWatch:
         heading_arm: float = 0.2,
         check_interval_s: float = 0.25,
         standoff_after_s: float = math.inf,
+        standoff_progress_m: float = 0.05,
     ) -> None:
         self.stuck_after_s = stuck_after_s
         self.standoff_after_s = standoff_after_s
+        self.standoff_progress_m = standoff_progress_m
         self.min_progress_m = min_progress_m
         self.heading_arm = heading_arm
         self.check_interval_s = check_interval_s
@@ -124,14 +127,14 @@ class StuckWatch:
         restarted = not robot_t >= p.robot_now  # also the first state (NaN)
         p.robot_now = robot_t
         left = remaining(pose, goal, self.heading_arm)
-        if held or restarted or left < p.robot_best - self.min_progress_m:
+        if held or restarted or left < p.robot_best - self.standoff_progress_m:
             p.robot_best, p.robot_since = left, robot_t
         if held or restarted or left < p.stuck_best - self.min_progress_m:
             p.stuck_best, p.stuck_since = left, robot_t
 
     def standoff(self, task_id: str) -> bool:
-        """The task's robot reports ``avoiding`` and has made no progress for
-        ``standoff_after_s`` on its own clock."""
+        """The task's robot reports ``avoiding`` and has not come ``standoff_progress_m``
+        nearer its goal for ``standoff_after_s`` on its own clock."""
         p = self._tasks.get(task_id)
         return p is not None and p.avoiding and p.robot_now - p.robot_since >= self.standoff_after_s
 

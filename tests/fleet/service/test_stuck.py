@@ -207,6 +207,29 @@ def test_a_standoff_is_avoiding_without_progress_on_the_robots_own_clock() -> No
     assert watch.standoff("t")
 
 
+def test_a_robot_creeping_a_few_centimetres_at_a_time_is_still_in_a_standoff() -> None:
+    """Held off by a peer, a robot dithers and creeps (6 cm a second here, 4 cm per state):
+    less than ``standoff_progress_m`` in the window is no way out; more is progress."""
+    watch = StuckWatch(1000.0, standoff_after_s=4.0, standoff_progress_m=0.3)
+    goal = Pose(x=5, y=0)
+    watch.start("t", 0.0)
+    for k in range(7):  # 0.24 m in 4 s
+        at = Pose(x=0.04 * k, y=0)
+        watch.observe("t", at, goal, 0.0, held=False, robot_t=10.0 + 4.0 * k / 6, avoiding=True)
+    assert watch.standoff("t")
+    creeping = StuckWatch(1000.0, standoff_after_s=4.0)  # 5 cm of progress, the old rule
+    creeping.start("t", 0.0)
+    for k in range(7):
+        at = Pose(x=0.06 * k, y=0)
+        creeping.observe("t", at, goal, 0.0, held=False, robot_t=10.0 + 4.0 * k / 6, avoiding=True)
+    assert not creeping.standoff("t")
+    watch.restart("t")
+    watch.observe("t", Pose(x=0.6, y=0), goal, 0.0, held=False, robot_t=15.0, avoiding=True)
+    watch.observe("t", Pose(x=1.0, y=0), goal, 0.0, held=False, robot_t=18.9, avoiding=True)
+    watch.observe("t", Pose(x=1.0, y=0), goal, 0.0, held=False, robot_t=22.0, avoiding=True)
+    assert not watch.standoff("t")  # 0.4 m at 18.9 s restarted the window
+
+
 def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_plan() -> None:
     from fleet.core.wire import RobotState
     from tests.fleet.service.conftest import ScriptedPlanner, assign_queued

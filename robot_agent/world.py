@@ -8,9 +8,11 @@ its last pose.
 
 Each peer is kept with its last measured pose and, when its state carried one, the pose it
 predicted for itself (``RobotState.ahead``): :meth:`WorldView.peer_bodies` shows the safety
-filter every peer there, with the radius of :func:`robot_agent.prediction.peer_spread`
-(until it has been silent ``peer_stale_s``: then, as a peer without a prediction, around
-its measured pose with :meth:`~fleet.core.params.SafetyConfig.peer_spread`).
+filter every peer there, with the radius of :func:`robot_agent.prediction.peer_spread`. A
+peer without a prediction (or with ``safety.prediction`` off) is around its measured pose:
+with :meth:`~fleet.core.params.SafetyConfig.measured_peer_spread` when its state's send time
+is known, else with :meth:`~fleet.core.params.SafetyConfig.peer_spread` (the link-delay
+bound); a peer silent ``peer_stale_s`` is a standing obstacle (``peer_spread``).
 """
 
 from __future__ import annotations
@@ -39,9 +41,11 @@ class WorldView:
     """Thread-safe table of peer states (by robot id) and the static obstacle set."""
 
     #: Columns of a peer row: x, y, theta [m, m, rad], body radius [m], |u| [m/s], when it
-    #: was heard [s, ``clock``], and when that pose was measured if it is an agent's own
-    #: reading on this session (:meth:`update_position`; NaN when it came with a state).
-    _COLUMNS = 7
+    #: was heard [s, ``clock``], when that pose was measured if it is an agent's own
+    #: reading on this session (:meth:`update_position`; NaN when it came with a state),
+    #: and when its newest state was sent at the earliest, if known (NaN: within the
+    #: link-delay bound before it was heard).
+    _COLUMNS = 8
 
     def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
         self._lock = threading.Lock()
@@ -71,10 +75,12 @@ class WorldView:
             self._set_row(
                 state.robot_id, (p.x, p.y, p.theta, state.radius, abs(state.u)), max(age_s, 0.0)
             )
+            heard = self._clock() - max(age_s, 0.0)
+            sent = math.nan if sent_age_s is None else heard - sent_age_s[0]
+            self._positions[self._rows[state.robot_id], 7] = sent
             if state.ahead is None:
                 self._ahead.pop(state.robot_id, None)
             else:
-                heard = self._clock() - max(age_s, 0.0)
                 self._ahead[state.robot_id] = (state.ahead, heard, sent_age_s)
 
     def update_position(
@@ -99,6 +105,7 @@ class WorldView:
             self._ids.append(robot_id)
             if row >= self._positions.shape[0]:
                 self._positions = np.concatenate([self._positions, np.zeros_like(self._positions)])
+            self._positions[row, 7] = math.nan  # no state yet: its send time is not known
         self._positions[row, :5] = values
         self._positions[row, 5] = self._clock() - age_s
         self._positions[row, 6] = math.nan
@@ -150,10 +157,13 @@ class WorldView:
         :func:`~robot_agent.prediction.peer_spread`, or, when its agent's reading on this
         session gives a smaller radius, at that reading with
         :func:`~robot_agent.prediction.measured_spread`; any other (no prediction, no
-        ``window``, or stale) at its last measured pose with
-        :meth:`SafetyConfig.peer_spread` of its speed and silence. A robot not yet described
-        by a state (only measured on this session) gets
-        ``default_radius`` [m]."""
+        ``window``, or stale) at its last measured pose: with
+        :meth:`SafetyConfig.measured_peer_spread` when its newest state's send time is known
+        (synchronised clocks, a simulated link, an agent of this session) and it has not
+        been silent ``peer_stale_s`` -- from that send, or from its agent's later reading
+        on this session --, else with :meth:`SafetyConfig.peer_spread` of its speed and
+        silence (the link-delay bound). A robot not yet described by a state (only measured
+        on this session) gets ``default_radius`` [m]."""
         rows, predictions = self._peer_rows(exclude)
         now = self._clock()
         postures = np.ascontiguousarray(rows[:, :3].T)
@@ -177,5 +187,11 @@ class WorldView:
                     postures[2, k] = ahead.theta
                     shapes[1, k] = spread
                     continue
-            shapes[1, k] = safety.peer_spread(float(speed), now - float(heard))
+            silent, reported = now - float(heard), float(rows[k, 7])
+            if math.isnan(reported) or silent > safety.peer_stale_s:
+                shapes[1, k] = safety.peer_spread(float(speed), silent)
+                continue
+            measured = float(rows[k, 6])
+            measured = reported if math.isnan(measured) else max(measured, reported)
+            shapes[1, k] = safety.measured_peer_spread(float(speed), now - reported, now - measured)
         return postures, shapes

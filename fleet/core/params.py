@@ -145,6 +145,19 @@ class SafetyConfig(BaseModel):
         delay (the batch has no command latency of its own)."""
         return self.pose_error_m + self.reach(0.0, self.link_delay_s + self.max_latency_s)
 
+    def measured_peer_spread(self, speed: float, reported_s: float, measured_s: float) -> float:
+        """A peer's uncertainty [m] around its measured pose when it is known when that pose
+        was measured (``measured_s`` [s] ago: its agent's reading on this session, or the
+        send of a state whose send time is known -- synchronised clocks, a simulated link,
+        this session's own agents) and when the state reporting ``speed`` [m/s] was sent
+        (``reported_s`` [s] ago at most): its pose error and the motion it may make from
+        the measurement until this robot's command acts, at most ``max_latency_s`` from
+        now, starting at the speed the report allows by then. The link-delay bound of
+        :meth:`peer_spread` is not needed: the measurement's age is known."""
+        measured_s, reported_s = max(measured_s, 0.0), max(reported_s, 0.0)
+        start = abs(speed) + self.max_accel_m_s2 * max(reported_s - measured_s, 0.0)
+        return self.pose_error_m + self.reach(start, measured_s + self.max_latency_s)
+
     def peer_spread(self, speed: float, silent_s: float) -> float:
         """A peer's uncertainty [m] around its measured pose (reported ``speed`` [m/s],
         heard ``silent_s`` [s] ago) when its state carries no prediction (an older release)

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fleet.core.params import Gains, Tolerance
+from fleet.core.params import Gains, SafetyConfig, Tolerance
 from fleet.core.wire import (
     ControlAction,
     ControlCommand,
@@ -187,6 +187,39 @@ def test_with_synchronised_clocks_a_peer_s_prediction_is_placed_by_its_stamp() -
             feed._on_state(FakeSample(keys.peer_state("a", (0, 0)), Payload(encode(ahead_of_us))))
             assert feed.decoder.dropped.get("stamp_ahead") == 1
     assert radii[0.005] < radii[None] - 0.1  # 150 ms of link-delay doubt gone at 1 m/s
+
+
+def test_a_peer_whose_measurement_time_is_known_needs_no_link_delay_bound() -> None:
+    """Without prediction, a peer's spread runs from when its pose was measured when that is
+    known (its state's send time, or its agent's later reading on this session), not from
+    its arrival less the link-delay bound; a peer whose send time is unknown keeps that
+    bound; a stale one is a standing robot."""
+    safety = SafetyConfig()
+    clock = SteppedClock(100.0)
+    world = WorldView(clock.now)
+
+    def heard(rid: str, sent_age: tuple[float, float] | None) -> None:
+        world.update_state(
+            RobotState(robot_id=rid, seq=1, stamp=1000.0, pose=Pose(x=1.0, y=0.0), u=0.8),
+            sent_age_s=sent_age,
+        )
+
+    heard("known", (0.03, 0.01))
+    heard("unknown", None)
+    clock.advance(0.02)
+    shapes = world.peer_bodies("me", safety, 0.2)[1]
+    spreads = dict(zip(("known", "unknown"), shapes[1], strict=True))
+    assert spreads["known"] == pytest.approx(safety.measured_peer_spread(0.8, 0.05, 0.05))
+    assert spreads["unknown"] == pytest.approx(safety.peer_spread(0.8, 0.02))
+    assert spreads["known"] < spreads["unknown"] - 0.1  # 0.2 s of link doubt at 0.8 m/s
+    world.update_position("known", 1.01, 0.0, 0.0, measured_at=clock.now())  # a fresh reading
+    clock.advance(0.02)
+    (fresh,) = world.peer_bodies("unknown", safety, 0.2)[1][1]
+    assert fresh == pytest.approx(safety.measured_peer_spread(0.8, 0.07, 0.02))
+    assert fresh < spreads["known"]
+    clock.advance(safety.peer_stale_s + 0.1)
+    (stale,) = world.peer_bodies("unknown", safety, 0.2)[1][1]
+    assert stale == pytest.approx(safety.peer_spread(0.0, safety.peer_stale_s + 1.0))
 
 
 def test_callback_guard_counts_exceptions() -> None:

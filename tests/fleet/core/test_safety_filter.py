@@ -117,6 +117,44 @@ def test_a_silent_peer_s_spread_grows_until_it_is_stale_then_is_a_standing_robot
         assert safety.peer_spread(speed, late) == standing == safety.batch_spread()
 
 
+@settings(max_examples=200, deadline=None)
+@given(
+    speed=st.floats(0.0, 1.5, allow_nan=False),
+    reported=st.floats(0.0, 0.5, allow_nan=False),
+    since=st.floats(0.0, 0.5, allow_nan=False),
+    latency=st.floats(0.0, 1.0, allow_nan=False),
+    profile=st.lists(st.floats(0.0, 1.0, allow_nan=False), min_size=2, max_size=12),
+    turns=st.lists(st.floats(-math.pi, math.pi, allow_nan=False), min_size=2, max_size=12),
+)
+def test_a_peer_measured_at_a_known_time_stays_within_its_spread(
+    speed: float,
+    reported: float,
+    since: float,
+    latency: float,
+    profile: list[float],
+    turns: list[float],
+) -> None:
+    """A peer whose state reported ``speed`` ``reported + since`` s ago and whose pose was
+    measured ``since`` s ago, its speed growing by at most max_accel from the report (any
+    speed below that, any turns), is within measured_peer_spread of the measured pose (less
+    the pose error) at every instant up to this robot's command acting (max_latency_s)."""
+    safety = SafetyConfig(max_latency_s=latency)
+    spread = safety.measured_peer_spread(speed, reported + since, since)
+    dt, t = 1e-3, 0.0
+    x = y = 0.0
+    end = since + latency
+    pieces = len(profile)
+    while t < end:
+        k = min(int(t / end * pieces), pieces - 1)  # a piecewise speed profile and heading
+        envelope = speed + safety.max_accel_m_s2 * (reported + t)  # from the report on
+        v = profile[k] * envelope
+        x += v * math.cos(turns[k % len(turns)]) * dt
+        y += v * math.sin(turns[k % len(turns)]) * dt
+        t += dt
+        assert math.hypot(x, y) <= spread - safety.pose_error_m + 1e-9 + envelope * dt
+    assert spread <= safety.peer_spread(speed, since) or reported > safety.link_delay_s
+
+
 half_plane = st.tuples(heading, st.floats(0.0, 1.0, allow_nan=False))
 
 

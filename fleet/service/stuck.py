@@ -20,9 +20,9 @@ task fails.
 
 **Standoffs** are found sooner, on the robots' own clock: a robot that reports ``avoiding``
 (its safety filter or the repulsion of Eq. (27) acts) and has not come ``standoff_progress_m``
-nearer its goal in ``standoff_after_s`` robot seconds (a robot held off creeps and dithers:
-a few centimetres of it are no way out) (its state's ``seq`` over the control rate, so a
-time-scaled simulation is judged like a real robot) is in a standoff with the robots near
+nearer its goal in ``standoff_after_s`` robot seconds (its state's ``seq`` over the control
+rate, so a time-scaled simulation is judged like a real robot; a robot held off creeps and
+dithers, and a few centimetres of that are no way out) is in a standoff with the robots near
 it -- typically two robots nose to nose, each one's filter holding it off the other.
 :meth:`StuckWatch.standoff` lists it; the service breaks each standoff by making one robot
 give way (:meth:`fleet.service.ledger.TaskLedger.break_standoff`) and restarts the windows

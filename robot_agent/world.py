@@ -75,9 +75,9 @@ class WorldView:
             self._set_row(
                 state.robot_id, (p.x, p.y, p.theta, state.radius, abs(state.u)), max(age_s, 0.0)
             )
-            heard = self._clock() - max(age_s, 0.0)
-            sent = math.nan if sent_age_s is None else heard - sent_age_s[0]
-            self._positions[self._rows[state.robot_id], 7] = sent
+            row = self._rows[state.robot_id]
+            heard = float(self._positions[row, 5])  # as _set_row wrote it
+            self._positions[row, 7] = math.nan if sent_age_s is None else heard - sent_age_s[0]
             if state.ahead is None:
                 self._ahead.pop(state.robot_id, None)
             else:

@@ -529,11 +529,11 @@ def crossing_lanes(per_lane: int, rows: int = 1, row_delay_s: float = 2.0) -> Sc
     the northbound lane 0.3 m off the eastbound one's grid. Named."""
     robots = []
     offsets = [(k - (per_lane - 1) / 2) * 1.5 for k in range(per_lane)]
+    north = math.pi / 2
     for row in range(rows):
         start, goal, at = 7.0 + 1.5 * row, 7.0 - 1.5 * row, row * row_delay_s
         for o in offsets:
             robots.append(RobotSpec(start=(-start, o, 0.0), goal=(goal, o, 0.0), arrival_s=at))
-            north = math.pi / 2
             robots.append(
                 RobotSpec(start=(o + 0.3, -start, north), goal=(o + 0.3, goal, north), arrival_s=at)
             )

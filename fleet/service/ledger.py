@@ -228,6 +228,7 @@ class TaskLedger:
         self._pinned: dict[str, Law] = {}  # task under way -> the law a recovery chose
         self._own_way: set[str] = set()  # tasks under way a recovery took off their route
         self._wide_way: set[str] = set()  # tasks under way a recovery sent round posts' zones
+        self._gave_way: set[str] = set()  # tasks whose robot gave way in a standoff, held
         self._active: dict[str, Task] = {}  # every non-final task, by id
         self._queued: dict[str, Task] = {}
         self._under_way: dict[str, Task] = {}  # assigned, driving, waiting (with a robot)
@@ -305,6 +306,12 @@ class TaskLedger:
         posts' Eq. (27) zones (the planner routes them so: their robot stalled in one)."""
         return frozenset(self._wide_way)
 
+    def gave_way(self) -> frozenset[str]:
+        """Tasks whose robot gave way in a standoff and stands until a plan resumes it (the
+        planner sends the other robots round it: with both laws driving straight at each
+        other, nothing else gets one past the other)."""
+        return frozenset(self._gave_way)
+
     def acknowledged_at(self) -> dict[str, float]:
         """Tasks under way whose robot reports their current revision -> when it first did
         [s, monotonic] (its start delay counts from about then)."""
@@ -381,6 +388,7 @@ class TaskLedger:
         self._pinned.pop(task.id, None)
         self._own_way.discard(task.id)
         self._wide_way.discard(task.id)
+        self._gave_way.discard(task.id)
         self._tracking.pop(task.id, None)
         self.paths.finish(task.id)
         self._finished[task.id] = task.status
@@ -562,6 +570,7 @@ class TaskLedger:
             status, reason, event = TaskStatus.WAITING, self._hold_reason(decision), "held"
         elif resumes:
             status, reason, event = TaskStatus.ASSIGNED, relaxed, "resumed"
+            self._gave_way.discard(task.id)
         else:
             status, reason, event = task.status, relaxed or task.reason, "replanned"
         revised = self._update(
@@ -708,6 +717,7 @@ class TaskLedger:
         self._pinned.pop(task.id, None)  # another robot may take it: its own best law
         self._own_way.discard(task.id)
         self._wide_way.discard(task.id)
+        self._gave_way.discard(task.id)
         effects: Effects = []
         self._transition(requeued, event, effects)
         if stop_robot and task.robot_id is not None:
@@ -806,12 +816,14 @@ class TaskLedger:
     def break_standoff(self, task_id: str, cause: str, now: float, wall: float) -> Effects:
         """The task's robot gives way in a standoff: a held revision (it stands until a plan
         resumes it through the plan's check), with the other law pinned for an ``auto``
-        task -- another sense of rotation is another way past. ``cause`` goes into the
-        reason and the history (``standoff``); the task's stuck window is not spent."""
+        task -- another sense of rotation is another way past -- and the others routed round
+        it while it stands (:meth:`gave_way`). ``cause`` goes into the reason and the
+        history (``standoff``); the task's stuck window is not spent."""
         task = self._under_way[task_id]
         law = self._other_law(task)
         reason = f"standoff: {cause}; gives way ({law}) until a plan resumes it"
         self.stuck_watch.restart(task_id)
+        self._gave_way.add(task_id)
         return self._held_revision(task, law, reason, "standoff", now, wall)
 
     def _other_law(self, task: Task) -> Law:

@@ -60,6 +60,7 @@ class PlannerGlue(ServiceState):
             pinned = self._ledger.pinned()
             own_way = self._ledger.own_way()
             wide_way = self._ledger.wide_way()
+            gave_way = self._ledger.gave_way()
             acknowledged = {t: now - at for t, at in self._ledger.acknowledged_at().items()}
             obstacles = list(self._obstacles)
             zones = self._ledger.zones.shapes
@@ -83,6 +84,7 @@ class PlannerGlue(ServiceState):
             pinned,
             own_way=own_way,
             wide_way=wide_way,
+            gave_way=gave_way,
             zones=zones,
             zone_holders=zone_holders,
         )

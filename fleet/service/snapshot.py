@@ -68,6 +68,7 @@ def _task_snapshot(
     pinned: Mapping[str, Law],
     own_way: Collection[str],
     wide_way: Collection[str],
+    gave_way: Collection[str],
 ) -> TaskSnapshot:
     request = task.request
     under_way = task.status.under_way
@@ -88,6 +89,7 @@ def _task_snapshot(
         route=tuple(task.route) if under_way else (),
         own_way=under_way and task.id in own_way,
         wide_way=under_way and task.id in wide_way,
+        gave_way=under_way and task.hold and task.id in gave_way,
         avoid_robot=avoided.get(task.id),
         start_delay_left_s=(
             max(0.0, task.start_delay_s - running_s[task.id]) if task.id in running_s else None
@@ -110,6 +112,7 @@ def planning_input(
     *,
     own_way: Collection[str] = (),
     wide_way: Collection[str] = (),
+    gave_way: Collection[str] = (),
     zones: Sequence[ZoneShape] = (),
     zone_holders: Mapping[str, Mapping[str, ZonePass | None]] | None = None,
 ) -> PlanInput:
@@ -123,7 +126,8 @@ def planning_input(
     of the start delay is left, in robot time); ``pinned``: task under way -> the law a
     stuck recovery chose (the planner may only use it); ``own_way``: tasks under way a
     stuck recovery took off their route (the planner routes them no more); ``wide_way``:
-    tasks under way a stuck recovery sent round the posts' Eq. (27) zones; ``zones``: the
+    tasks under way a stuck recovery sent round the posts' Eq. (27) zones; ``gave_way``:
+    tasks whose robot gave way in a standoff (held: the others are routed round it); ``zones``: the
     single-robot zones, ``zone_holders``: zone -> robot -> its pass, the robots holding each."""
     hz = settings.control_rate_hz
     available = {r.state.robot_id for r in robots if r.available}
@@ -155,7 +159,9 @@ def planning_input(
         version=version,
         robots=tuple(robot_snaps),
         tasks=tuple(
-            _task_snapshot(t, held, avoided or {}, running, pinned or {}, own_way, wide_way)
+            _task_snapshot(
+                t, held, avoided or {}, running, pinned or {}, own_way, wide_way, gave_way
+            )
             for t in sorted(tasks, key=lambda t: t.created_at)
         ),
         obstacles=tuple(obstacles),

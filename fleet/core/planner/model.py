@@ -117,6 +117,9 @@ class TaskSnapshot:
     #: a stuck recovery found its robot stalled without a route: the plan routes it round
     #: the posts' Eq. (27) zones, not only their bodies (under way only)
     wide_way: bool = False
+    #: its robot gave way in a standoff and stands until a plan resumes it: the plan sends
+    #: the other movers round it, on their last leg too (under way and held only)
+    gave_way: bool = False
 
 
 @dataclass(frozen=True)

@@ -260,7 +260,7 @@ def build_fleet(
     )  # fmt: skip
     route, last_leg = _routes(
         pose0, goal, limits, world, config, [t.route for t in tasks], [t.own_way for t in tasks],
-        standing_xy, [t.wide_way for t in tasks],
+        standing_xy, [t.wide_way for t in tasks], np.array([t.gave_way for t in tasks], bool),
     )  # fmt: skip
 
     # Lead-in: robots under way go on as they are; new and held robots stand.
@@ -370,6 +370,7 @@ def _routes(
     own_way: Sequence[bool],
     standing_xy: FloatArray,
     wide_way: Sequence[bool],
+    gave_way: BoolArray,
 ) -> tuple[tuple[FloatArray, ...], BoolArray]:
     """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the
     static obstacles: the rest of the route its robot was ``sent`` while its body's straight
@@ -386,11 +387,14 @@ def _routes(
     on a lane, beside a pre-bay point) or within a peer's influence radius of a via-point
     goes round it (:func:`_round_standing`): the robot could never reach that via-point.
     A mover a stuck recovery found stalled without a route (``wide_way``) is routed round
-    the posts' Eq. (27) zones, not only their bodies (:func:`_wide`). Also which movers
-    are on their last leg (``Movers.last_leg``)."""
+    the posts' Eq. (27) zones, not only their bodies (:func:`_wide`). A mover whose way
+    -- its last leg too -- passes a robot that ``gave_way`` (k,) in a standoff and stands
+    goes round that robot (:func:`_round_givers`): the laws drive straight at a robot
+    standing dead ahead, and Eq. (27) only slows them. Also which movers are on their last
+    leg (``Movers.last_leg``)."""
     k = pose.shape[0]
     last_leg = np.zeros(k, dtype=bool)
-    if not world.obstacles or k == 0:
+    if not (world.obstacles or gave_way.any()) or k == 0:
         return (), last_leg
     # shapely and networkx on first use: the fleet service plans with them, a robot never.
     from fleet.core.planner.lanes import route_graph
@@ -436,6 +440,14 @@ def _routes(
         # and routed again from there once the robot is out of the next point's sight.
         points = (points or ())[:MAX_ROUTE_POINTS]
         out.append(np.array(points, dtype=np.float64).reshape(-1, 2) if points else NO_ROUTE)
+    for i in np.flatnonzero(~gave_way).tolist() if gave_way.any() else []:
+        givers = pose[gave_way & (np.arange(k) != i), :2]
+        around = _round_givers(
+            out[i], pose[i], goal[i], givers, standing_xy, float(reach[i]), world, clearance,
+            config, wide if wide_way[i] else world.obstacles,
+        )  # fmt: skip
+        if around is not None:
+            out[i], last_leg[i] = around, False
     return tuple(out), last_leg
 
 
@@ -482,17 +494,20 @@ def _backed_out(
 def _in_the_way(
     here: tuple[float, float], via: FloatArray | Sequence[tuple[float, float]],
     standing_xy: FloatArray, reach: float, influence: float,
+    goal: tuple[float, float] | None = None,
 ) -> FloatArray:  # fmt: skip
     """Rows of ``standing_xy`` (s, 2) [m] a robot at ``here`` cannot drive its via-points
     ``via`` (m, 2) [m] past: closer than ``reach`` [m] (two bodies and the contact margin)
     to a leg from ``here`` through them, or within ``influence`` [m] (a peer's Eq. (27)
     radius) of a via-point -- the robot near its via-point with a peer ahead stalls where
     the repulsion -K_avoid/x_OA outweighs the law's kx x_e. The leg from the last via-point
-    to the goal is left out: the paper's law drives it, bending round a peer."""
+    to the goal is left out unless ``goal`` (x, y) [m] is given: the paper's law drives it,
+    bending round a peer beside it (not round one dead ahead)."""
     if standing_xy.shape[0] == 0:
         return standing_xy
     points = np.asarray(via, dtype=np.float64).reshape(-1, 2)
-    ends = np.vstack([np.asarray(here, dtype=np.float64), points])
+    last = () if goal is None else (np.asarray(goal, dtype=np.float64),)
+    ends = np.vstack([np.asarray(here, dtype=np.float64), points, *last])
     on_leg = (segment_distances(standing_xy[None], ends[:-1], ends[1:])[0] < reach).any(axis=1)
     to_via = standing_xy[:, None, :] - points[None]
     at_via: BoolArray = ((to_via * to_via).sum(axis=2) < influence * influence).any(axis=1)
@@ -517,21 +532,63 @@ def _round_standing(
     robots are posts too, whose grown body (``clearance`` [m] beyond it, on a
     ``STANDING_GRID_M`` grid) holds their body and their peers' influence radius: its
     via-points lie beyond both. ``points`` when that graph has no way."""
-    from fleet.core.planner.lanes import route_graph
 
     influence = world.avoidance.peer_radius
     blockers = _in_the_way(here, points, standing_xy, reach, influence)
     if blockers.shape[0] == 0:
         return points
-    body = max(world.profile.radius, influence - clearance) + STANDING_GRID_M
+    around = _route_round(here, target, blockers, world, clearance, config, obstacles)
+    return points if around is None else around
+
+
+def _route_round(
+    here: tuple[float, float], target: tuple[float, float, float], blockers: FloatArray,
+    world: World, clearance: float, config: PlannerConfig, obstacles: tuple[Obstacle, ...],
+) -> tuple[tuple[float, float], ...] | None:  # fmt: skip
+    """The route from ``here`` to ``target`` of a graph of ``obstacles`` where the robots
+    standing at ``blockers`` (b, 2) [m] are posts whose grown body (``clearance`` [m] beyond
+    it, on a ``STANDING_GRID_M`` grid) holds their body and their peers' influence radius,
+    shrunk (not below a body) so that ``here`` lies outside it: a robot already within a
+    peer's influence radius is routed round it from where it is. None: no way."""
+    from fleet.core.planner.lanes import route_graph
+
+    body = max(world.profile.radius, world.avoidance.peer_radius - clearance) + STANDING_GRID_M
+    grid = np.round(blockers / STANDING_GRID_M) * STANDING_GRID_M
+    near = np.hypot(grid[:, 0] - here[0], grid[:, 1] - here[1]) - clearance - STANDING_GRID_M
     posts = tuple(
-        Obstacle(x=float(x), y=float(y), radius=body, body=body)
-        for x, y in np.round(blockers / STANDING_GRID_M) * STANDING_GRID_M
+        Obstacle(x=float(x), y=float(y), radius=b, body=b)
+        for (x, y), b in zip(grid, np.clip(near, world.profile.radius, body), strict=True)
     )
-    around = route_graph(obstacles + posts, clearance, world.lanes).route(
+    return route_graph(obstacles + posts, clearance, world.lanes).route(
         here, target, config.approach_m
     )
-    return points if around is None else around
+
+
+def _round_givers(
+    way: FloatArray, pose: FloatArray, goal: FloatArray, givers: FloatArray,
+    standing_xy: FloatArray, reach: float, world: World, clearance: float,
+    config: PlannerConfig, obstacles: tuple[Obstacle, ...],
+) -> FloatArray | None:  # fmt: skip
+    """A way (m, 2) [m] for a mover at ``pose`` driving ``way`` (its via-points) to
+    ``goal`` round the robots at ``givers`` (g, 2) [m] that gave way in a standoff, when
+    its way, the last leg included, passes one of them (:func:`_in_the_way` with the goal)
+    -- and round the ``standing_xy`` robots in the new way -- on a graph of ``obstacles``
+    (:func:`_route_round`); None: no giver in its way, or no way round."""
+    here = (float(pose[0]), float(pose[1]))
+    target = (float(goal[0]), float(goal[1]), float(goal[2]))
+    influence = world.avoidance.peer_radius
+    ahead = _in_the_way(here, way, givers, reach, influence, target[:2])
+    if ahead.shape[0] == 0:
+        return None
+    around = _route_round(here, target, ahead, world, clearance, config, obstacles)
+    if around:
+        standing = _in_the_way(here, around, standing_xy, reach, influence)
+        if standing.shape[0]:
+            blockers = np.vstack([ahead, standing])
+            around = _route_round(here, target, blockers, world, clearance, config, obstacles)
+    if not around:
+        return None
+    return np.array(around[:MAX_ROUTE_POINTS], dtype=np.float64).reshape(-1, 2)
 
 
 def stuck(fleet: Fleet) -> list[int]:

@@ -231,10 +231,14 @@ def test_a_robot_creeping_a_few_centimetres_at_a_time_is_still_in_a_standoff() -
 
 
 def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_plan() -> None:
+    """The younger task's robot holds with the other law; the plans see that it gave way
+    (the others are routed round it) until one resumes it."""
+    from fleet.core.planner import TaskDecision
     from fleet.core.wire import RobotState
     from tests.fleet.service.conftest import ScriptedPlanner, assign_queued
 
-    f = Fleet(planner=ScriptedPlanner(assign_queued("ccw")), task_timeout_s=1000.0)
+    planner = ScriptedPlanner(assign_queued("ccw"))
+    f = Fleet(planner=planner, task_timeout_s=1000.0)
     try:
         f.join("old", -0.3, 0.0)
         f.join("new", 0.3, 0.0)
@@ -270,6 +274,22 @@ def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_pla
         (held,) = [p for p in f.parks("new") if p.revision == 1]
         assert held.hold and held.law == "cw"
         assert [e for _, e, _ in f.service.history(second.id)][-1] == "standoff"
+
+        def gave_way() -> set[str]:
+            f.clock.advance(5.0)
+            f.service.tick()  # the periodic plan
+            return {t.task_id for t in planner.snapshots[-1].tasks if t.gave_way}
+
+        assert gave_way() == {second.id}  # the plan routes "old" round it while it stands
+        planner.decide = lambda snapshot: [
+            TaskDecision(t.task_id, t.robot_id, "revise", t.law, revision=t.revision)
+            for t in snapshot.tasks
+            if t.hold and t.robot_id is not None and t.law is not None
+        ]
+        f.clock.advance(5.0)
+        f.service.tick()  # a plan resumes it
+        assert not f.service.task(second.id).hold
+        assert gave_way() == set()
     finally:
         f.service.close()
 

@@ -11,8 +11,8 @@ from dataclasses import replace
 import pytest
 from planning import TOL, idle, moved_on, queued, replay, scene, swap2
 
-from fleet.core.geometry import segments_cross
-from fleet.core.params import Avoidance
+from fleet.core.geometry import segment_distance, segments_cross
+from fleet.core.params import Avoidance, RobotProfile, SafetyConfig
 from fleet.core.planner import (
     Plan,
     PlannerConfig,
@@ -328,6 +328,44 @@ def test_a_robot_routed_round_the_posts_zones_goes_round_a_standing_robot_outsid
     assert all(math.dist(p, (o.x, o.y)) >= o.radius for p in way for o in posts)
     legs = itertools.pairwise([start[:2], *way])
     assert not any(segments_cross(a, b, (-0.8, 0.0), (0.8, 0.0)) for a, b in legs)
+
+
+def test_a_robot_is_routed_round_one_that_gave_way_in_a_standoff_dead_ahead() -> None:
+    """Nose to nose, each goal behind the other (both laws drive straight, Eq. (27) only
+    slows them): the robot that gave way stands, and the other's way -- its last leg, with
+    no post to route round -- goes round it, its legs beyond two bodies and the contact
+    margin; the plan's prediction is what the robots do, and both park."""
+    ahead = (0.7, 0.0)
+
+    def snapshot(gave_way: bool) -> PlanningSnapshot:
+        driving = replace(
+            queued("t0", (4.0, 0.0, 0.0), "r0"),
+            status=TaskStatus.DRIVING, robot_id="r0", law="cw",
+        )  # fmt: skip
+        held = replace(
+            queued("t1", (-3.0, 0.0, math.pi), "r1", 1.0, direction="ccw"),
+            status=TaskStatus.WAITING, robot_id="r1", law="ccw", hold=True, gave_way=gave_way,
+        )  # fmt: skip
+        robots = (
+            RobotSnapshot("r0", (0.0, 0.0, 0.0), RobotStatus.AVOIDING, False, "t0", "cw"),
+            RobotSnapshot("r1", (*ahead, math.pi), RobotStatus.WAITING, False, "t1", "ccw"),
+        )
+        return PlanningSnapshot(version=1, robots=robots, tasks=(driving, held), control_dt=0.05)
+
+    straight = {d.robot_id: d for d in plan(snapshot(False)).decisions}
+    assert straight["r0"].route == ()
+    snap = snapshot(True)
+    result = plan(snap)
+    decided = {d.robot_id: d for d in result.decisions}
+    way = decided["r0"].route
+    assert way and result.safe
+    reach = 2 * RobotProfile().radius + SafetyConfig().contact_margin_m
+    legs = itertools.pairwise([(0.0, 0.0), *way, (4.0, 0.0)])
+    assert all(segment_distance(*ahead, a, b) >= reach for a, b in legs)
+    run = replay(snap, result)
+    assert run.result.done.all()
+    arrival = decided["r0"].predicted_arrival_s
+    assert arrival is not None and float(run.result.time[0]) == pytest.approx(arrival, abs=1e-6)
 
 
 def test_a_task_taken_from_a_stuck_robot_goes_to_another_one_and_keeps_its_revision() -> None:

@@ -528,11 +528,8 @@ def _round_standing(
 ) -> tuple[tuple[float, float], ...]:  # fmt: skip
     """``points`` (a route from ``here`` to ``target`` round ``obstacles``: the world's, or
     :func:`_wide`'s for a robot routed round the posts' zones), or, when standing robots
-    are in its way (:func:`_in_the_way`), the route of a graph of ``obstacles`` where those
-    robots are posts too, whose grown body (``clearance`` [m] beyond it, on a
-    ``STANDING_GRID_M`` grid) holds their body and their peers' influence radius: its
-    via-points lie beyond both. ``points`` when that graph has no way."""
-
+    are in its way (:func:`_in_the_way`), the route round them too (:func:`_route_round`).
+    ``points`` when that graph has no way."""
     influence = world.avoidance.peer_radius
     blockers = _in_the_way(here, points, standing_xy, reach, influence)
     if blockers.shape[0] == 0:

@@ -468,9 +468,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         held by an obstacle's repulsion or body) is stuck, not in a standoff: within a
         post's influence radius it gets its first stuck recovery now (flip, routed round the
         posts' zones: two posts' terms can hold it in a gap's mouth for good),
-        the others after the stuck watch's whole window. A group whose robot that would
-        give way is nearest a robot that gave way and stands is being routed round that
-        one: its windows restart."""
+        the others after the stuck watch's whole window."""
         tasks = self._ledger.standoffs()
         if not tasks:
             return [], 0
@@ -491,10 +489,6 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             group = [tasks[i] for i in members]
             gives = max(group, key=lambda t: (t.created_at, t.robot_id or ""))
             assert gives.robot_id is not None
-            if self._by_one_that_gave_way(gives.robot_id, where[gives.id], radius):
-                for other in group:  # being routed round it: its way round is no progress
-                    self._ledger.stuck_watch.restart(other.id)
-                continue
             cause = self._standoff_cause(gives.robot_id, where[gives.id], radius)
             if cause is None:  # alone (by an obstacle): stuck, not a standoff
                 if self._ledger.stuck_watch.attempts(gives.id) == 0 and self._by_post(gives):
@@ -524,16 +518,6 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             if d <= radius:
                 near.append((d, rec.robot_id))
         return min(near) if near else None
-
-    def _by_one_that_gave_way(self, robot_id: str, at: tuple[float, float], radius: float) -> bool:
-        """Whether the robot nearest ``robot_id`` (at ``at``) within ``radius`` [m] gave way
-        in a standoff and stands: the plans route ``robot_id`` round it (backing out first),
-        which is no progress to the standoff window, and it is not another standoff."""
-        nearest = self._nearest_robot(robot_id, at, radius)
-        if nearest is None:
-            return False
-        task = self._ledger.task_of_robot(nearest[1])
-        return task is not None and task.hold and task.id in self._ledger.gave_way()
 
     def _standoff_cause(self, robot_id: str, at: tuple[float, float], radius: float) -> str | None:
         """The robot nearest ``robot_id`` (at ``at``) within ``radius`` [m], as words (None:

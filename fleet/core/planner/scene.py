@@ -261,7 +261,6 @@ def build_fleet(
     route, last_leg, passing = _routes(
         pose0, goal, limits, world, config, [t.route for t in tasks], [t.own_way for t in tasks],
         standing_xy, [t.wide_way for t in tasks], np.array([t.gave_way for t in tasks], bool),
-        kind == HELD,
     )  # fmt: skip
 
     # Lead-in: robots under way go on as they are; new and held robots stand.
@@ -379,7 +378,6 @@ def _routes(
     standing_xy: FloatArray,
     wide_way: Sequence[bool],
     gave_way: BoolArray,
-    held: BoolArray,
 ) -> tuple[tuple[FloatArray, ...], BoolArray, IntArray]:
     """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the
     static obstacles: the rest of the route its robot was ``sent`` while its body's straight
@@ -400,9 +398,8 @@ def _routes(
     -- its last leg too -- passes a robot that ``gave_way`` (k,) in a standoff and stands
     goes round that robot (:func:`_round_givers`): the laws drive straight at a robot
     standing dead ahead, and Eq. (27) only slows them. Also which movers are on their last
-    leg (``Movers.last_leg``), and for each robot that gave way a mover near it, not
-    ``held`` (k,), whose way still passes it (-1: none; it stands until that one is by,
-    :func:`_passing`)."""
+    leg (``Movers.last_leg``), and for each robot that gave way a mover near it whose way
+    still passes it (-1: none; it stands until that one is by, :func:`_passing`)."""
     k = pose.shape[0]
     last_leg = np.zeros(k, dtype=bool)
     passing = np.full(k, -1, dtype=np.int64)
@@ -460,8 +457,7 @@ def _routes(
         )  # fmt: skip
         if around is not None:
             out[i], last_leg[i] = around, False
-        if not held[i]:
-            _passing(passing, i, pose, goal[i], out[i], gave_way, float(reach[i]), world)
+        _passing(passing, i, pose, goal[i], out[i], gave_way, float(reach[i]), world)
     return tuple(out), last_leg, passing
 
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -258,7 +258,7 @@ def build_fleet(
         snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles), snapshot.safety,
         config.pass_m, snapshot.lanes,
     )  # fmt: skip
-    route, last_leg, passing = _routes(
+    route, last_leg = _routes(
         pose0, goal, limits, world, config, [t.route for t in tasks], [t.own_way for t in tasks],
         standing_xy, [t.wide_way for t in tasks], np.array([t.gave_way for t in tasks], bool),
     )  # fmt: skip
@@ -325,13 +325,6 @@ def build_fleet(
         [t.created_at for t in tasks],
         blocks,
     )
-    if (passing >= 0).any():  # a robot that gave way stands while another goes round it
-        reasons = tuple(
-            why if why is not None or p < 0 else
-            f"gave way in a standoff: {owners[p].robot_id} goes round it"
-            for why, p in zip(gates.reasons, passing.tolist(), strict=True)
-        )  # fmt: skip
-        gates = replace(gates, must_hold=gates.must_hold | (passing >= 0), reasons=reasons)
     keep_law = np.where(kind == NEW, fastest, law_now)
     movers = Movers(
         tasks=tuple(tasks),
@@ -378,7 +371,7 @@ def _routes(
     standing_xy: FloatArray,
     wide_way: Sequence[bool],
     gave_way: BoolArray,
-) -> tuple[tuple[FloatArray, ...], BoolArray, IntArray]:
+) -> tuple[tuple[FloatArray, ...], BoolArray]:
     """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the
     static obstacles: the rest of the route its robot was ``sent`` while its body's straight
     way to the next via-point is clear (the robot drives it: re-routing a robot beside a
@@ -398,13 +391,11 @@ def _routes(
     -- its last leg too -- passes a robot that ``gave_way`` (k,) in a standoff and stands
     goes round that robot (:func:`_round_givers`): the laws drive straight at a robot
     standing dead ahead, and Eq. (27) only slows them. Also which movers are on their last
-    leg (``Movers.last_leg``), and for each robot that gave way a mover near it whose way
-    still passes it (-1: none; it stands until that one is by, :func:`_passing`)."""
+    leg (``Movers.last_leg``)."""
     k = pose.shape[0]
     last_leg = np.zeros(k, dtype=bool)
-    passing = np.full(k, -1, dtype=np.int64)
     if not (world.obstacles or gave_way.any()) or k == 0:
-        return (), last_leg, passing
+        return (), last_leg
     # shapely and networkx on first use: the fleet service plans with them, a robot never.
     from fleet.core.planner.lanes import route_graph
 
@@ -457,26 +448,7 @@ def _routes(
         )  # fmt: skip
         if around is not None:
             out[i], last_leg[i] = around, False
-        _passing(passing, i, pose, goal[i], out[i], gave_way, float(reach[i]), world)
-    return tuple(out), last_leg, passing
-
-
-def _passing(
-    passing: IntArray, i: int, pose: FloatArray, goal: FloatArray, way: FloatArray,
-    gave_way: BoolArray, reach: float, world: World,
-) -> None:  # fmt: skip
-    """Mark in ``passing`` (k,) mover ``i`` for every robot that ``gave_way`` it is near
-    (within twice the peer radius and ``reach`` [m]) and whose way to ``goal`` -- via-points
-    ``way`` (m, 2), the last leg too -- still passes within the peer radius and ``reach`` of
-    it: that robot stands until this one is by (a plan in the perfect model would resume
-    it at once, and the two would meet again)."""
-    near = world.avoidance.peer_radius + reach
-    here = (float(pose[i, 0]), float(pose[i, 1]))
-    for g in np.flatnonzero(gave_way).tolist():
-        if g == i or math.dist(here, (pose[g, 0], pose[g, 1])) >= 2.0 * near:
-            continue
-        if _in_the_way(here, way, pose[g : g + 1, :2], near, 0.0, (goal[0], goal[1])).shape[0]:
-            passing[g] = i if passing[g] < 0 else passing[g]
+    return tuple(out), last_leg
 
 
 @functools.lru_cache(maxsize=8)
@@ -569,33 +541,24 @@ def _round_standing(
 def _route_round(
     here: tuple[float, float], target: tuple[float, float, float], blockers: FloatArray,
     world: World, clearance: float, config: PlannerConfig, obstacles: tuple[Obstacle, ...],
-    back_out: bool = False,
 ) -> tuple[tuple[float, float], ...] | None:  # fmt: skip
     """The route from ``here`` to ``target`` of a graph of ``obstacles`` where the robots
     standing at ``blockers`` (b, 2) [m] are posts whose grown body (``clearance`` [m] beyond
-    it, on a ``STANDING_GRID_M`` grid) holds their body and their peers' influence radius:
-    its via-points lie beyond both (nearer, Eq. (27) holds a robot short of a via-point
-    with the robot standing ahead). With ``back_out`` (robots that gave way in a standoff)
-    the bodies grow by the pass-through radius too -- a robot passes a via-point that far
-    short of it, still outside the influence radius -- and a robot already within one
-    first backs straight out of it (:func:`_backed_out`). None: no way."""
+    it, on a ``STANDING_GRID_M`` grid) holds their body and their peers' influence radius,
+    shrunk (not below a body) so that ``here`` lies outside it: a robot already within a
+    peer's influence radius is routed round it from where it is. None: no way."""
     from fleet.core.planner.lanes import route_graph
 
-    grow = config.pass_m if back_out else 0.0
-    body = max(world.profile.radius, world.avoidance.peer_radius + grow - clearance)
-    body += STANDING_GRID_M
+    body = max(world.profile.radius, world.avoidance.peer_radius - clearance) + STANDING_GRID_M
+    grid = np.round(blockers / STANDING_GRID_M) * STANDING_GRID_M
+    near = np.hypot(grid[:, 0] - here[0], grid[:, 1] - here[1]) - clearance - STANDING_GRID_M
     posts = tuple(
-        Obstacle(x=float(x), y=float(y), radius=body, body=body)
-        for x, y in np.round(blockers / STANDING_GRID_M) * STANDING_GRID_M
+        Obstacle(x=float(x), y=float(y), radius=b, body=b)
+        for (x, y), b in zip(grid, np.clip(near, world.profile.radius, body), strict=True)
     )
-    graph = route_graph(obstacles + posts, clearance, world.lanes)
-    points = graph.route(here, target, config.approach_m)
-    if points is None and back_out:
-        away = _backed_out(here, obstacles + posts, clearance)
-        after = None if away is None else graph.route(away, target, config.approach_m)
-        if away is not None and after is not None:
-            points = (away, *after)
-    return points
+    return route_graph(obstacles + posts, clearance, world.lanes).route(
+        here, target, config.approach_m
+    )
 
 
 def _round_givers(
@@ -614,12 +577,12 @@ def _round_givers(
     ahead = _in_the_way(here, way, givers, reach, influence, target[:2])
     if ahead.shape[0] == 0:
         return None
-    around = _route_round(here, target, ahead, world, clearance, config, obstacles, True)
+    around = _route_round(here, target, ahead, world, clearance, config, obstacles)
     if around:
         standing = _in_the_way(here, around, standing_xy, reach, influence)
         if standing.shape[0]:
             blockers = np.vstack([ahead, standing])
-            around = _route_round(here, target, blockers, world, clearance, config, obstacles, True)
+            around = _route_round(here, target, blockers, world, clearance, config, obstacles)
     if not around:
         return None
     return np.array(around[:MAX_ROUTE_POINTS], dtype=np.float64).reshape(-1, 2)

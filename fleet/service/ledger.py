@@ -385,15 +385,20 @@ class TaskLedger:
         self.bays.release(task.id)
         self.stuck_watch.forget(task.id)
         self._avoid.pop(task.id, None)
-        self._pinned.pop(task.id, None)
-        self._own_way.discard(task.id)
-        self._wide_way.discard(task.id)
-        self._gave_way.discard(task.id)
+        self._forget_ways(task.id)
         self._tracking.pop(task.id, None)
         self.paths.finish(task.id)
         self._finished[task.id] = task.status
         while len(self._finished) > FINISHED_REMEMBERED:
             self._finished.popitem(last=False)
+
+    def _forget_ways(self, task_id: str) -> None:
+        """Drop what recoveries and standoffs pinned for the task (its law, its way, that
+        its robot gave way)."""
+        self._pinned.pop(task_id, None)
+        self._own_way.discard(task_id)
+        self._wide_way.discard(task_id)
+        self._gave_way.discard(task_id)
 
     def _transition(self, task: Task, event: str, effects: Effects) -> None:
         """Record ``task``'s new version in memory; store it, then announce it."""
@@ -714,10 +719,7 @@ class TaskLedger:
             revision=task.revision + 1,
         )
         self._tracking.pop(task.id, None)
-        self._pinned.pop(task.id, None)  # another robot may take it: its own best law
-        self._own_way.discard(task.id)
-        self._wide_way.discard(task.id)
-        self._gave_way.discard(task.id)
+        self._forget_ways(task.id)  # another robot may take it: its own best law and way
         effects: Effects = []
         self._transition(requeued, event, effects)
         if stop_robot and task.robot_id is not None:

@@ -440,8 +440,8 @@ def _routes(
         # and routed again from there once the robot is out of the next point's sight.
         points = (points or ())[:MAX_ROUTE_POINTS]
         out.append(np.array(points, dtype=np.float64).reshape(-1, 2) if points else NO_ROUTE)
-    for i in np.flatnonzero(~gave_way).tolist() if gave_way.any() else []:
-        givers = pose[gave_way & (np.arange(k) != i), :2]
+    givers = pose[gave_way, :2]
+    for i in np.flatnonzero(~gave_way).tolist() if len(givers) else []:
         around = _round_givers(
             out[i], pose[i], goal[i], givers, standing_xy, float(reach[i]), world, clearance,
             config, wide if wide_way[i] else world.obstacles,

@@ -15,6 +15,11 @@ the union of those capsules grown by ``clearance_m``.
   exactly against the capsules with an STRtree), weighted by their length [m]. Only edges
   tangent to the outline at both nodes are kept (the reduced visibility graph: a shortest
   path never uses the others), which prunes most pairs before any geometry is checked.
+  An edge that hugs a post (its middle within the grown post's ring) costs
+  ``1 + ROUNDABOUT_PRICE`` times its length when driven clockwise round that post: robots
+  whose ways round a post are about as long either side all go round it counter-clockwise,
+  a roundabout, instead of meeting head-on beside it; a much shorter way clockwise is
+  still taken.
 
 Robots start and park close to obstacles, so the segments leaving the start and reaching the
 goal (or the pre-bay point) need, from every body, only the clearance that end point itself
@@ -35,7 +40,7 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
-from fleet.core.types import BoolArray, FloatArray
+from fleet.core.types import BoolArray, FloatArray, IntArray
 from fleet.core.wire import Obstacle
 
 Point = tuple[float, float]
@@ -49,6 +54,9 @@ _POINT_M = 1e-9  # a segment shorter than this [m] is a point
 _SAG = 0.85  # an arc's chords cut at most this share of the margin into it
 _SIMPLIFY_M = 1e-4  # the grown outline's simplification tolerance [m]
 _PAIRS_PER_BLOCK = 1 << 20  # node pairs screened at once (memory bound)
+#: Extra share of an edge's length when it is driven clockwise round the post it hugs.
+ROUNDABOUT_PRICE = 0.5
+_NOT_HUGGING = -3  # ``ccw_from`` of an edge that hugs no post
 
 
 def _margin(clearance_m: float) -> float:
@@ -138,8 +146,14 @@ class Roadmap:
             open_ = ~probe._blocked(_segments(xy[i], xy[j]), bodies + clearance_m)
             i, j = i[open_], j[open_]
             lengths = np.hypot(*(xy[j] - xy[i]).T)
-            graph.add_weighted_edges_from(
-                zip(i.tolist(), j.tolist(), lengths.tolist(), strict=True), weight="length"
+            ccw_from = _counter_clockwise_from(
+                xy, i, j, shapes, bodies + clearance_m + 2.0 * _margin(clearance_m)
+            )
+            graph.add_edges_from(
+                (a, b, {"length": length, "ccw_from": start})
+                for a, b, length, start in zip(
+                    i.tolist(), j.tolist(), lengths.tolist(), ccw_from.tolist(), strict=True
+                )
             )
         for end in (_START, _TARGET):
             graph.add_edges_from((end, n) for n in range(len(xy)))
@@ -255,8 +269,9 @@ class Roadmap:
         )
 
         def weight(u: int, v: int, data: dict[str, float]) -> float | None:
-            if u >= 0 and v >= 0:
-                return data["length"]
+            if u >= 0 and v >= 0:  # u -> v: clockwise round the post it hugs costs more
+                hugging = data["ccw_from"] != _NOT_HUGGING and data["ccw_from"] != u
+                return data["length"] * (1.0 + ROUNDABOUT_PRICE) if hugging else data["length"]
             if u > v:
                 u, v = v, u
             if u == _TARGET:
@@ -270,6 +285,36 @@ class Roadmap:
         except nx.NetworkXNoPath:
             return None
         return tuple((float(self.nodes[n, 0]), float(self.nodes[n, 1])) for n in path[1:-1])
+
+
+def _counter_clockwise_from(
+    xy: FloatArray, i: IntArray, j: IntArray, shapes: GeometryArray, ring: FloatArray
+) -> IntArray:
+    """For each edge ``i[k]`` - ``j[k]`` between nodes ``xy``: the node from which it runs
+    counter-clockwise round the post it hugs -- the post (a point of ``shapes``, standing
+    alone: its ``ring`` [m] overlaps no other obstacle's, so a wall of posts has no sense)
+    whose centre its middle is nearest, within that post's ring -- or ``_NOT_HUGGING``."""
+    out = np.full(len(i), _NOT_HUGGING, dtype=np.int64)
+    posts = np.flatnonzero(shapely.get_type_id(shapes) == 0)
+    if len(posts) == 0 or len(i) == 0:
+        return out
+    apart = shapely.distance(shapes[posts][:, None], shapes[None, :]) > (
+        ring[posts][:, None] + ring[None, :]
+    )
+    apart[np.arange(len(posts)), posts] = True  # a post is not near itself
+    posts = posts[apart.all(axis=1)]
+    if len(posts) == 0:
+        return out
+    centres = shapely.get_coordinates(shapes[posts])  # (p, 2)
+    middle = 0.5 * (xy[i] + xy[j])  # (e, 2)
+    distance = np.hypot(*(middle[:, None, :] - centres[None, :, :]).transpose(2, 0, 1))
+    nearest = np.argmin(distance, axis=1)
+    hugs = distance[np.arange(len(i)), nearest] <= ring[posts][nearest]
+    arm = xy[i] - centres[nearest]
+    step = xy[j] - xy[i]
+    turn = arm[:, 0] * step[:, 1] - arm[:, 1] * step[:, 0]  # > 0: i -> j counter-clockwise
+    out[hugs] = np.where(turn[hugs] > 0.0, i[hugs], j[hugs])
+    return out
 
 
 def _outline_corners(

@@ -240,3 +240,47 @@ def test_a_point_is_a_segment_too() -> None:
     assert not roadmap.free((0.2, 0.0), (0.2, 0.0))  # 0.1 m from the body
     assert roadmap.free((1.0, 0.0), (1.0, 0.0))
     assert roadmap.route((1.0, 0.0), (1.0, 0.0, 0.0), 1.0) == ()
+
+
+def _turned(route: tuple[Pt, ...], start: Pt) -> float:
+    """The angle [rad] a route's way (from ``start``) sweeps round the origin, + ccw."""
+    points = [start, *route]
+    angles = [math.atan2(y, x) for x, y in points]
+    return sum(math.remainder(b - a, math.tau) for a, b in itertools.pairwise(angles))
+
+
+@pytest.mark.parametrize("k", range(8))
+def test_robots_crossing_a_ring_all_go_round_its_post_counter_clockwise(k: int) -> None:
+    """Eight robots on a circle round a post, each to the antipodal point: both ways round
+    are as long, and every route takes the counter-clockwise one (a roundabout: no two
+    meet head-on beside the post)."""
+    roadmap = Roadmap.build([post(0.0, 0.0, body=0.6)], CLEARANCE)
+    bearing = k * math.tau / 8 + 0.01  # off the node grid's symmetry, either side
+    start = (5.0 * math.cos(bearing), 5.0 * math.sin(bearing))
+    goal = (-start[0], -start[1], bearing + math.pi)
+    route = roadmap.route(start, goal, APPROACH)
+    assert route
+    assert _turned(route, start) > 0.0
+    assert_keeps_clearance([post(0.0, 0.0, body=0.6)], CLEARANCE, start, goal, APPROACH, route)
+
+
+def test_a_much_shorter_way_clockwise_round_a_post_is_still_taken() -> None:
+    """The roundabout's price is on the arc hugging the post: a goal just past the post's
+    clockwise side is reached that way."""
+    roadmap = Roadmap.build([post(0.0, 0.0, body=0.6)], CLEARANCE)
+    start, goal = (-3.0, 0.8), (3.0, 0.8, 0.0)
+    route = roadmap.route(start, goal, APPROACH)
+    assert route
+    assert _turned(route, start) < 0.0
+    assert min(y for _, y in route) > 0.0
+
+
+def test_a_wall_of_posts_has_no_sense() -> None:
+    """Posts whose grown bodies overlap make a wall: along it either way costs its length,
+    so a robot takes the shorter side as with a wall segment."""
+    row = [post(x, 0.0, body=0.25) for x in (-1.2, -0.6, 0.0, 0.6, 1.2)]
+    roadmap = Roadmap.build(row, CLEARANCE)
+    assert all(data["ccw_from"] < 0 for *_, data in roadmap.graph.edges(data=True)
+               if "ccw_from" in data)  # fmt: skip
+    alone = Roadmap.build([post(0.0, 0.0, body=0.25)], CLEARANCE)
+    assert any(data.get("ccw_from", -1) >= 0 for *_, data in alone.graph.edges(data=True))

@@ -15,7 +15,8 @@ the union of those capsules grown by ``clearance_m``.
   exactly against the capsules with an STRtree), weighted by their length [m]. Only edges
   tangent to the outline at both nodes are kept (the reduced visibility graph: a shortest
   path never uses the others), which prunes most pairs before any geometry is checked.
-  An edge that hugs a post (its middle within the grown post's ring) costs
+  An edge that hugs a post standing alone (no other obstacle within two robots' passing
+  room of it; its middle within the grown post's ring) costs
   ``1 + ROUNDABOUT_PRICE`` times its length when driven clockwise round that post: robots
   whose ways round a post are about as long either side all go round it counter-clockwise,
   a roundabout, instead of meeting head-on beside it; a much shorter way clockwise is
@@ -147,8 +148,9 @@ class Roadmap:
             i, j = i[open_], j[open_]
             lengths = np.hypot(*(xy[j] - xy[i]).T)
             ccw_from = _counter_clockwise_from(
-                xy, i, j, shapes, bodies + clearance_m + 2.0 * _margin(clearance_m)
-            )
+                xy, i, j, shapes, bodies + clearance_m + 2.0 * _margin(clearance_m),
+                4.0 * clearance_m,
+            )  # fmt: skip
             graph.add_edges_from(
                 (a, b, {"length": length, "ccw_from": start})
                 for a, b, length, start in zip(
@@ -288,18 +290,21 @@ class Roadmap:
 
 
 def _counter_clockwise_from(
-    xy: FloatArray, i: IntArray, j: IntArray, shapes: GeometryArray, ring: FloatArray
-) -> IntArray:
+    xy: FloatArray, i: IntArray, j: IntArray, shapes: GeometryArray, ring: FloatArray,
+    room: float,
+) -> IntArray:  # fmt: skip
     """For each edge ``i[k]`` - ``j[k]`` between nodes ``xy``: the node from which it runs
-    counter-clockwise round the post it hugs -- the post (a point of ``shapes``, standing
-    alone: its ``ring`` [m] overlaps no other obstacle's, so a wall of posts has no sense)
-    whose centre its middle is nearest, within that post's ring -- or ``_NOT_HUGGING``."""
+    counter-clockwise round the post it hugs -- the post (a point of ``shapes``) whose
+    centre its middle is nearest, within that post's ``ring`` [m] -- or ``_NOT_HUGGING``.
+    Only a post standing alone has a sense: every other obstacle's ring at least ``room``
+    [m] (two robots passing) from its own, so a wall of posts or a gap between two posts
+    (driven through either way) has none."""
     out = np.full(len(i), _NOT_HUGGING, dtype=np.int64)
     posts = np.flatnonzero(shapely.get_type_id(shapes) == 0)
     if len(posts) == 0 or len(i) == 0:
         return out
-    apart = shapely.distance(shapes[posts][:, None], shapes[None, :]) > (
-        ring[posts][:, None] + ring[None, :]
+    apart = shapely.distance(shapes[posts][:, None], shapes[None, :]) >= (
+        ring[posts][:, None] + ring[None, :] + room
     )
     apart[np.arange(len(posts)), posts] = True  # a post is not near itself
     posts = posts[apart.all(axis=1)]

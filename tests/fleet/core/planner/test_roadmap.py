@@ -284,3 +284,12 @@ def test_a_wall_of_posts_has_no_sense() -> None:
                if "ccw_from" in data)  # fmt: skip
     alone = Roadmap.build([post(0.0, 0.0, body=0.25)], CLEARANCE)
     assert any(data.get("ccw_from", -1) >= 0 for *_, data in alone.graph.edges(data=True))
+
+
+def test_a_gap_between_two_posts_is_driven_through_either_way() -> None:
+    """The paper's case III pair (posts 1.6 m apart): a way through the gap passes one post
+    clockwise whichever way it goes, so posts this close have no sense."""
+    pair = [post(x, 0.0, body=0.2) for x in (-0.8, 0.8)]
+    roadmap = Roadmap.build(pair, 0.4)
+    assert all(data["ccw_from"] < 0 for *_, data in roadmap.graph.edges(data=True)
+               if "ccw_from" in data)  # fmt: skip

@@ -312,9 +312,9 @@ def _counter_clockwise_from(
         return out
     centres = shapely.get_coordinates(shapes[posts])  # (p, 2)
     middle = 0.5 * (xy[i] + xy[j])  # (e, 2)
-    distance = np.hypot(*(middle[:, None, :] - centres[None, :, :]).transpose(2, 0, 1))
-    nearest = np.argmin(distance, axis=1)
-    hugs = distance[np.arange(len(i)), nearest] <= ring[posts][nearest]
+    # The nearest lone post of each edge's middle (a tree: O(e log p), not an e x p table).
+    nearest = shapely.STRtree(shapes[posts]).nearest(shapely.points(middle))
+    hugs = np.hypot(*(middle - centres[nearest]).T) <= ring[posts][nearest]
     arm = xy[i] - centres[nearest]
     step = xy[j] - xy[i]
     turn = arm[:, 0] * step[:, 1] - arm[:, 1] * step[:, 0]  # > 0: i -> j counter-clockwise

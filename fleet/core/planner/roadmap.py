@@ -148,7 +148,7 @@ class Roadmap:
             i, j = i[open_], j[open_]
             lengths = np.hypot(*(xy[j] - xy[i]).T)
             ccw_from = _counter_clockwise_from(
-                xy, i, j, shapes, bodies + clearance_m + 2.0 * _margin(clearance_m),
+                xy, i, j, shapes, tree, bodies + clearance_m + 2.0 * _margin(clearance_m),
                 4.0 * clearance_m,
             )  # fmt: skip
             graph.add_edges_from(
@@ -290,12 +290,13 @@ class Roadmap:
 
 
 def _counter_clockwise_from(
-    xy: FloatArray, i: IntArray, j: IntArray, shapes: GeometryArray, ring: FloatArray,
-    room: float,
+    xy: FloatArray, i: IntArray, j: IntArray, shapes: GeometryArray, tree: Any,
+    ring: FloatArray, room: float,
 ) -> IntArray:  # fmt: skip
     """For each edge ``i[k]`` - ``j[k]`` between nodes ``xy``: the node from which it runs
-    counter-clockwise round the post it hugs -- the post (a point of ``shapes``) whose
-    centre its middle is nearest, within that post's ``ring`` [m] -- or ``_NOT_HUGGING``.
+    counter-clockwise round the post it hugs -- the post (a point of ``shapes``, which the
+    roadmap's STRtree ``tree`` holds) whose centre its middle is nearest, within that
+    post's ``ring`` [m] -- or ``_NOT_HUGGING``.
     Only a post standing alone has a sense: every other obstacle's ring at least ``room``
     [m] (two robots passing) from its own, so a wall of posts or a gap between two posts
     (driven through either way) has none."""
@@ -303,11 +304,14 @@ def _counter_clockwise_from(
     posts = np.flatnonzero(shapely.get_type_id(shapes) == 0)
     if len(posts) == 0 or len(i) == 0:
         return out
-    apart = shapely.distance(shapes[posts][:, None], shapes[None, :]) >= (
-        ring[posts][:, None] + ring[None, :] + room
-    )
-    apart[np.arange(len(posts)), posts] = True  # a post is not near itself
-    posts = posts[apart.all(axis=1)]
+    # Pairs (post, other) nearer than their rings and the room: a tree query at the
+    # largest such distance, then each pair's own (as `Roadmap._blocked` does).
+    reach = 2.0 * float(ring.max()) + room
+    pi, ok = tree.query(shapes[posts], predicate="dwithin", distance=reach)
+    other = ok != posts[pi]  # a post is not near itself
+    pi, ok = pi[other], ok[other]
+    near = shapely.distance(shapes[posts][pi], shapes[ok]) < ring[posts][pi] + ring[ok] + room
+    posts = np.delete(posts, np.unique(pi[near]))
     if len(posts) == 0:
         return out
     centres = shapely.get_coordinates(shapes[posts])  # (p, 2)

@@ -15,7 +15,8 @@ the offline fleet predicts what the service does:
   ledger's check) and every ``replan_period_s``; its decisions go through
   :meth:`TaskLedger.apply` (stale status family or revision, unsafe plans dropped);
 * the robots drive what the ledger publishes (each :class:`ParkAssignment` from the moment
-  it is published, its start delay in simulated time) and report states the ledger
+  it is published, its start delay in simulated time, along its route's via-points as the
+  agent drives them: a new revision's route from its first) and report states the ledger
   observes (acknowledgement, arrival, corridor).
 
 Fixed policies (``cw``, ``ccw``) pair queued tasks with robots the planner's way
@@ -45,8 +46,15 @@ from fleet.core.planner.assign import pair_queued
 from fleet.core.planner.rollout import STANDING_DELAY
 from fleet.core.simulate import BatchProblem, batch_filter, obstacle_columns, simulate
 from fleet.core.tasks import DEFAULT_GAINS, RobotStatus, Task, TaskRequest
-from fleet.core.types import Law, Posture
-from fleet.core.wire import CancelAssignment, ParkAssignment, Pose, RobotMode, RobotState
+from fleet.core.types import FloatArray, Law, Posture
+from fleet.core.wire import (
+    DEFAULT_PASS_M,
+    CancelAssignment,
+    ParkAssignment,
+    Pose,
+    RobotMode,
+    RobotState,
+)
 from fleet.io.settings import Settings
 from fleet.io.trace import TraceChunk
 from fleet.service.effects import Effects, Publish, StoreWrite
@@ -67,6 +75,7 @@ class _Order:
     assignment: ParkAssignment
     received_at: float
     arrived_at: float | None = None
+    passed: int = 0  # via-points of its route passed (a new revision starts at its first)
 
 
 @dataclass(frozen=True)
@@ -302,6 +311,8 @@ class OfflineFleet:
         cw = np.zeros(n, dtype=bool)
         tol: list[Tolerance] = [_STAND] * n
         delay = np.full(n, STANDING_DELAY)  # robots without a task never move
+        routes: list[FloatArray | None] = [None] * n
+        pass_m = np.full(n, DEFAULT_PASS_M)
         moving: list[int] = []
         for rid, order in self.orders.items():
             a = order.assignment
@@ -314,6 +325,8 @@ class OfflineFleet:
             cw[i] = a.law == "cw"
             tol[i] = a.tolerance
             delay[i] = max(0.0, order.received_at + a.start_delay_s - self.t)
+            routes[i] = np.array(a.route[order.passed :], dtype=np.float64).reshape(-1, 2)
+            pass_m[i] = a.pass_m
         if not moving:
             self.t += duration
             return False
@@ -331,6 +344,8 @@ class OfflineFleet:
             smoothing=self.settings.avoidance.smoothing_m,
             safety=batch_filter(self.settings.safety),
             start_delay=delay,
+            routes=routes,
+            pass_radius=pass_m,
         )
         result = simulate(problem, dt=self.dt, max_time=duration, record=True)
         assert result.trajectory is not None
@@ -341,6 +356,8 @@ class OfflineFleet:
         for i in moving:
             rid = self.ids[i]
             order = self.orders[rid]
+            if result.passed is not None:
+                order.passed += int(result.passed[i])
             start = order.received_at + order.assignment.start_delay_s
             modes[ticks < start - 1e-9, i] = _CODE[RobotMode.WAITING]
             modes[ticks >= start - 1e-9, i] = _CODE[RobotMode.DRIVING]

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from fleet.bench.closed_loop import OfflineFleet, run_closed_loop
-from fleet.bench.scenarios import swap
+from fleet.bench.scenarios import ObstacleSpec, ring_round_posts, swap
 from fleet.core.planner import Plan, TaskDecision, plan
 from fleet.core.tasks import TaskStatus
 from fleet.service.ledger import Outcome
@@ -89,3 +91,24 @@ def test_a_yard_beyond_the_service_s_runs_with_its_own_bounds() -> None:
     fleet = OfflineFleet(big)
     assert fleet.settings.yard == big.bounds and big.bounds[1] > 22.0
     assert fleet.submit_arrived() == 200
+
+
+def test_the_offline_robots_drive_their_routes_via_points() -> None:
+    # one robot whose straight way crosses a post: the plan routes it round the post, and
+    # the offline robot must drive that route as the agent does (straight at its goal, its
+    # filter and Eq. (27) hold it at the post for good: seed 3 parked nothing in 150 s)
+    post = ObstacleSpec(x=0.0, y=0.0, radius=1.2, body=0.6)
+    scenario = ring_round_posts(1, 5.0, [post], "ring-1", seed=3)
+    fleet = OfflineFleet(scenario)
+    fleet.submit_arrived()
+    work = fleet.snapshot()
+    fleet.apply(plan(work.snapshot), work)
+    (order,) = fleet.orders.values()
+    via = order.assignment.route
+    assert via, "the plan routes the robot round the post"
+    while not fleet.finished and fleet.t < 60.0:
+        fleet.step(0.5)
+    assert {t.status for t in fleet.tasks.values()} == {TaskStatus.SUCCEEDED}
+    poses = np.concatenate([c.poses for c in fleet._chunks])[:, 0, :2]  # (T, 2)
+    for x, y in via[:-1]:  # every via-point but the pre-bay point was driven through
+        assert np.hypot(poses[:, 0] - x, poses[:, 1] - y).min() <= order.assignment.pass_m

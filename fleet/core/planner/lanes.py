@@ -36,7 +36,7 @@ import networkx as nx
 import numpy as np
 
 from fleet.core.planner.config import PlannerConfig
-from fleet.core.planner.roadmap import Point, Roadmap, roadmap_of
+from fleet.core.planner.roadmap import Point, Roadmap, roadmap_of, roundabouts
 from fleet.core.route import LaneShape
 from fleet.core.types import BoolArray, FloatArray
 from fleet.core.wire import Obstacle
@@ -173,14 +173,46 @@ def _turns(points: list[Point]) -> list[Point]:
     return out + points[-1:] if len(points) > 1 else out
 
 
+class RoundaboutRoutes:
+    """Routes round every lone post's Eq. (27) zone where there is such a way, else round
+    its body (see :func:`route_graph`)."""
+
+    def __init__(self, round_zones: RouteGraph, plain: RouteGraph) -> None:
+        self.round_zones = round_zones
+        self.plain = plain
+
+    def route(
+        self, start: Point, goal: tuple[float, float, float], approach_m: float
+    ) -> tuple[Point, ...] | None:
+        way = self.round_zones.route(start, goal, approach_m)
+        return way if way is not None else self.plain.route(start, goal, approach_m)
+
+    def clear(self, a: Point, b: Point, clearance_m: float) -> bool:
+        return self.plain.clear(a, b, clearance_m)
+
+
 def route_graph(
     obstacles: tuple[Obstacle, ...], clearance_m: float, lanes: tuple[LaneShape, ...] = ()
 ) -> RouteGraph:
     """The route graph robots are routed on: the free space's roadmap
-    (:func:`~fleet.core.planner.roadmap.roadmap_of`), along ``lanes`` when there are any."""
-    if not lanes:
-        return roadmap_of(obstacles, clearance_m)
-    return _lane_map(obstacles, clearance_m, lanes)
+    (:func:`~fleet.core.planner.roadmap.roadmap_of`), along ``lanes`` when there are any.
+
+    Round a post standing alone (:func:`~fleet.core.planner.roadmap.roundabouts`) the way
+    keeps ``clearance_m`` [m] from its Eq. (27) influence zone, not only from its body: a
+    robot's via-points inside the zone are where -K_avoid/x_OA holds it short of them.
+    Where no such way exists (a start or a goal inside a zone, a zone closing a passage),
+    the way round the bodies is taken, so the zones never make a goal unreachable."""
+    plain = _graph(obstacles, clearance_m, lanes)
+    grown = roundabouts(obstacles, clearance_m)
+    if grown is obstacles:
+        return plain
+    return RoundaboutRoutes(_graph(grown, clearance_m, lanes), plain)
+
+
+def _graph(
+    obstacles: tuple[Obstacle, ...], clearance_m: float, lanes: tuple[LaneShape, ...]
+) -> RouteGraph:
+    return _lane_map(obstacles, clearance_m, lanes) if lanes else roadmap_of(obstacles, clearance_m)
 
 
 @functools.lru_cache(maxsize=8)
@@ -190,4 +222,4 @@ def _lane_map(
     return LaneMap(roadmap_of(obstacles, clearance_m), lanes)
 
 
-__all__ = ["LaneMap", "LaneShape", "RouteGraph", "route_graph"]
+__all__ = ["LaneMap", "LaneShape", "RoundaboutRoutes", "RouteGraph", "route_graph"]

@@ -20,7 +20,9 @@ the union of those capsules grown by ``clearance_m``.
   ``1 + ROUNDABOUT_PRICE`` times its length when driven clockwise round that post: robots
   whose ways round a post are about as long either side all go round it counter-clockwise,
   a roundabout, instead of meeting head-on beside it; a much shorter way clockwise is
-  still taken.
+  still taken. The fleet routes on a roadmap whose lone posts are grown to their Eq. (27)
+  zones where that gives a way (:func:`roundabouts`,
+  :func:`fleet.core.planner.lanes.route_graph`).
 
 Robots start and park close to obstacles, so the segments leaving the start and reaching the
 goal (or the pre-bay point) need, from every body, only the clearance that end point itself
@@ -147,10 +149,7 @@ class Roadmap:
             open_ = ~probe._blocked(_segments(xy[i], xy[j]), bodies + clearance_m)
             i, j = i[open_], j[open_]
             lengths = np.hypot(*(xy[j] - xy[i]).T)
-            ccw_from = _counter_clockwise_from(
-                xy, i, j, shapes, tree, bodies + clearance_m + 2.0 * _margin(clearance_m),
-                4.0 * clearance_m,
-            )  # fmt: skip
+            ccw_from = _counter_clockwise_from(xy, i, j, shapes, tree, *_rings(bodies, clearance_m))
             graph.add_edges_from(
                 (a, b, {"length": length, "ccw_from": start})
                 for a, b, length, start in zip(
@@ -294,25 +293,12 @@ def _counter_clockwise_from(
     ring: FloatArray, room: float,
 ) -> IntArray:  # fmt: skip
     """For each edge ``i[k]`` - ``j[k]`` between nodes ``xy``: the node from which it runs
-    counter-clockwise round the post it hugs -- the post (a point of ``shapes``, which the
-    roadmap's STRtree ``tree`` holds) whose centre its middle is nearest, within that
-    post's ``ring`` [m] -- or ``_NOT_HUGGING``.
-    Only a post standing alone has a sense: every other obstacle's ring at least ``room``
-    [m] (two robots passing) from its own, so a wall of posts or a gap between two posts
-    (driven through either way) has none."""
+    counter-clockwise round the post it hugs -- the lone post (:func:`_lone_posts`) whose
+    centre its middle is nearest, within that post's ``ring`` [m] -- or ``_NOT_HUGGING``.
+    A wall of posts or a gap between two posts (driven through either way) has no sense."""
     out = np.full(len(i), _NOT_HUGGING, dtype=np.int64)
-    posts = np.flatnonzero(shapely.get_type_id(shapes) == 0)
+    posts = _lone_posts(shapes, tree, ring, room)
     if len(posts) == 0 or len(i) == 0:
-        return out
-    # Pairs (post, other) nearer than their rings and the room: a tree query at the
-    # largest such distance, then each pair's own (as `Roadmap._blocked` does).
-    reach = 2.0 * float(ring.max()) + room
-    pi, ok = tree.query(shapes[posts], predicate="dwithin", distance=reach)
-    other = ok != posts[pi]  # a post is not near itself
-    pi, ok = pi[other], ok[other]
-    near = shapely.distance(shapes[posts][pi], shapes[ok]) < ring[posts][pi] + ring[ok] + room
-    posts = np.delete(posts, np.unique(pi[near]))
-    if len(posts) == 0:
         return out
     centres = shapely.get_coordinates(shapes[posts])  # (p, 2)
     middle = 0.5 * (xy[i] + xy[j])  # (e, 2)
@@ -324,6 +310,56 @@ def _counter_clockwise_from(
     turn = arm[:, 0] * step[:, 1] - arm[:, 1] * step[:, 0]  # > 0: i -> j counter-clockwise
     out[hugs] = np.where(turn[hugs] > 0.0, i[hugs], j[hugs])
     return out
+
+
+def _lone_posts(shapes: GeometryArray, tree: Any, ring: FloatArray, room: float) -> IntArray:
+    """The indices of the posts (points of ``shapes``, which the STRtree ``tree`` holds)
+    standing alone: every other obstacle's ``ring`` [m] at least ``room`` [m] (two robots
+    passing) from the post's own."""
+    posts = np.flatnonzero(shapely.get_type_id(shapes) == 0)
+    if len(posts) == 0:
+        return posts
+    # Pairs (post, other) nearer than their rings and the room: a tree query at the
+    # largest such distance, then each pair's own (as `Roadmap._blocked` does).
+    reach = 2.0 * float(ring.max()) + room
+    pi, ok = tree.query(shapes[posts], predicate="dwithin", distance=reach)
+    other = ok != posts[pi]  # a post is not near itself
+    pi, ok = pi[other], ok[other]
+    near = shapely.distance(shapes[posts][pi], shapes[ok]) < ring[posts][pi] + ring[ok] + room
+    return np.delete(posts, np.unique(pi[near]))
+
+
+def _rings(bodies: FloatArray, clearance_m: float) -> tuple[FloatArray, float]:
+    """The rings [m] round each body a route hugs (its nodes lie within them) and the room
+    [m] between two rings that two robots need to pass each other."""
+    return bodies + clearance_m + 2.0 * _margin(clearance_m), 4.0 * clearance_m
+
+
+def roundabouts(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[Obstacle, ...]:
+    """``obstacles`` with the body of every post standing alone (:func:`_lone_posts`, at
+    ``clearance_m`` [m]) grown to its Eq. (27) influence radius: routed on these, a robot's
+    via-points round a lone post lie ``clearance_m`` outside its zone, where the paper's
+    -K_avoid/x_OA cannot hold it short of them (the paper keeps desired postures out of every
+    zone), and robots circling it keep apart (docs/benchmarks.md, eighteenth stop).
+    ``obstacles`` itself when no post grows."""
+    grow = _growing_posts(obstacles, clearance_m)
+    if not grow:
+        return obstacles
+    out = list(obstacles)
+    for k in grow:
+        out[k] = obstacles[k].model_copy(update={"body": obstacles[k].radius})
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=8)
+def _growing_posts(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[int, ...]:
+    """The lone posts of ``obstacles`` whose influence radius exceeds their body."""
+    if not obstacles:
+        return ()
+    shapes = obstacle_geometries(obstacles)
+    bodies = np.array([o.body_radius for o in obstacles], dtype=np.float64)
+    lone = _lone_posts(shapes, shapely.STRtree(shapes), *_rings(bodies, clearance_m))
+    return tuple(k for k in sorted(lone.tolist()) if obstacles[k].radius > bodies[k])
 
 
 def _outline_corners(

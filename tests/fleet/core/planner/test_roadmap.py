@@ -14,7 +14,8 @@ from hypothesis import assume, event, given, settings
 from hypothesis import strategies as st
 
 from fleet.core.geometry import segments_cross, segments_distance
-from fleet.core.planner.roadmap import END_SLACK_M, Roadmap
+from fleet.core.planner.lanes import route_graph
+from fleet.core.planner.roadmap import END_SLACK_M, Roadmap, roundabouts
 from fleet.core.site import Wall
 from fleet.core.wire import Obstacle
 from fleet.io.site_file import load_site
@@ -293,3 +294,42 @@ def test_a_gap_between_two_posts_is_driven_through_either_way() -> None:
     roadmap = Roadmap.build(pair, 0.4)
     assert all(data["ccw_from"] < 0 for *_, data in roadmap.graph.edges(data=True)
                if "ccw_from" in data)  # fmt: skip
+
+
+def test_only_a_post_standing_alone_grows_to_its_zone_for_routing() -> None:
+    """A lone post's body grows to its Eq. (27) influence radius; a post of a pair or of a
+    wall, a post whose body is its zone and a wall keep theirs; nothing grows: the same
+    tuple."""
+    alone = Obstacle(x=10.0, y=10.0, radius=1.2, body=0.6)
+    pair = (post(-0.8, 0.0, body=0.2), post(0.8, 0.0, body=0.2))
+    solid = Obstacle(x=-10.0, y=10.0, radius=0.5, body=0.5)
+    side = wall((-10.0, -10.0), (10.0, -10.0))
+    grown = roundabouts((alone, *pair, solid, side), CLEARANCE)
+    assert grown[0].body_radius == pytest.approx(1.2)
+    assert grown[1:] == (*pair, solid, side)
+    kept = (*pair, solid, side)
+    assert roundabouts(kept, CLEARANCE) is kept
+
+
+@pytest.mark.parametrize("k", range(4))
+def test_routes_round_a_lone_post_keep_the_clearance_from_its_zone(k: int) -> None:
+    """Robots crossing a ring round a post go round its Eq. (27) zone (every via-point
+    the clearance beyond the influence radius), still counter-clockwise; round the body
+    alone the via-points lie inside the zone, where -K_avoid/x_OA holds a robot short."""
+    centre = Obstacle(x=0.0, y=0.0, radius=1.2, body=0.6)
+    bearing = k * math.tau / 4 + 0.01
+    start = (5.0 * math.cos(bearing), 5.0 * math.sin(bearing))
+    goal = (-start[0], -start[1], bearing + math.pi)
+    route = route_graph((centre,), CLEARANCE).route(start, goal, APPROACH)
+    assert route and _turned(route, start) > 0.0
+    assert min(math.hypot(*p) for p in route) >= centre.radius + CLEARANCE
+    body_only = Roadmap.build([centre], CLEARANCE).route(start, goal, APPROACH)
+    assert body_only and min(math.hypot(*p) for p in body_only) < centre.radius
+
+
+def test_a_goal_inside_a_lone_post_s_zone_is_still_reached_round_its_body() -> None:
+    centre = Obstacle(x=0.0, y=0.0, radius=2.0, body=0.3)
+    graph = route_graph((centre,), CLEARANCE)
+    route = graph.route((-4.0, 0.0), (1.0, 0.0, 0.0), APPROACH)
+    assert route is not None
+    assert route == Roadmap.build([centre], CLEARANCE).route((-4.0, 0.0), (1.0, 0.0, 0.0), APPROACH)

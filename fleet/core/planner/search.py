@@ -10,8 +10,11 @@ bucket, :mod:`fleet.core.planner.rollout`) and sends back their scores
    seeds the planner passes (the prioritised plan on the solo predictions,
    :mod:`fleet.core.planner.reserve`, or the plans of clusters now merged), held robots
    released,
-   the uniform choices (every free robot ccw, every free robot cw) and -- with at most
-   ``exhaustive_limit`` robots free to choose -- every combination of laws.
+   the uniform choices (every free robot ccw, every free robot cw), -- with at most
+   ``exhaustive_limit`` robots free to choose -- every combination of laws, and -- with
+   six new robots or more -- an order in two waves: every other new robot round their
+   starts' centre waits each of ``delays_s`` (robots crowding a roundabout or a swap
+   fill it and crawl all at once; docs/benchmarks.md, eighteenth stop).
 2. **Local search** (up to ``rounds`` rounds, ``budget`` rollouts): from the best so far,
    single-robot moves, all rolled out in one round. When the best is unsafe, for the robots
    of its closest pairs: flip the law, wait longer (``delays_s`` added to the start delay),
@@ -41,9 +44,12 @@ from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
 from fleet.core.planner.cost import Score
 from fleet.core.planner.scene import HELD, NEW, UNDER_WAY, Candidate, Fleet
+from fleet.core.types import IntArray
 
 #: [s] rollouts run this long past the best known makespan (see the module docstring).
 _CUT_MARGIN = 1.0
+#: New robots in a cluster from which the baseline also tries them in two waves.
+_WAVE_MIN = 6
 
 
 class ClusterSearch:
@@ -135,7 +141,25 @@ class ClusterSearch:
                 c = Candidate(released.law.copy(), released.delay.copy(), released.hold.copy())
                 c.law[free] = combo
                 out.append(c)
+        later = self._every_other_round()
+        for d in self.config.delays_s if len(later) else ():
+            c = Candidate(released.law.copy(), released.delay.copy(), released.hold.copy())
+            c.delay[later] += d
+            out.append(c)
         return out
+
+    def _every_other_round(self) -> IntArray:
+        """Every other new robot taken round the centre of the new robots' starts (at
+        least ``_WAVE_MIN`` of them): the second wave of an order "these go, those follow"
+        -- robots crowding one place (a roundabout, a swap) in two waves, none of the
+        second standing on a goal of the first when goals are each other's starts."""
+        new = np.flatnonzero(self._kind == NEW)
+        if len(new) < _WAVE_MIN:
+            return np.zeros(0, dtype=np.int64)
+        xy = self.fleet.movers.start[self._idx[new], :2]
+        rel = xy - xy.mean(axis=0)
+        order = new[np.argsort(np.arctan2(rel[:, 1], rel[:, 0]), kind="stable")]
+        return np.asarray(order[1::2], dtype=np.int64)
 
     def _repairs(self, best: Score) -> list[Candidate]:
         """Moves for the robots of an unsafe candidate's closest pairs."""

@@ -351,6 +351,11 @@ def roundabouts(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[Ob
     return tuple(out)
 
 
+def roundabout_posts(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[Obstacle, ...]:
+    """The lone posts of ``obstacles`` that :func:`roundabouts` grows (as they are)."""
+    return tuple(obstacles[k] for k in _growing_posts(obstacles, clearance_m))
+
+
 @functools.lru_cache(maxsize=8)
 def _growing_posts(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[int, ...]:
     """The lone posts of ``obstacles`` whose influence radius exceeds their body."""

@@ -400,7 +400,7 @@ def _routes(
     from fleet.core.planner.lanes import route_graph
 
     radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
-    clearance = config.route_clearance(float(radii.max()), world.safety.contact_margin_m)
+    clearance = route_clearance(limits, world, config)
     plain = route_graph(world.obstacles, clearance, world.lanes)
     wide = _wide(world.obstacles, clearance, world.avoidance.smoothing_m) if any(wide_way) else ()
     wide_map = route_graph(wide, clearance, world.lanes) if wide else plain
@@ -449,6 +449,13 @@ def _routes(
         if around is not None:
             out[i], last_leg[i] = around, False
     return tuple(out), last_leg
+
+
+def route_clearance(limits: FloatArray, world: World, config: PlannerConfig) -> float:
+    """[m] the clearance the movers' routes keep (:meth:`PlannerConfig.route_clearance` of
+    the largest mover, ``limits`` (k, 4) as :attr:`Movers.limits`)."""
+    radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
+    return config.route_clearance(float(radii.max()), world.safety.contact_margin_m)
 
 
 @functools.lru_cache(maxsize=8)

@@ -12,9 +12,10 @@ bucket, :mod:`fleet.core.planner.rollout`) and sends back their scores
    released,
    the uniform choices (every free robot ccw, every free robot cw), -- with at most
    ``exhaustive_limit`` robots free to choose -- every combination of laws, and -- with
-   six new robots or more -- an order in two waves: every other new robot round their
-   starts' centre waits each of ``delays_s`` (robots crowding a roundabout or a swap
-   fill it and crawl all at once; docs/benchmarks.md, eighteenth stop).
+   six new robots or more routed round one lone post -- an order in two waves: every
+   other one of them round the post waits each of ``delays_s`` (robots crowding a
+   roundabout fill the circle round its zone and crawl all at once; docs/benchmarks.md,
+   eighteenth stop).
 2. **Local search** (up to ``rounds`` rounds, ``budget`` rollouts): from the best so far,
    single-robot moves, all rolled out in one round. When the best is unsafe, for the robots
    of its closest pairs: flip the law, wait longer (``delays_s`` added to the start delay),
@@ -43,12 +44,12 @@ import numpy as np
 from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
 from fleet.core.planner.cost import Score
-from fleet.core.planner.scene import HELD, NEW, UNDER_WAY, Candidate, Fleet
+from fleet.core.planner.scene import HELD, NEW, UNDER_WAY, Candidate, Fleet, route_clearance
 from fleet.core.types import IntArray
 
 #: [s] rollouts run this long past the best known makespan (see the module docstring).
 _CUT_MARGIN = 1.0
-#: New robots in a cluster from which the baseline also tries them in two waves.
+#: New robots routed round one lone post from which the baseline also tries two waves.
 _WAVE_MIN = 6
 
 
@@ -149,17 +150,32 @@ class ClusterSearch:
         return out
 
     def _every_other_round(self) -> IntArray:
-        """Every other new robot taken round the centre of the new robots' starts (at
-        least ``_WAVE_MIN`` of them): the second wave of an order "these go, those follow"
-        -- robots crowding one place (a roundabout, a swap) in two waves, none of the
-        second standing on a goal of the first when goals are each other's starts."""
+        """The second wave of an order "these go, those follow" at a roundabout: when at
+        least ``_WAVE_MIN`` new robots are routed round one lone post
+        (:func:`~fleet.core.planner.roadmap.roundabout_posts`: a via-point within its zone
+        and two route clearances), every other one of them taken round the post. All at
+        once they fill the circle round its zone and crawl; none of the second wave stands
+        on a goal of the first when goals are each other's starts (a ring). Empty: none."""
+        fleet, none = self.fleet, np.zeros(0, dtype=np.int64)
         new = np.flatnonzero(self._kind == NEW)
-        if len(new) < _WAVE_MIN:
-            return np.zeros(0, dtype=np.int64)
-        xy = self.fleet.movers.start[self._idx[new], :2]
-        rel = xy - xy.mean(axis=0)
-        order = new[np.argsort(np.arctan2(rel[:, 1], rel[:, 0]), kind="stable")]
-        return np.asarray(order[1::2], dtype=np.int64)
+        if len(new) < _WAVE_MIN or not fleet.world.obstacles or not fleet.movers.route:
+            return none
+        from fleet.core.planner.roadmap import roundabout_posts  # shapely: the planner's
+
+        clearance = route_clearance(fleet.movers.limits, fleet.world, self.config)
+        for post in roundabout_posts(fleet.world.obstacles, clearance):
+            reach = post.radius + 2.0 * clearance
+            users, bearings = [], []
+            for i in new.tolist():
+                via = fleet.movers.route[int(self._idx[i])] - (post.x, post.y)
+                if len(via) and float(np.hypot(via[:, 0], via[:, 1]).min()) <= reach:
+                    start = fleet.movers.start[int(self._idx[i])]
+                    users.append(i)
+                    bearings.append(np.arctan2(start[1] - post.y, start[0] - post.x))
+            if len(users) >= _WAVE_MIN:
+                order = np.asarray(users)[np.argsort(bearings, kind="stable")]
+                return np.asarray(order[1::2], dtype=np.int64)
+        return none
 
     def _repairs(self, best: Score) -> list[Candidate]:
         """Moves for the robots of an unsafe candidate's closest pairs."""

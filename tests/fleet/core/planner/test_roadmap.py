@@ -333,3 +333,48 @@ def test_a_goal_inside_a_lone_post_s_zone_is_still_reached_round_its_body() -> N
     route = graph.route((-4.0, 0.0), (1.0, 0.0, 0.0), APPROACH)
     assert route is not None
     assert route == Roadmap.build([centre], CLEARANCE).route((-4.0, 0.0), (1.0, 0.0, 0.0), APPROACH)
+
+
+def zoned_post(x: float, y: float, body: float, zone: float) -> Obstacle:
+    return Obstacle(x=x, y=y, body=body, radius=body + zone)
+
+
+zoned_posts = st.lists(
+    st.builds(zoned_post, coord, coord, st.floats(0.05, 0.6), st.floats(0.0, 1.0)),
+    min_size=1,
+    max_size=4,
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    zoned_posts,
+    st.lists(
+        st.builds(wall, st.tuples(coord, coord), st.tuples(coord, coord), st.floats(0.05, 0.2)),
+        max_size=2,
+    ),
+    st.tuples(st.floats(-6.0, -1.0), st.floats(-6.0, 6.0)),
+    st.tuples(st.floats(1.0, 6.0), st.floats(-6.0, 6.0), st.floats(-math.pi, math.pi)),
+)
+def test_the_fleet_s_routes_keep_the_clearance_and_reach_what_the_bodies_leave_open(
+    post_list: list[Obstacle],
+    wall_list: list[Obstacle],
+    start: Pt,
+    goal: tuple[float, float, float],
+) -> None:
+    """Routes round lone posts' zones (:func:`route_graph`) keep the clearance from every
+    body, and a goal is reachable exactly when it is round the bodies alone; a route that
+    differs from the way round the bodies keeps the clearance from every grown post."""
+    obstacles = post_list + wall_list
+    for point in (start, goal[:2]):
+        assume(all(o.distance(*point) > o.body_radius + 0.02 for o in obstacles))
+    route = route_graph(tuple(obstacles), CLEARANCE).route(start, goal, APPROACH)
+    plain = Roadmap.build(obstacles, CLEARANCE).route(start, goal, APPROACH)
+    assert (route is None) == (plain is None)
+    event("none" if route is None else "round the bodies" if route == plain else "round zones")
+    if route is None:
+        return
+    assert_keeps_clearance(obstacles, CLEARANCE, start, goal, APPROACH, route)
+    if route != plain:
+        grown = list(roundabouts(tuple(obstacles), CLEARANCE))
+        assert_keeps_clearance(grown, CLEARANCE, start, goal, APPROACH, route)

@@ -197,22 +197,20 @@ def route_graph(
     """The route graph robots are routed on: the free space's roadmap
     (:func:`~fleet.core.planner.roadmap.roadmap_of`), along ``lanes`` when there are any.
 
-    Round a post standing alone (:func:`~fleet.core.planner.roadmap.roundabouts`) the way
-    keeps ``clearance_m`` [m] from its Eq. (27) influence zone, not only from its body: a
-    robot's via-points inside the zone are where -K_avoid/x_OA holds it short of them.
-    Where no such way exists (a start or a goal inside a zone, a zone closing a passage),
-    the way round the bodies is taken, so the zones never make a goal unreachable."""
-    plain = _graph(obstacles, clearance_m, lanes)
+    Without lanes, round a post standing alone
+    (:func:`~fleet.core.planner.roadmap.roundabouts`) the way keeps ``clearance_m`` [m]
+    from its Eq. (27) influence zone, not only from its body: a robot's via-points inside
+    the zone are where -K_avoid/x_OA holds it short of them. Where no such way exists (a
+    start or a goal inside a zone, a zone closing a passage), the way round the bodies is
+    taken, so the zones never make a goal unreachable. A site's lanes are the operator's
+    ways and are driven as drawn."""
+    if lanes:
+        return _lane_map(obstacles, clearance_m, lanes)
+    plain = roadmap_of(obstacles, clearance_m)
     grown = roundabouts(obstacles, clearance_m)
     if grown is obstacles:
         return plain
-    return RoundaboutRoutes(_graph(grown, clearance_m, lanes), plain)
-
-
-def _graph(
-    obstacles: tuple[Obstacle, ...], clearance_m: float, lanes: tuple[LaneShape, ...]
-) -> RouteGraph:
-    return _lane_map(obstacles, clearance_m, lanes) if lanes else roadmap_of(obstacles, clearance_m)
+    return RoundaboutRoutes(roadmap_of(grown, clearance_m), plain)
 
 
 @functools.lru_cache(maxsize=8)

@@ -18,6 +18,7 @@ from fleet.core.planner.lanes import route_graph
 from fleet.core.planner.roadmap import roadmap_of
 from fleet.core.route import lane_shapes
 from fleet.core.site import Lane, Site, Wall, Yard
+from fleet.core.wire import Obstacle
 
 CLEARANCE = 0.4
 WALL = tuple(Wall(points=[(-2, 0), (2, 0)], body=0.05).segments())  # across the middle
@@ -124,3 +125,16 @@ def test_a_wall_put_across_a_lane_closes_it() -> None:
     block = Wall(points=[(side * 3.0, 0.0), (side * 5.0, 0.0)], body=0.05).segments()
     other = route_graph((*WALL, *block), CLEARANCE, lanes).route(start, goal, 1.0)
     assert other is not None and all(x * side < 0 for x, _ in other if abs(x) > 3.9)
+
+
+def test_lanes_beside_a_lone_post_are_driven_as_drawn() -> None:
+    """A one-way loop whose east side runs 1 m from a lone post, inside its Eq. (27) zone:
+    the lanes are the operator's ways, so robots keep to the loop there; without lanes the
+    way keeps clear of the zone."""
+    pillar = (Obstacle(x=5.0, y=0.0, radius=1.5, body=0.3),)
+    obstacles = (*WALL, *pillar)
+    graph = route_graph(obstacles, CLEARANCE, lane_shapes(LOOP))
+    north = graph.route((0.0, -1.0), (0.0, 1.0, math.pi / 2), 1.0)
+    assert north is not None and any(math.isclose(x, 4.0) for x, _ in north)  # the loop's
+    free = route_graph(pillar, CLEARANCE).route((5.0, -5.0), (5.0, 5.0, math.pi / 2), 1.0)
+    assert free and min(math.hypot(x - 5.0, y) for x, y in free) >= 1.5 + CLEARANCE

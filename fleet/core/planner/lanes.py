@@ -174,18 +174,23 @@ def _turns(points: list[Point]) -> list[Point]:
 
 
 class RoundaboutRoutes:
-    """Routes round every lone post's Eq. (27) zone where there is such a way, else round
-    its body (see :func:`route_graph`)."""
+    """Routes round every lone obstacle's Eq. (27) zone where there is such a way, else
+    round its body (see :func:`route_graph`); both are free-space roadmaps."""
 
-    def __init__(self, round_zones: RouteGraph, plain: RouteGraph) -> None:
+    def __init__(self, round_zones: Roadmap, plain: Roadmap) -> None:
         self.round_zones = round_zones
         self.plain = plain
 
     def route(
         self, start: Point, goal: tuple[float, float, float], approach_m: float
     ) -> tuple[Point, ...] | None:
+        """The way round the zones when it keeps the clearances the way round the bodies
+        keeps (a start or a goal at a grown zone's edge would let it graze another body:
+        :meth:`Roadmap.keeps`), else the way round the bodies."""
         way = self.round_zones.route(start, goal, approach_m)
-        return way if way is not None else self.plain.route(start, goal, approach_m)
+        if way is not None and self.plain.keeps(start, goal, approach_m, way):
+            return way
+        return self.plain.route(start, goal, approach_m)
 
     def clear(self, a: Point, b: Point, clearance_m: float) -> bool:
         return self.plain.clear(a, b, clearance_m)
@@ -197,8 +202,8 @@ def route_graph(
     """The route graph robots are routed on: the free space's roadmap
     (:func:`~fleet.core.planner.roadmap.roadmap_of`), along ``lanes`` when there are any.
 
-    Without lanes, round a post standing alone
-    (:func:`~fleet.core.planner.roadmap.roundabouts`) the way keeps ``clearance_m`` [m]
+    Without lanes, round an obstacle standing alone -- a post, or a wall segment touching
+    no other (:func:`~fleet.core.planner.roadmap.roundabouts`) -- the way keeps ``clearance_m`` [m]
     from its Eq. (27) influence zone, not only from its body: a robot's via-points inside
     the zone are where -K_avoid/x_OA holds it short of them. Where no such way exists (a
     start or a goal inside a zone, a zone closing a passage), the way round the bodies is

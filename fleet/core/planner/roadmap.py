@@ -15,13 +15,13 @@ the union of those capsules grown by ``clearance_m``.
   exactly against the capsules with an STRtree), weighted by their length [m]. Only edges
   tangent to the outline at both nodes are kept (the reduced visibility graph: a shortest
   path never uses the others), which prunes most pairs before any geometry is checked.
-  An edge that hugs a post standing alone (no other obstacle within two robots' passing
-  room of it; its middle within the grown post's ring) costs
-  ``1 + ROUNDABOUT_PRICE`` times its length when driven clockwise round that post: robots
-  whose ways round a post are about as long either side all go round it counter-clockwise,
-  a roundabout, instead of meeting head-on beside it; a much shorter way clockwise is
-  still taken. The fleet routes on a roadmap whose lone posts are grown to their Eq. (27)
-  zones where that gives a way (:func:`roundabouts`,
+  An edge that hugs an obstacle standing alone -- a post, or a wall segment touching no
+  other (no other obstacle within two robots' passing room of it; the edge's middle within
+  its grown ring) -- costs ``1 + ROUNDABOUT_PRICE`` times its length when driven clockwise
+  round its centre: robots whose ways round it are about as long either side all go round
+  it counter-clockwise, a roundabout, instead of meeting head-on beside it; a much shorter
+  way clockwise is still taken. The fleet routes on a roadmap whose lone obstacles are
+  grown to their Eq. (27) zones where that gives a way (:func:`roundabouts`,
   :func:`fleet.core.planner.lanes.route_graph`).
 
 Robots start and park close to obstacles, so the segments leaving the start and reaching the
@@ -33,6 +33,7 @@ joining two such points: the smaller). Every other segment keeps ``clearance_m``
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -222,6 +223,30 @@ class Roadmap:
                     return (*via, p)
         return self._shortest(s, need_s, g, need_g)
 
+    def keeps(
+        self, start: Point, goal: tuple[float, float, float], approach_m: float,
+        way: tuple[Point, ...],
+    ) -> bool:  # fmt: skip
+        """Whether ``way`` (via-points [m], as :meth:`route` returns them, e.g. from another
+        roadmap) from ``start`` to ``goal`` keeps the clearances this roadmap's own routes
+        keep: ``clearance_m`` from every body, less only at the start, the pre-bay point
+        (when ``way`` ends there) and the goal, each its own (:meth:`end_clearance`)."""
+        s, g = (float(start[0]), float(start[1])), (float(goal[0]), float(goal[1]))
+        h = float(goal[2])
+        p = (g[0] - approach_m * math.cos(h), g[1] - approach_m * math.sin(h))
+        to_p = bool(way) and approach_m > 0.0 and math.dist(way[-1], p) < 1e-9
+        ends = {s, g, p} if to_p else {s, g}
+        full = self._bodies + self.clearance_m
+
+        def need(point: Point) -> FloatArray:
+            return self._end_need(point) if point in ends else full
+
+        points = [s, *((float(x), float(y)) for x, y in way), g]
+        return not any(
+            self._segment_blocked(a, b, np.minimum(need(a), need(b)))
+            for a, b in itertools.pairwise(points)
+        )
+
     # -- internals -------------------------------------------------------------------------
 
     def _blocked(self, geometries: GeometryArray, need: FloatArray) -> BoolArray:
@@ -293,18 +318,19 @@ def _counter_clockwise_from(
     ring: FloatArray, room: float,
 ) -> IntArray:  # fmt: skip
     """For each edge ``i[k]`` - ``j[k]`` between nodes ``xy``: the node from which it runs
-    counter-clockwise round the post it hugs -- the lone post (:func:`_lone_posts`) whose
-    centre its middle is nearest, within that post's ``ring`` [m] -- or ``_NOT_HUGGING``.
-    A wall of posts or a gap between two posts (driven through either way) has no sense."""
+    counter-clockwise round the centre of the obstacle it hugs -- the lone obstacle
+    (:func:`_lone`) nearest its middle, within that obstacle's ``ring`` [m] -- or
+    ``_NOT_HUGGING``. A wall of posts or a gap between two posts (driven through either
+    way) has no sense."""
     out = np.full(len(i), _NOT_HUGGING, dtype=np.int64)
-    posts = _lone_posts(shapes, tree, ring, room)
-    if len(posts) == 0 or len(i) == 0:
+    lone = _lone(shapes, tree, ring, room)
+    if len(lone) == 0 or len(i) == 0:
         return out
-    centres = shapely.get_coordinates(shapes[posts])  # (p, 2)
-    middle = 0.5 * (xy[i] + xy[j])  # (e, 2)
-    # The nearest lone post of each edge's middle (a tree: O(e log p), not an e x p table).
-    nearest = shapely.STRtree(shapes[posts]).nearest(shapely.points(middle))
-    hugs = np.hypot(*(middle - centres[nearest]).T) <= ring[posts][nearest]
+    centres = shapely.get_coordinates(shapely.centroid(shapes[lone]))  # (p, 2)
+    middle = shapely.points(0.5 * (xy[i] + xy[j]))  # (e,)
+    # The nearest lone obstacle of each edge's middle (a tree: O(e log p), not e x p).
+    nearest = shapely.STRtree(shapes[lone]).nearest(middle)
+    hugs = shapely.distance(middle, shapes[lone][nearest]) <= ring[lone][nearest]
     arm = xy[i] - centres[nearest]
     step = xy[j] - xy[i]
     turn = arm[:, 0] * step[:, 1] - arm[:, 1] * step[:, 0]  # > 0: i -> j counter-clockwise
@@ -312,21 +338,20 @@ def _counter_clockwise_from(
     return out
 
 
-def _lone_posts(shapes: GeometryArray, tree: Any, ring: FloatArray, room: float) -> IntArray:
-    """The indices of the posts (points of ``shapes``, which the STRtree ``tree`` holds)
-    standing alone: every other obstacle's ``ring`` [m] at least ``room`` [m] (two robots
-    passing) from the post's own."""
-    posts = np.flatnonzero(shapely.get_type_id(shapes) == 0)
-    if len(posts) == 0:
-        return posts
-    # Pairs (post, other) nearer than their rings and the room: a tree query at the
-    # largest such distance, then each pair's own (as `Roadmap._blocked` does).
+def _lone(shapes: GeometryArray, tree: Any, ring: FloatArray, room: float) -> IntArray:
+    """The indices of the obstacles (``shapes``, which the STRtree ``tree`` holds) standing
+    alone: every other obstacle's ``ring`` [m] at least ``room`` [m] (two robots passing)
+    from the obstacle's own. The segments of one wall touch: none of them stands alone."""
+    if len(shapes) == 0:
+        return np.zeros(0, dtype=np.int64)
+    # Pairs nearer than their rings and the room: a tree query at the largest such
+    # distance, then each pair's own (as `Roadmap._blocked` does).
     reach = 2.0 * float(ring.max()) + room
-    pi, ok = tree.query(shapes[posts], predicate="dwithin", distance=reach)
-    other = ok != posts[pi]  # a post is not near itself
+    pi, ok = tree.query(shapes, predicate="dwithin", distance=reach)
+    other = ok != pi  # an obstacle is not near itself
     pi, ok = pi[other], ok[other]
-    near = shapely.distance(shapes[posts][pi], shapes[ok]) < ring[posts][pi] + ring[ok] + room
-    return np.delete(posts, np.unique(pi[near]))
+    near = shapely.distance(shapes[pi], shapes[ok]) < ring[pi] + ring[ok] + room
+    return np.delete(np.arange(len(shapes)), np.unique(pi[near]))
 
 
 def _rings(bodies: FloatArray, clearance_m: float) -> tuple[FloatArray, float]:
@@ -336,13 +361,13 @@ def _rings(bodies: FloatArray, clearance_m: float) -> tuple[FloatArray, float]:
 
 
 def roundabouts(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[Obstacle, ...]:
-    """``obstacles`` with the body of every post standing alone (:func:`_lone_posts`, at
-    ``clearance_m`` [m]) grown to its Eq. (27) influence radius: routed on these, a robot's
-    via-points round a lone post lie ``clearance_m`` outside its zone, where the paper's
-    -K_avoid/x_OA cannot hold it short of them (the paper keeps desired postures out of every
-    zone), and robots circling it keep apart (docs/benchmarks.md, eighteenth stop).
-    ``obstacles`` itself when no post grows."""
-    grow = _growing_posts(obstacles, clearance_m)
+    """``obstacles`` with the body of every obstacle standing alone (:func:`_lone`, at
+    ``clearance_m`` [m]: a post, or a wall segment touching no other) grown to its Eq. (27)
+    influence radius: routed on these, a robot's via-points round it lie ``clearance_m``
+    outside its zone, where the paper's -K_avoid/x_OA cannot hold it short of them (the
+    paper keeps desired postures out of every zone), and robots circling it keep apart
+    (docs/benchmarks.md, eighteenth stop). ``obstacles`` itself when none grows."""
+    grow = _growing(obstacles, clearance_m)
     if not grow:
         return obstacles
     out = list(obstacles)
@@ -351,19 +376,19 @@ def roundabouts(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[Ob
     return tuple(out)
 
 
-def roundabout_posts(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[Obstacle, ...]:
-    """The lone posts of ``obstacles`` that :func:`roundabouts` grows (as they are)."""
-    return tuple(obstacles[k] for k in _growing_posts(obstacles, clearance_m))
+def roundabout_islands(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[Obstacle, ...]:
+    """The lone obstacles of ``obstacles`` that :func:`roundabouts` grows (as they are)."""
+    return tuple(obstacles[k] for k in _growing(obstacles, clearance_m))
 
 
 @functools.lru_cache(maxsize=8)
-def _growing_posts(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[int, ...]:
-    """The lone posts of ``obstacles`` whose influence radius exceeds their body."""
+def _growing(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[int, ...]:
+    """The lone obstacles of ``obstacles`` whose influence radius exceeds their body."""
     if not obstacles:
         return ()
     shapes = obstacle_geometries(obstacles)
     bodies = np.array([o.body_radius for o in obstacles], dtype=np.float64)
-    lone = _lone_posts(shapes, shapely.STRtree(shapes), *_rings(bodies, clearance_m))
+    lone = _lone(shapes, shapely.STRtree(shapes), *_rings(bodies, clearance_m))
     return tuple(k for k in sorted(lone.tolist()) if obstacles[k].radius > bodies[k])
 
 

@@ -12,8 +12,8 @@ bucket, :mod:`fleet.core.planner.rollout`) and sends back their scores
    released,
    the uniform choices (every free robot ccw, every free robot cw), -- with at most
    ``exhaustive_limit`` robots free to choose -- every combination of laws, and -- with
-   six new robots or more routed round one lone post -- an order in two waves: every
-   other one of them round the post waits each of ``delays_s`` (robots crowding a
+   six new robots or more routed round one lone post or wall -- an order in two waves:
+   every other one of them round it waits each of ``delays_s`` (robots crowding a
    roundabout fill the circle round its zone and crawl all at once; docs/benchmarks.md,
    eighteenth stop).
 2. **Local search** (up to ``rounds`` rounds, ``budget`` rollouts): from the best so far,
@@ -49,7 +49,7 @@ from fleet.core.types import IntArray
 
 #: [s] rollouts run this long past the best known makespan (see the module docstring).
 _CUT_MARGIN = 1.0
-#: New robots routed round one lone post from which the baseline also tries two waves.
+#: New robots routed round one lone obstacle from which the baseline also tries two waves.
 _WAVE_MIN = 6
 
 
@@ -151,27 +151,29 @@ class ClusterSearch:
 
     def _every_other_round(self) -> IntArray:
         """The second wave of an order "these go, those follow" at a roundabout: when at
-        least ``_WAVE_MIN`` new robots are routed round one lone post
-        (:func:`~fleet.core.planner.roadmap.roundabout_posts`: a via-point within its zone
-        and two route clearances), every other one of them taken round the post. All at
-        once they fill the circle round its zone and crawl; none of the second wave stands
-        on a goal of the first when goals are each other's starts (a ring). Empty: none."""
+        least ``_WAVE_MIN`` new robots are routed round one lone obstacle
+        (:func:`~fleet.core.planner.roadmap.roundabout_islands`: a via-point within its
+        zone and two route clearances), every other one of them taken round its centre.
+        All at once they fill the circle round its zone and crawl; none of the second wave
+        stands on a goal of the first when goals are each other's starts (a ring). Empty:
+        none."""
         fleet, none = self.fleet, np.zeros(0, dtype=np.int64)
         new = np.flatnonzero(self._kind == NEW)
         if len(new) < _WAVE_MIN or not fleet.world.obstacles or not fleet.movers.route:
             return none
-        from fleet.core.planner.roadmap import roundabout_posts  # shapely: the planner's
+        from fleet.core.planner.roadmap import roundabout_islands  # shapely: the planner's
 
         clearance = route_clearance(fleet.movers.limits, fleet.world, self.config)
-        for post in roundabout_posts(fleet.world.obstacles, clearance):
-            reach = post.radius + 2.0 * clearance
+        for island in roundabout_islands(fleet.world.obstacles, clearance):
+            reach = island.radius + 2.0 * clearance
+            cx, cy = (np.array([island.x, island.y]) + island.far_end) / 2.0
             users, bearings = [], []
             for i in new.tolist():
-                via = fleet.movers.route[int(self._idx[i])] - (post.x, post.y)
-                if len(via) and float(np.hypot(via[:, 0], via[:, 1]).min()) <= reach:
+                via = fleet.movers.route[int(self._idx[i])]
+                if any(island.distance(float(x), float(y)) <= reach for x, y in via):
                     start = fleet.movers.start[int(self._idx[i])]
                     users.append(i)
-                    bearings.append(np.arctan2(start[1] - post.y, start[0] - post.x))
+                    bearings.append(np.arctan2(start[1] - cy, start[0] - cx))
             if len(users) >= _WAVE_MIN:
                 order = np.asarray(users)[np.argsort(bearings, kind="stable")]
                 return np.asarray(order[1::2], dtype=np.int64)

@@ -296,19 +296,34 @@ def test_a_gap_between_two_posts_is_driven_through_either_way() -> None:
                if "ccw_from" in data)  # fmt: skip
 
 
-def test_only_a_post_standing_alone_grows_to_its_zone_for_routing() -> None:
-    """A lone post's body grows to its Eq. (27) influence radius; a post of a pair or of a
-    wall, a post whose body is its zone and a wall keep theirs; nothing grows: the same
-    tuple."""
+def test_only_an_obstacle_standing_alone_grows_to_its_zone_for_routing() -> None:
+    """A lone post's and a lone wall segment's bodies grow to their Eq. (27) influence
+    radii; a post of a pair, the segments of one wall (they touch) and an obstacle whose
+    body is its zone keep theirs; nothing grows: the same tuple."""
     alone = Obstacle(x=10.0, y=10.0, radius=1.2, body=0.6)
+    short = wall((-10.0, -10.0), (-8.0, -10.0))  # body 0.1, zone 1.0
     pair = (post(-0.8, 0.0, body=0.2), post(0.8, 0.0, body=0.2))
     solid = Obstacle(x=-10.0, y=10.0, radius=0.5, body=0.5)
-    side = wall((-10.0, -10.0), (10.0, -10.0))
-    grown = roundabouts((alone, *pair, solid, side), CLEARANCE)
+    corner = (wall((5.0, -10.0), (10.0, -10.0)), wall((10.0, -10.0), (10.0, -5.0)))
+    grown = roundabouts((alone, short, *pair, solid, *corner), CLEARANCE)
     assert grown[0].body_radius == pytest.approx(1.2)
-    assert grown[1:] == (*pair, solid, side)
-    kept = (*pair, solid, side)
+    assert grown[1].body_radius == pytest.approx(1.0)
+    assert grown[2:] == (*pair, solid, *corner)
+    kept = (*pair, solid, *corner)
     assert roundabouts(kept, CLEARANCE) is kept
+
+
+@pytest.mark.parametrize("k", range(4))
+def test_routes_round_a_lone_wall_go_counter_clockwise_outside_its_zone(k: int) -> None:
+    """Robots crossing a ring round a short wall segment go round it counter-clockwise
+    (a roundabout round its centre), every via-point the clearance outside its zone."""
+    segment = wall((-0.8, 0.0), (0.8, 0.0), body=0.2)  # zone 1.0
+    bearing = k * math.tau / 4 + 0.3
+    start = (5.0 * math.cos(bearing), 5.0 * math.sin(bearing))
+    goal = (-start[0], -start[1], bearing + math.pi)
+    route = route_graph((segment,), CLEARANCE).route(start, goal, APPROACH)
+    assert route and _turned(route, start) > 0.0
+    assert min(segment.distance(*p) for p in route) >= segment.radius + CLEARANCE - 1e-6
 
 
 @pytest.mark.parametrize("k", range(4))

@@ -47,8 +47,9 @@ Built-in families (:func:`full_suite`, :func:`quick_suite`):
 * ``corridor-6`` -- two 8 x 10 m rooms joined by an 8 m corridor 1.2 m wide (two robots
   cannot pass in it: a narrow passage, held by one robot at a time); three robots in each
   room, each bound for a bay in the other room. Named.
-* ``ring-8-post``, ``ring-12-post``, ``ring-16-post``, ``ring-6-posts`` -- robots on a
-  circle round posts park at the antipodal point (:func:`rings`); named.
+* ``ring-8-post``, ``ring-12-post``, ``ring-16-post``, ``ring-6-posts``, ``ring-8-wall``
+  -- robots on a circle round posts or a short wall park at the antipodal point
+  (:func:`rings`); named.
 * ``cross-8``, ``cross-16`` -- two lanes crossing, one and two rows deep
   (:func:`crossing_lanes`); named.
 * ``stagger-12-right`` / ``-left`` -- a 12-robot swap whose tasks arrive 1.5 s apart;
@@ -510,7 +511,7 @@ def rings() -> list[Scenario]:
     """The rings round posts: 8 robots round one post (body 0.6 m, influence 1.2 m), 12 round
     a larger one (0.8 m, 1.6 m), 16 round the same on a wider circle (8 m: more robots than
     the circle round its zone holds at once), 6 round three small ones (0.3 m, 0.7 m) 1.2 m
-    off centre."""
+    off centre, 8 round a wall 1.6 m long (body 0.2 m, influence 0.9 m)."""
     small = [
         ObstacleSpec(x=1.2 * math.cos(a), y=1.2 * math.sin(a), radius=0.7, body=0.3)
         for a in (0.3, 2.4, 4.5)
@@ -524,6 +525,9 @@ def rings() -> list[Scenario]:
             16, 8.0, [ObstacleSpec(x=0.0, y=0.0, radius=1.6, body=0.8)], "ring-16-post"
         ),
         ring_round_posts(6, 5.0, small, "ring-6-posts"),
+        ring_round_posts(8, 5.0, [], "ring-8-wall").model_copy(
+            update={"walls": [Wall(points=[(-0.8, 0.0), (0.8, 0.0)], body=0.2, radius=0.9)]}
+        ),
     ]
 
 

@@ -7,7 +7,6 @@ import json
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from fleet.bench.scenarios import (
@@ -26,7 +25,7 @@ from fleet.bench.scenarios import (
     stream,
     swap,
 )
-from fleet.core.geometry import segment_distances
+from fleet.core.geometry import segments_distance
 
 ISSUE_SHAPE = """
 {"name": "my-yard", "named": true,
@@ -130,16 +129,16 @@ def test_case_iii_alone_and_with_four_robots() -> None:
 
 def test_every_ring_robot_has_a_post_body_across_its_straight_way() -> None:
     for ring in rings():
-        assert ring.named and ring.obstacles
-        centres = np.array([[o.x, o.y] for o in ring.obstacles])
-        bodies = np.array([o.body for o in ring.obstacles])
+        obstacles = ring.static_obstacles()
+        assert ring.named and obstacles
         for (x, y, heading), (gx, gy, goal_heading) in zip(ring.starts, ring.goals, strict=True):
             assert math.isclose(gx, -x, abs_tol=1e-9) and math.isclose(gy, -y, abs_tol=1e-9)
             facing = math.atan2(-y, -x)
             assert abs(math.remainder(heading - facing, 2 * math.pi)) <= 0.4
             assert math.isclose(math.remainder(goal_heading - facing, 2 * math.pi), 0, abs_tol=1e-9)
-            gaps = segment_distances(centres[None], np.array([[x, y]]), np.array([[gx, gy]]))[0]
-            assert (gaps[:, 0] < bodies + 0.2).any()  # a robot's radius: it cannot pass straight
+            gaps = [segments_distance((x, y), (gx, gy), (o.x, o.y), o.far_end) for o in obstacles]
+            # a robot's radius: it cannot pass straight
+            assert any(g < o.body_radius + 0.2 for g, o in zip(gaps, obstacles, strict=True))
 
 
 def test_crossing_lanes_cross_and_the_first_row_parks_deepest() -> None:

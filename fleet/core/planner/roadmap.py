@@ -15,14 +15,14 @@ the union of those capsules grown by ``clearance_m``.
   exactly against the capsules with an STRtree), weighted by their length [m]. Only edges
   tangent to the outline at both nodes are kept (the reduced visibility graph: a shortest
   path never uses the others), which prunes most pairs before any geometry is checked.
-  An edge that hugs an obstacle standing alone -- a post, or a wall segment touching no
+  An edge that hugs an island standing alone -- a post, or a short wall segment touching no
   other (no other obstacle within two robots' passing room of it; the edge's middle within
-  its grown ring) -- costs ``1 + ROUNDABOUT_PRICE`` times its length when driven clockwise
-  round its centre: robots whose ways round it are about as long either side all go round
-  it counter-clockwise, a roundabout, instead of meeting head-on beside it; a much shorter
-  way clockwise is still taken. The fleet routes on a roadmap whose lone obstacles are
-  grown to their Eq. (27) zones where that gives a way (:func:`roundabouts`,
-  :func:`fleet.core.planner.lanes.route_graph`).
+  its grown ring; :func:`_lone`) -- costs ``1 + ROUNDABOUT_PRICE`` times its length when
+  driven clockwise round its centre: robots whose ways round it are about as long either
+  side all go round it counter-clockwise, a roundabout, instead of meeting head-on beside
+  it; a much shorter way clockwise is still taken. The fleet routes on a roadmap whose
+  lone islands are grown to their Eq. (27) zones where that gives a way
+  (:func:`roundabouts`, :func:`fleet.core.planner.lanes.route_graph`).
 
 Robots start and park close to obstacles, so the segments leaving the start and reaching the
 goal (or the pre-bay point) need, from every body, only the clearance that end point itself
@@ -339,11 +339,15 @@ def _counter_clockwise_from(
 
 
 def _lone(shapes: GeometryArray, tree: Any, ring: FloatArray, room: float) -> IntArray:
-    """The indices of the obstacles (``shapes``, which the STRtree ``tree`` holds) standing
+    """The indices of the islands (``shapes``, which the STRtree ``tree`` holds) standing
     alone: every other obstacle's ``ring`` [m] at least ``room`` [m] (two robots passing)
-    from the obstacle's own. The segments of one wall touch: none of them stands alone."""
+    from the island's own. An island is a post, or a wall segment no longer than half its
+    ring's circumference (its straight sides no longer than its round ends: robots circle
+    it; along a longer one, a divider, they drive by). The segments of one wall touch: none
+    of them stands alone."""
     if len(shapes) == 0:
         return np.zeros(0, dtype=np.int64)
+    islands = shapely.length(shapes) <= np.pi * ring
     # Pairs nearer than their rings and the room: a tree query at the largest such
     # distance, then each pair's own (as `Roadmap._blocked` does).
     reach = 2.0 * float(ring.max()) + room
@@ -351,7 +355,8 @@ def _lone(shapes: GeometryArray, tree: Any, ring: FloatArray, room: float) -> In
     other = ok != pi  # an obstacle is not near itself
     pi, ok = pi[other], ok[other]
     near = shapely.distance(shapes[pi], shapes[ok]) < ring[pi] + ring[ok] + room
-    return np.delete(np.arange(len(shapes)), np.unique(pi[near]))
+    islands[np.unique(pi[near])] = False
+    return np.flatnonzero(islands)
 
 
 def _rings(bodies: FloatArray, clearance_m: float) -> tuple[FloatArray, float]:
@@ -361,8 +366,8 @@ def _rings(bodies: FloatArray, clearance_m: float) -> tuple[FloatArray, float]:
 
 
 def roundabouts(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[Obstacle, ...]:
-    """``obstacles`` with the body of every obstacle standing alone (:func:`_lone`, at
-    ``clearance_m`` [m]: a post, or a wall segment touching no other) grown to its Eq. (27)
+    """``obstacles`` with the body of every island standing alone (:func:`_lone`, at
+    ``clearance_m`` [m]: a post, or a short wall segment touching no other) grown to its Eq. (27)
     influence radius: routed on these, a robot's via-points round it lie ``clearance_m``
     outside its zone, where the paper's -K_avoid/x_OA cannot hold it short of them (the
     paper keeps desired postures out of every zone), and robots circling it keep apart

@@ -297,20 +297,24 @@ def test_a_gap_between_two_posts_is_driven_through_either_way() -> None:
 
 
 def test_only_an_obstacle_standing_alone_grows_to_its_zone_for_routing() -> None:
-    """A lone post's and a lone wall segment's bodies grow to their Eq. (27) influence
-    radii; a post of a pair, the segments of one wall (they touch) and an obstacle whose
-    body is its zone keep theirs; nothing grows: the same tuple."""
+    """A lone post's and a short lone wall segment's bodies grow to their Eq. (27)
+    influence radii; a post of a pair, the segments of one wall (they touch), a long lone
+    wall (a divider robots drive along, not round) and an obstacle whose body is its zone
+    keep theirs; nothing grows: the same tuple."""
     alone = Obstacle(x=10.0, y=10.0, radius=1.2, body=0.6)
-    short = wall((-10.0, -10.0), (-8.0, -10.0))  # body 0.1, zone 1.0
+    short = wall((-10.0, -10.0), (-8.5, -10.0))  # body 0.1, zone 1.0
     pair = (post(-0.8, 0.0, body=0.2), post(0.8, 0.0, body=0.2))
     solid = Obstacle(x=-10.0, y=10.0, radius=0.5, body=0.5)
     corner = (wall((5.0, -10.0), (10.0, -10.0)), wall((10.0, -10.0), (10.0, -5.0)))
-    grown = roundabouts((alone, short, *pair, solid, *corner), CLEARANCE)
+    divider = wall((20.0, 20.0), (29.0, 20.0))
+    grown = roundabouts((alone, short, *pair, solid, *corner, divider), CLEARANCE)
     assert grown[0].body_radius == pytest.approx(1.2)
     assert grown[1].body_radius == pytest.approx(1.0)
-    assert grown[2:] == (*pair, solid, *corner)
-    kept = (*pair, solid, *corner)
+    assert grown[2:] == (*pair, solid, *corner, divider)
+    kept = (*pair, solid, *corner, divider)
     assert roundabouts(kept, CLEARANCE) is kept
+    edges = Roadmap.build([divider], CLEARANCE).graph.edges(data=True)
+    assert all(d["ccw_from"] < 0 for *_, d in edges if "ccw_from" in d)
 
 
 @pytest.mark.parametrize("k", range(4))

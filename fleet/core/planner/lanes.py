@@ -202,7 +202,7 @@ def route_graph(
     """The route graph robots are routed on: the free space's roadmap
     (:func:`~fleet.core.planner.roadmap.roadmap_of`), along ``lanes`` when there are any.
 
-    Without lanes, round an obstacle standing alone -- a post, or a wall segment touching
+    Without lanes, round an island standing alone -- a post, or a short wall segment touching
     no other (:func:`~fleet.core.planner.roadmap.roundabouts`) -- the way keeps ``clearance_m`` [m]
     from its Eq. (27) influence zone, not only from its body: a robot's via-points inside
     the zone are where -K_avoid/x_OA holds it short of them. Where no such way exists (a

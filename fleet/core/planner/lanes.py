@@ -36,7 +36,7 @@ import networkx as nx
 import numpy as np
 
 from fleet.core.planner.config import PlannerConfig
-from fleet.core.planner.roadmap import Point, Roadmap, roadmap_of, roundabouts
+from fleet.core.planner.roadmap import Point, Roadmap, pre_bay_point, roadmap_of, roundabouts
 from fleet.core.route import LaneShape
 from fleet.core.types import BoolArray, FloatArray
 from fleet.core.wire import Obstacle
@@ -110,8 +110,7 @@ class LaneMap:
             return free  # the straight way is clear: lanes lead round walls, not across floor
         s = (float(start[0]), float(start[1]))
         g = (float(goal[0]), float(goal[1]))
-        h = float(goal[2])
-        p = (g[0] - approach_m * math.cos(h), g[1] - approach_m * math.sin(h))
+        p = pre_bay_point(goal, approach_m)
         for end in ((p, True), (g, False)) if approach_m > 0.0 else ((g, False),):
             target, pre_bay = end
             if pre_bay and not self.roadmap.clear(target, g, self.roadmap.end_clearance(g)):

@@ -112,6 +112,8 @@ class Roadmap:
     _tree: Any = field(repr=False)  # shapely.STRtree over _shapes, or None
     _before: FloatArray = field(repr=False)  # each node's neighbours on its outline ring
     _after: FloatArray = field(repr=False)
+    #: the obstacles standing alone as islands (:func:`_lone`), indices into ``obstacles``
+    islands: IntArray = field(repr=False)
 
     @classmethod
     def build(
@@ -128,9 +130,13 @@ class Roadmap:
         tree = shapely.STRtree(shapes) if len(obstacles) else None
         forbidden = shapely.union_all(shapely.buffer(shapes, bodies + clearance_m))
         empty = np.empty((0, 2), dtype=np.float64)
+        ring, room = _rings(bodies, clearance_m)
+        islands = _lone(shapes, tree, ring, room)
+        islands.setflags(write=False)
         probe = cls(
-            obstacles, clearance_m, empty, None, forbidden, bodies, shapes, tree, empty, empty
-        )
+            obstacles, clearance_m, empty, None, forbidden, bodies, shapes, tree, empty, empty,
+            islands,
+        )  # fmt: skip
 
         xy, before, after = _outline_corners(shapes, bodies + clearance_m, _margin(clearance_m))
         keep = ~probe._blocked(shapely.points(xy), bodies + clearance_m)
@@ -150,7 +156,7 @@ class Roadmap:
             open_ = ~probe._blocked(_segments(xy[i], xy[j]), bodies + clearance_m)
             i, j = i[open_], j[open_]
             lengths = np.hypot(*(xy[j] - xy[i]).T)
-            ccw_from = _counter_clockwise_from(xy, i, j, shapes, tree, *_rings(bodies, clearance_m))
+            ccw_from = _counter_clockwise_from(xy, i, j, shapes, islands, ring)
             graph.add_edges_from(
                 (a, b, {"length": length, "ccw_from": start})
                 for a, b, length, start in zip(
@@ -161,8 +167,9 @@ class Roadmap:
             graph.add_edges_from((end, n) for n in range(len(xy)))
         graph.add_edge(_START, _TARGET)
         return cls(
-            obstacles, clearance_m, xy, graph, forbidden, bodies, shapes, tree, before, after
-        )
+            obstacles, clearance_m, xy, graph, forbidden, bodies, shapes, tree, before, after,
+            islands,
+        )  # fmt: skip
 
     def free(self, a: Point, b: Point) -> bool:
         """Whether the segment from ``a`` to ``b`` [m] keeps ``clearance_m`` from every
@@ -213,8 +220,7 @@ class Roadmap:
         if not self._segment_blocked(s, g, np.minimum(need_s, need_g)):
             return ()
         if approach_m > 0.0:
-            h = float(goal[2])
-            p = (g[0] - approach_m * math.cos(h), g[1] - approach_m * math.sin(h))
+            p = pre_bay_point(goal, approach_m)
             need_p = self._end_need(p)
             inside = self.end_clearance(p) <= 0.0  # within END_SLACK_M of a body, or in one
             if not inside and not self._segment_blocked(p, g, np.minimum(need_p, need_g)):
@@ -232,8 +238,7 @@ class Roadmap:
         keep: ``clearance_m`` from every body, less only at the start, the pre-bay point
         (when ``way`` ends there) and the goal, each its own (:meth:`end_clearance`)."""
         s, g = (float(start[0]), float(start[1])), (float(goal[0]), float(goal[1]))
-        h = float(goal[2])
-        p = (g[0] - approach_m * math.cos(h), g[1] - approach_m * math.sin(h))
+        p = pre_bay_point(goal, approach_m)
         to_p = bool(way) and approach_m > 0.0 and math.dist(way[-1], p) < 1e-9
         ends = {s, g, p} if to_p else {s, g}
         full = self._bodies + self.clearance_m
@@ -314,16 +319,15 @@ class Roadmap:
 
 
 def _counter_clockwise_from(
-    xy: FloatArray, i: IntArray, j: IntArray, shapes: GeometryArray, tree: Any,
-    ring: FloatArray, room: float,
+    xy: FloatArray, i: IntArray, j: IntArray, shapes: GeometryArray, lone: IntArray,
+    ring: FloatArray,
 ) -> IntArray:  # fmt: skip
     """For each edge ``i[k]`` - ``j[k]`` between nodes ``xy``: the node from which it runs
-    counter-clockwise round the centre of the obstacle it hugs -- the lone obstacle
-    (:func:`_lone`) nearest its middle, within that obstacle's ``ring`` [m] -- or
-    ``_NOT_HUGGING``. A wall of posts or a gap between two posts (driven through either
-    way) has no sense."""
+    counter-clockwise round the centre of the island it hugs -- of ``lone`` (indices into
+    ``shapes``, :func:`_lone`) the one nearest its middle, within that island's ``ring``
+    [m] -- or ``_NOT_HUGGING``. A wall of posts or a gap between two posts (driven through
+    either way) has no sense."""
     out = np.full(len(i), _NOT_HUGGING, dtype=np.int64)
-    lone = _lone(shapes, tree, ring, room)
     if len(lone) == 0 or len(i) == 0:
         return out
     centres = shapely.get_coordinates(shapely.centroid(shapes[lone]))  # (p, 2)
@@ -338,6 +342,13 @@ def _counter_clockwise_from(
     return out
 
 
+def pre_bay_point(goal: tuple[float, float, float], approach_m: float) -> Point:
+    """The point [m] ``approach_m`` [m] in front of ``goal`` (x, y, heading [rad]), where a
+    route ends and the posture controller's last leg begins."""
+    h = float(goal[2])
+    return (float(goal[0]) - approach_m * math.cos(h), float(goal[1]) - approach_m * math.sin(h))
+
+
 def _lone(shapes: GeometryArray, tree: Any, ring: FloatArray, room: float) -> IntArray:
     """The indices of the islands (``shapes``, which the STRtree ``tree`` holds) standing
     alone: every other obstacle's ``ring`` [m] at least ``room`` [m] (two robots passing)
@@ -345,7 +356,7 @@ def _lone(shapes: GeometryArray, tree: Any, ring: FloatArray, room: float) -> In
     ring's circumference (its straight sides no longer than its round ends: robots circle
     it; along a longer one, a divider, they drive by). The segments of one wall touch: none
     of them stands alone."""
-    if len(shapes) == 0:
+    if tree is None or len(shapes) == 0:
         return np.zeros(0, dtype=np.int64)
     islands = shapely.length(shapes) <= np.pi * ring
     # Pairs nearer than their rings and the room: a tree query at the largest such
@@ -386,15 +397,13 @@ def roundabout_islands(obstacles: tuple[Obstacle, ...], clearance_m: float) -> t
     return tuple(obstacles[k] for k in _growing(obstacles, clearance_m))
 
 
-@functools.lru_cache(maxsize=8)
 def _growing(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[int, ...]:
-    """The lone obstacles of ``obstacles`` whose influence radius exceeds their body."""
+    """The lone islands of ``obstacles`` whose influence radius exceeds their body (from
+    the roadmap the fleet routes on, :func:`roadmap_of`: computed once per obstacle set)."""
     if not obstacles:
         return ()
-    shapes = obstacle_geometries(obstacles)
-    bodies = np.array([o.body_radius for o in obstacles], dtype=np.float64)
-    lone = _lone(shapes, shapely.STRtree(shapes), *_rings(bodies, clearance_m))
-    return tuple(k for k in sorted(lone.tolist()) if obstacles[k].radius > bodies[k])
+    islands = roadmap_of(obstacles, clearance_m).islands.tolist()
+    return tuple(k for k in islands if obstacles[k].radius > obstacles[k].body_radius)
 
 
 def _outline_corners(

@@ -196,8 +196,9 @@ class RoundaboutRoutes:
 
 
 def route_graph(
-    obstacles: tuple[Obstacle, ...], clearance_m: float, lanes: tuple[LaneShape, ...] = ()
-) -> RouteGraph:
+    obstacles: tuple[Obstacle, ...], clearance_m: float, lanes: tuple[LaneShape, ...] = (),
+    *, one_way: bool = False,
+) -> RouteGraph:  # fmt: skip
     """The route graph robots are routed on: the free space's roadmap
     (:func:`~fleet.core.planner.roadmap.roadmap_of`), along ``lanes`` when there are any.
 
@@ -207,14 +208,16 @@ def route_graph(
     the zone are where -K_avoid/x_OA holds it short of them. Where no such way exists (a
     start or a goal inside a zone, a zone closing a passage), the way round the bodies is
     taken, so the zones never make a goal unreachable. A site's lanes are the operator's
-    ways and are driven as drawn."""
+    ways and are driven as drawn. ``one_way``: round an island the way clockwise is taken
+    only where it is much shorter (``ONE_WAY_PRICE`` instead of ``ROUNDABOUT_PRICE``: the
+    robots a stuck recovery sends round the posts' zones, which would meet head-on there)."""
     if lanes:
         return _lane_map(obstacles, clearance_m, lanes)
-    plain = roadmap_of(obstacles, clearance_m)
+    plain = roadmap_of(obstacles, clearance_m, one_way=one_way)
     grown = roundabouts(obstacles, clearance_m)
     if grown is obstacles:
         return plain
-    return RoundaboutRoutes(roadmap_of(grown, clearance_m), plain)
+    return RoundaboutRoutes(roadmap_of(grown, clearance_m, one_way=one_way), plain)
 
 
 @functools.lru_cache(maxsize=8)

@@ -15,12 +15,13 @@ the union of those capsules grown by ``clearance_m``.
   exactly against the capsules with an STRtree), weighted by their length [m]. Only edges
   tangent to the outline at both nodes are kept (the reduced visibility graph: a shortest
   path never uses the others), which prunes most pairs before any geometry is checked.
-  An edge that hugs an island standing alone -- a post, or a short wall segment touching no
-  other (no other obstacle within two robots' passing room of it; the edge's middle within
-  its grown ring; :func:`_lone`) -- costs ``1 + ROUNDABOUT_PRICE`` times its length when
-  driven clockwise round its centre: robots whose ways round it are about as long either
-  side all go round it counter-clockwise, a roundabout, instead of meeting head-on beside
-  it; a much shorter way clockwise is still taken. The fleet routes on a roadmap whose
+  An edge that hugs an island standing alone -- a post, a short wall segment touching no
+  other, or a small group of bodies no robot passes between (their rings overlap), with no
+  other obstacle within two robots' passing room of it; the edge's middle within its grown
+  ring; :func:`_islands` -- costs ``1 + ROUNDABOUT_PRICE`` times its length when driven
+  clockwise round its centre: robots whose ways round it are about as long either side all
+  go round it counter-clockwise, a roundabout, instead of meeting head-on beside it; a much
+  shorter way clockwise is still taken. The fleet routes on a roadmap whose
   lone islands are grown to their Eq. (27) zones where that gives a way
   (:func:`roundabouts`, :func:`fleet.core.planner.lanes.route_graph`).
 
@@ -58,8 +59,11 @@ _POINT_M = 1e-9  # a segment shorter than this [m] is a point
 _SAG = 0.85  # an arc's chords cut at most this share of the margin into it
 _SIMPLIFY_M = 1e-4  # the grown outline's simplification tolerance [m]
 _PAIRS_PER_BLOCK = 1 << 20  # node pairs screened at once (memory bound)
-#: Extra share of an edge's length when it is driven clockwise round the post it hugs.
+#: Extra share of an edge's length when it is driven clockwise round the island it hugs.
 ROUNDABOUT_PRICE = 0.5
+#: The same on a one-way roadmap (:func:`roadmap_of` with ``one_way``): clockwise only
+#: where that way is four times shorter.
+ONE_WAY_PRICE = 3.0
 _NOT_HUGGING = -3  # ``ccw_from`` of an edge that hugs no post
 
 
@@ -104,6 +108,8 @@ class Roadmap:
 
     obstacles: tuple[Obstacle, ...]
     clearance_m: float
+    #: extra share of a segment's length clockwise round an island it hugs
+    clockwise_price: float
     nodes: FloatArray
     graph: Any = field(repr=False)  # networkx.Graph (no stubs)
     forbidden: Any = field(repr=False)  # shapely geometry (no stubs)
@@ -112,18 +118,31 @@ class Roadmap:
     _tree: Any = field(repr=False)  # shapely.STRtree over _shapes, or None
     _before: FloatArray = field(repr=False)  # each node's neighbours on its outline ring
     _after: FloatArray = field(repr=False)
-    #: the obstacles standing alone as islands (:func:`_lone`), indices into ``obstacles``
-    islands: IntArray = field(repr=False)
+    #: the islands standing alone (:func:`_islands`), each the indices into ``obstacles``
+    #: of its bodies: one, or a group no robot passes between
+    island_groups: tuple[IntArray, ...] = field(repr=False)
+    _senses: _Senses = field(repr=False)
+
+    @property
+    def islands(self) -> IntArray:
+        """The obstacles standing alone as islands of one body (indices into
+        ``obstacles``): the posts and short walls :func:`roundabouts` grows."""
+        return np.array([g[0] for g in self.island_groups if len(g) == 1], dtype=np.int64)
 
     @classmethod
     def build(
-        cls, obstacles: Sequence[Obstacle], clearance_m: float, *, max_nodes: int = MAX_NODES
-    ) -> Roadmap:
+        cls, obstacles: Sequence[Obstacle], clearance_m: float, *, max_nodes: int = MAX_NODES,
+        clockwise_price: float = ROUNDABOUT_PRICE,
+    ) -> Roadmap:  # fmt: skip
         """The roadmap for ``obstacles`` and a centre clearance ``clearance_m`` [m] (robot
-        radius + safety margin + slack). Raises ValueError for a negative or non-finite
-        clearance, or when the graph would have more than ``max_nodes`` nodes."""
+        radius + safety margin + slack), a way clockwise round an island costing
+        ``1 + clockwise_price`` times its length. Raises ValueError for a negative or
+        non-finite clearance or price, or when the graph would have more than ``max_nodes``
+        nodes."""
         if not (math.isfinite(clearance_m) and clearance_m >= 0.0):
             raise ValueError(f"clearance_m must be finite and >= 0, not {clearance_m}")
+        if not (math.isfinite(clockwise_price) and clockwise_price >= 0.0):
+            raise ValueError(f"clockwise_price must be finite and >= 0, not {clockwise_price}")
         obstacles = tuple(obstacles)
         shapes = obstacle_geometries(obstacles)
         bodies = np.array([o.body_radius for o in obstacles], dtype=np.float64)
@@ -131,11 +150,11 @@ class Roadmap:
         forbidden = shapely.union_all(shapely.buffer(shapes, bodies + clearance_m))
         empty = np.empty((0, 2), dtype=np.float64)
         ring, room = _rings(bodies, clearance_m)
-        islands = _lone(shapes, tree, ring, room)
-        islands.setflags(write=False)
+        islands = _islands(shapes, tree, ring, room)
+        senses = _Senses.of(shapes, islands, ring)
         probe = cls(
-            obstacles, clearance_m, empty, None, forbidden, bodies, shapes, tree, empty, empty,
-            islands,
+            obstacles, clearance_m, clockwise_price, empty, None, forbidden, bodies, shapes,
+            tree, empty, empty, islands, senses,
         )  # fmt: skip
 
         xy, before, after = _outline_corners(shapes, bodies + clearance_m, _margin(clearance_m))
@@ -156,7 +175,8 @@ class Roadmap:
             open_ = ~probe._blocked(_segments(xy[i], xy[j]), bodies + clearance_m)
             i, j = i[open_], j[open_]
             lengths = np.hypot(*(xy[j] - xy[i]).T)
-            ccw_from = _counter_clockwise_from(xy, i, j, shapes, islands, ring)
+            sense = senses.of_segments(xy[i], xy[j])
+            ccw_from = np.where(sense == 0, _NOT_HUGGING, np.where(sense > 0, i, j))
             graph.add_edges_from(
                 (a, b, {"length": length, "ccw_from": start})
                 for a, b, length, start in zip(
@@ -167,8 +187,8 @@ class Roadmap:
             graph.add_edges_from((end, n) for n in range(len(xy)))
         graph.add_edge(_START, _TARGET)
         return cls(
-            obstacles, clearance_m, xy, graph, forbidden, bodies, shapes, tree, before, after,
-            islands,
+            obstacles, clearance_m, clockwise_price, xy, graph, forbidden, bodies, shapes,
+            tree, before, after, islands, senses,
         )  # fmt: skip
 
     def free(self, a: Point, b: Point) -> bool:
@@ -279,30 +299,54 @@ class Roadmap:
 
     def _visible(self, point: Point, need: FloatArray) -> tuple[list[int], list[float]]:
         """The nodes whose segment from ``point`` is free under ``need`` and tangent to
-        the outline at the node (a shortest path uses no other), and the lengths [m]."""
+        the outline at the node (a shortest path uses no other; but from a ``point`` within
+        the clearance of a body on a roadmap with islands, whose sense may make another
+        cheaper, every node), and the lengths [m]."""
         origin = np.array(point, dtype=np.float64)
         d = self.nodes - origin
-        ids = np.flatnonzero(_one_side(d, self.nodes, self._before, self._after))
+        priced = self._senses.tree is not None
+        inside = priced and self.end_clearance(point) < self.clearance_m
+        tangent = _one_side(d, self.nodes, self._before, self._after)
+        ids = np.arange(len(d)) if inside else np.flatnonzero(tangent)
         if len(ids) == 0:
             return [], []
         starts = np.broadcast_to(origin, (len(ids), 2))
         ids = ids[~self._blocked(_segments(starts, self.nodes[ids]), need)]
         return ids.tolist(), np.hypot(*d[ids].T).tolist()
 
+    def _priced(
+        self, point: Point, ids: list[int], lengths: list[float], *, leaving: bool,
+        to: Point | None = None,
+    ) -> dict[int, float]:  # fmt: skip
+        """The lengths [m] of the legs between ``point`` and the nodes ``ids`` (or the one
+        point ``to``), from ``point`` when ``leaving``, else to it, each priced as a graph
+        edge: ``1 + clockwise_price`` times when clockwise round an island it hugs."""
+        if not ids:
+            return {}
+        here = np.broadcast_to(np.array(point, dtype=np.float64), (len(ids), 2))
+        there = self.nodes[ids] if to is None else np.array([to], dtype=np.float64)
+        sense = self._senses.of_segments(*((here, there) if leaving else (there, here)))
+        price = np.where(sense < 0, 1.0 + self.clockwise_price, 1.0)
+        return dict(zip(ids, (np.asarray(lengths) * price).tolist(), strict=True))
+
     def _shortest(
         self, s: Point, need_s: FloatArray, t: Point, need_t: FloatArray
     ) -> tuple[Point, ...] | None:
-        """The nodes [m] of the shortest path from ``s`` to ``t`` (both excluded), or None."""
-        from_s = dict(zip(*self._visible(s, need_s), strict=True))
-        to_t = dict(zip(*self._visible(t, need_t), strict=True))
+        """The nodes [m] of the shortest path from ``s`` to ``t`` (both excluded), or None.
+        Every segment clockwise round an island it hugs costs ``1 + clockwise_price`` times
+        its length, the query's own first and last legs too."""
+        from_s = self._priced(s, *self._visible(s, need_s), leaving=True)
+        to_t = self._priced(t, *self._visible(t, need_t), leaving=False)
         direct = (
-            None if self._segment_blocked(s, t, np.minimum(need_s, need_t)) else math.dist(s, t)
+            None
+            if self._segment_blocked(s, t, np.minimum(need_s, need_t))
+            else self._priced(s, [_TARGET], [math.dist(s, t)], leaving=True, to=t)[_TARGET]
         )
 
         def weight(u: int, v: int, data: dict[str, float]) -> float | None:
             if u >= 0 and v >= 0:  # u -> v: clockwise round the post it hugs costs more
                 hugging = data["ccw_from"] != _NOT_HUGGING and data["ccw_from"] != u
-                return data["length"] * (1.0 + ROUNDABOUT_PRICE) if hugging else data["length"]
+                return data["length"] * (1.0 + self.clockwise_price) if hugging else data["length"]
             if u > v:
                 u, v = v, u
             if u == _TARGET:
@@ -318,28 +362,41 @@ class Roadmap:
         return tuple((float(self.nodes[n, 0]), float(self.nodes[n, 1])) for n in path[1:-1])
 
 
-def _counter_clockwise_from(
-    xy: FloatArray, i: IntArray, j: IntArray, shapes: GeometryArray, lone: IntArray,
-    ring: FloatArray,
-) -> IntArray:  # fmt: skip
-    """For each edge ``i[k]`` - ``j[k]`` between nodes ``xy``: the node from which it runs
-    counter-clockwise round the centre of the island it hugs -- of ``lone`` (indices into
-    ``shapes``, :func:`_lone`) the one nearest its middle, within that island's ``ring``
-    [m] -- or ``_NOT_HUGGING``. A wall of posts or a gap between two posts (driven through
-    either way) has no sense."""
-    out = np.full(len(i), _NOT_HUGGING, dtype=np.int64)
-    if len(lone) == 0 or len(i) == 0:
+@dataclass(frozen=True)
+class _Senses:
+    """Which way a segment runs round the island it hugs (:func:`_islands`): the island's
+    convex hull nearest the segment's middle, that middle within the island's largest ring
+    [m] of it; counter-clockwise or clockwise round the hull's centre. A wall of posts or a
+    gap between two posts (driven through either way) has no sense."""
+
+    hulls: GeometryArray
+    centres: FloatArray  # (p, 2) [m]
+    rings: FloatArray  # (p,) [m]
+    tree: Any  # shapely.STRtree over hulls, or None
+
+    @classmethod
+    def of(cls, shapes: GeometryArray, islands: tuple[IntArray, ...], ring: FloatArray) -> _Senses:
+        hulls = np.array(
+            [shapely.convex_hull(shapely.union_all(shapes[g])) for g in islands], dtype=object
+        )
+        centres = shapely.get_coordinates(shapely.centroid(hulls)).reshape(-1, 2)
+        rings = np.array([ring[g].max() for g in islands], dtype=np.float64)
+        return cls(hulls, centres, rings, shapely.STRtree(hulls) if len(hulls) else None)
+
+    def of_segments(self, a: FloatArray, b: FloatArray) -> IntArray:
+        """(n,) for the segments ``a`` -> ``b`` ((n, 2) each) [m]: +1 counter-clockwise
+        round the island each hugs, -1 clockwise, 0 hugging none."""
+        out = np.zeros(len(a), dtype=np.int64)
+        if self.tree is None or len(a) == 0:
+            return out
+        middle = shapely.points(0.5 * (a + b))
+        # The nearest island of each middle (a tree: O(n log p), not n x p).
+        nearest = self.tree.nearest(middle)
+        hugs = shapely.distance(middle, self.hulls[nearest]) <= self.rings[nearest]
+        arm, step = a - self.centres[nearest], b - a
+        turn = arm[:, 0] * step[:, 1] - arm[:, 1] * step[:, 0]  # > 0: counter-clockwise
+        out[hugs] = np.where(turn[hugs] > 0.0, 1, -1)
         return out
-    centres = shapely.get_coordinates(shapely.centroid(shapes[lone]))  # (p, 2)
-    middle = shapely.points(0.5 * (xy[i] + xy[j]))  # (e,)
-    # The nearest lone obstacle of each edge's middle (a tree: O(e log p), not e x p).
-    nearest = shapely.STRtree(shapes[lone]).nearest(middle)
-    hugs = shapely.distance(middle, shapes[lone][nearest]) <= ring[lone][nearest]
-    arm = xy[i] - centres[nearest]
-    step = xy[j] - xy[i]
-    turn = arm[:, 0] * step[:, 1] - arm[:, 1] * step[:, 0]  # > 0: i -> j counter-clockwise
-    out[hugs] = np.where(turn[hugs] > 0.0, i[hugs], j[hugs])
-    return out
 
 
 def pre_bay_point(goal: tuple[float, float, float], approach_m: float) -> Point:
@@ -349,25 +406,47 @@ def pre_bay_point(goal: tuple[float, float, float], approach_m: float) -> Point:
     return (float(goal[0]) - approach_m * math.cos(h), float(goal[1]) - approach_m * math.sin(h))
 
 
-def _lone(shapes: GeometryArray, tree: Any, ring: FloatArray, room: float) -> IntArray:
-    """The indices of the islands (``shapes``, which the STRtree ``tree`` holds) standing
-    alone: every other obstacle's ``ring`` [m] at least ``room`` [m] (two robots passing)
-    from the island's own. An island is a post, or a wall segment no longer than half its
-    ring's circumference (its straight sides no longer than its round ends: robots circle
-    it; along a longer one, a divider, they drive by). The segments of one wall touch: none
-    of them stands alone."""
+def _islands(
+    shapes: GeometryArray, tree: Any, ring: FloatArray, room: float
+) -> tuple[IntArray, ...]:
+    """The islands standing alone among ``shapes`` (which the STRtree ``tree`` holds), each
+    as the indices of its bodies: a group of bodies whose ``ring`` [m] overlaps the next one's
+    (no robot passes between them; one body alone is a group too), with every other
+    obstacle's ring at least ``room`` [m] (two robots passing) from each of its rings, and
+    small: its convex hull's longest way round no longer than half its largest ring's
+    circumference (a post; a wall segment whose straight sides are no longer than its round
+    ends; two or three posts side by side: robots circle it; along a longer one, a divider or
+    a row of posts, they drive by). The segments of one wall touch: they are one group."""
     if tree is None or len(shapes) == 0:
-        return np.zeros(0, dtype=np.int64)
-    islands = shapely.length(shapes) <= np.pi * ring
+        return ()
     # Pairs nearer than their rings and the room: a tree query at the largest such
     # distance, then each pair's own (as `Roadmap._blocked` does).
     reach = 2.0 * float(ring.max()) + room
     pi, ok = tree.query(shapes, predicate="dwithin", distance=reach)
     other = ok != pi  # an obstacle is not near itself
     pi, ok = pi[other], ok[other]
-    near = shapely.distance(shapes[pi], shapes[ok]) < ring[pi] + ring[ok] + room
-    islands[np.unique(pi[near])] = False
-    return np.flatnonzero(islands)
+    gap = shapely.distance(shapes[pi], shapes[ok]) - ring[pi] - ring[ok]
+    joined = gap < 0.0
+    graph = nx.Graph()
+    graph.add_nodes_from(range(len(shapes)))
+    graph.add_edges_from(zip(pi[joined].tolist(), ok[joined].tolist(), strict=True))
+    group_of = np.empty(len(shapes), dtype=np.int64)
+    groups = [np.array(sorted(c), dtype=np.int64) for c in nx.connected_components(graph)]
+    for k, members in enumerate(groups):
+        group_of[members] = k
+    crowded = np.zeros(len(groups), dtype=bool)
+    outside = (gap < room) & (group_of[pi] != group_of[ok])
+    crowded[group_of[pi[outside]]] = True
+    out = []
+    for k, members in enumerate(groups):
+        if crowded[k]:
+            continue
+        hull = shapely.convex_hull(shapely.union_all(shapes[members]))
+        around = shapely.length(hull) / (2.0 if shapely.get_dimensions(hull) == 2 else 1.0)
+        if around <= np.pi * float(ring[members].max()):
+            members.setflags(write=False)
+            out.append(members)
+    return tuple(out)
 
 
 def _rings(bodies: FloatArray, clearance_m: float) -> tuple[FloatArray, float]:
@@ -377,7 +456,7 @@ def _rings(bodies: FloatArray, clearance_m: float) -> tuple[FloatArray, float]:
 
 
 def roundabouts(obstacles: tuple[Obstacle, ...], clearance_m: float) -> tuple[Obstacle, ...]:
-    """``obstacles`` with the body of every island standing alone (:func:`_lone`, at
+    """``obstacles`` with the body of every island standing alone (:func:`_islands`, of one body, at
     ``clearance_m`` [m]: a post, or a short wall segment touching no other) grown to its Eq. (27)
     influence radius: routed on these, a robot's via-points round it lie ``clearance_m``
     outside its zone, where the paper's -K_avoid/x_OA cannot hold it short of them (the
@@ -483,8 +562,12 @@ def _one_side(d: FloatArray, at: FloatArray, nb1: FloatArray, nb2: FloatArray) -
 
 
 @functools.lru_cache(maxsize=8)
-def roadmap_of(obstacles: tuple[Obstacle, ...], clearance_m: float) -> Roadmap:
+def roadmap_of(
+    obstacles: tuple[Obstacle, ...], clearance_m: float, *, one_way: bool = False
+) -> Roadmap:
     """:meth:`Roadmap.build`, kept for the last few obstacle sets and clearances (a site's
-    obstacles change rarely; the planner and the goal check share it). Read-only: safe to
-    share between threads."""
-    return Roadmap.build(obstacles, clearance_m)
+    obstacles change rarely; the planner and the goal check share it), the way clockwise
+    round an island priced ``ROUNDABOUT_PRICE``, or ``ONE_WAY_PRICE`` when ``one_way``.
+    Read-only: safe to share between threads."""
+    price = ONE_WAY_PRICE if one_way else ROUNDABOUT_PRICE
+    return Roadmap.build(obstacles, clearance_m, clockwise_price=price)

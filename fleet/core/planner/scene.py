@@ -403,7 +403,7 @@ def _routes(
     clearance = route_clearance(limits, world, config)
     plain = route_graph(world.obstacles, clearance, world.lanes)
     wide = _wide(world.obstacles, clearance, world.avoidance.smoothing_m) if any(wide_way) else ()
-    wide_map = route_graph(wide, clearance, world.lanes) if wide else plain
+    wide_map = route_graph(wide, clearance, world.lanes, one_way=True) if wide else plain
     reach = radii + world.profile.radius + world.safety.contact_margin_m  # (k,) [m]
     out = []
     for i in range(k):
@@ -434,7 +434,7 @@ def _routes(
         if points:
             points = _round_standing(
                 points, here, target, standing_xy, reach[i], world, clearance, config,
-                wide if wide_way[i] else world.obstacles,
+                wide if wide_way[i] else world.obstacles, one_way=wide_way[i],
             )  # fmt: skip
         # At most what an assignment carries: a longer way is driven as far as that goes,
         # and routed again from there once the robot is out of the next point's sight.
@@ -444,7 +444,7 @@ def _routes(
     for i in np.flatnonzero(~gave_way).tolist() if len(givers) else []:
         around = _round_givers(
             out[i], pose[i], goal[i], givers, standing_xy, float(reach[i]), world, clearance,
-            config, wide if wide_way[i] else world.obstacles,
+            config, wide if wide_way[i] else world.obstacles, one_way=wide_way[i],
         )  # fmt: skip
         if around is not None:
             out[i], last_leg[i] = around, False
@@ -532,24 +532,27 @@ def _round_standing(
     points: tuple[tuple[float, float], ...], here: tuple[float, float],
     target: tuple[float, float, float], standing_xy: FloatArray, reach: float, world: World,
     clearance: float, config: PlannerConfig, obstacles: tuple[Obstacle, ...],
+    one_way: bool = False,
 ) -> tuple[tuple[float, float], ...]:  # fmt: skip
     """``points`` (a route from ``here`` to ``target`` round ``obstacles``: the world's, or
-    :func:`_wide`'s for a robot routed round the posts' zones), or, when standing robots
-    are in its way (:func:`_in_the_way`), the route round them too (:func:`_route_round`).
-    ``points`` when that graph has no way."""
+    :func:`_wide`'s for a robot routed round the posts' zones, ``one_way``), or, when
+    standing robots are in its way (:func:`_in_the_way`), the route round them too
+    (:func:`_route_round`). ``points`` when that graph has no way."""
     influence = world.avoidance.peer_radius
     blockers = _in_the_way(here, points, standing_xy, reach, influence)
     if blockers.shape[0] == 0:
         return points
-    around = _route_round(here, target, blockers, world, clearance, config, obstacles)
+    around = _route_round(here, target, blockers, world, clearance, config, obstacles, one_way)
     return points if around is None else around
 
 
 def _route_round(
     here: tuple[float, float], target: tuple[float, float, float], blockers: FloatArray,
     world: World, clearance: float, config: PlannerConfig, obstacles: tuple[Obstacle, ...],
+    one_way: bool = False,
 ) -> tuple[tuple[float, float], ...] | None:  # fmt: skip
-    """The route from ``here`` to ``target`` of a graph of ``obstacles`` where the robots
+    """The route from ``here`` to ``target`` of a graph of ``obstacles`` (``one_way``: see
+    :func:`~fleet.core.planner.lanes.route_graph`) where the robots
     standing at ``blockers`` (b, 2) [m] are posts whose grown body (``clearance`` [m] beyond
     it, on a ``STANDING_GRID_M`` grid) holds their body and their peers' influence radius,
     shrunk (not below a body) so that ``here`` lies outside it: a robot already within a
@@ -563,7 +566,7 @@ def _route_round(
         Obstacle(x=float(x), y=float(y), radius=b, body=b)
         for (x, y), b in zip(grid, np.clip(near, world.profile.radius, body), strict=True)
     )
-    return route_graph(obstacles + posts, clearance, world.lanes).route(
+    return route_graph(obstacles + posts, clearance, world.lanes, one_way=one_way).route(
         here, target, config.approach_m
     )
 
@@ -571,25 +574,27 @@ def _route_round(
 def _round_givers(
     way: FloatArray, pose: FloatArray, goal: FloatArray, givers: FloatArray,
     standing_xy: FloatArray, reach: float, world: World, clearance: float,
-    config: PlannerConfig, obstacles: tuple[Obstacle, ...],
+    config: PlannerConfig, obstacles: tuple[Obstacle, ...], one_way: bool = False,
 ) -> FloatArray | None:  # fmt: skip
     """A way (m, 2) [m] for a mover at ``pose`` driving ``way`` (its via-points) to
     ``goal`` round the robots at ``givers`` (g, 2) [m] that gave way in a standoff, when
     its way, the last leg included, passes one of them (:func:`_in_the_way` with the goal)
     -- and round the ``standing_xy`` robots in the new way -- on a graph of ``obstacles``
-    (:func:`_route_round`); None: no giver in its way, or no way round."""
+    (:func:`_route_round`, ``one_way``); None: no giver in its way, or no way round."""
     here = (float(pose[0]), float(pose[1]))
     target = (float(goal[0]), float(goal[1]), float(goal[2]))
     influence = world.avoidance.peer_radius
     ahead = _in_the_way(here, way, givers, reach, influence, target[:2])
     if ahead.shape[0] == 0:
         return None
-    around = _route_round(here, target, ahead, world, clearance, config, obstacles)
+    around = _route_round(here, target, ahead, world, clearance, config, obstacles, one_way)
     if around:
         standing = _in_the_way(here, around, standing_xy, reach, influence)
         if standing.shape[0]:
             blockers = np.vstack([ahead, standing])
-            around = _route_round(here, target, blockers, world, clearance, config, obstacles)
+            around = _route_round(
+                here, target, blockers, world, clearance, config, obstacles, one_way
+            )
     if not around:
         return None
     return np.array(around[:MAX_ROUTE_POINTS], dtype=np.float64).reshape(-1, 2)

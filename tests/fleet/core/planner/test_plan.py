@@ -321,8 +321,8 @@ def test_a_robot_routed_round_the_posts_zones_goes_round_a_standing_robot_outsid
         assert d.predicted_arrival_s is not None
         return d.route
 
-    parked = (-2.1, 0.0)
-    assert parked in route()  # its way round the left post's zone
+    parked = (2.1, 0.0)
+    assert parked in route()  # its way round the right post's zone: counter-clockwise
     way = route(parked)
     assert way and all(math.dist(p, parked) > Avoidance().peer_radius for p in way)
     assert all(math.dist(p, (o.x, o.y)) >= o.radius for p in way for o in posts)

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from fleet.core.geometry import segments_cross, segments_distance
 from fleet.core.planner.lanes import route_graph
-from fleet.core.planner.roadmap import END_SLACK_M, Roadmap, roundabouts
+from fleet.core.planner.roadmap import END_SLACK_M, Roadmap, roadmap_of, roundabouts
 from fleet.core.site import Wall
 from fleet.core.wire import Obstacle
 from fleet.io.site_file import load_site
@@ -294,6 +294,41 @@ def test_a_gap_between_two_posts_is_driven_through_either_way() -> None:
     roadmap = Roadmap.build(pair, 0.4)
     assert all(data["ccw_from"] < 0 for *_, data in roadmap.graph.edges(data=True)
                if "ccw_from" in data)  # fmt: skip
+
+
+@pytest.mark.parametrize("k", range(8))
+def test_robots_crossing_a_ring_round_two_posts_no_robot_passes_between_go_counter_clockwise(
+    k: int,
+) -> None:
+    """Two posts whose rings overlap (no way between them) are one island: robots crossing
+    a ring round the pair go round it counter-clockwise (a roundabout round the pair's
+    centre), as round one post; the posts themselves keep their bodies."""
+    pair = (post(-0.6, 0.0, body=0.4), post(0.6, 0.0, body=0.4))
+    roadmap = Roadmap.build(pair, CLEARANCE)
+    assert [g.tolist() for g in roadmap.island_groups] == [[0, 1]]
+    assert roundabouts(pair, CLEARANCE) is pair
+    bearing = k * math.tau / 8 + 0.01
+    start = (5.0 * math.cos(bearing), 5.0 * math.sin(bearing))
+    goal = (-start[0], -start[1], bearing + math.pi)
+    route = roadmap.route(start, goal, APPROACH)
+    assert route and _turned(route, start) > 0.0
+    assert_keeps_clearance(list(pair), CLEARANCE, start, goal, APPROACH, route)
+
+
+def test_on_a_one_way_roadmap_a_shorter_way_clockwise_round_an_island_is_not_taken() -> None:
+    """From beside one end of a pair of posts to beyond the other end's far side, the way
+    clockwise along the near flank is much shorter: taken on the fleet's roadmap (a price
+    of half its length), not on a one-way roadmap (the one a stuck recovery's robots are
+    routed on), where the robot goes round counter-clockwise -- also from a start within
+    a body's clearance, whose first leg need not be tangent to the outline."""
+    pair = (post(-0.8, 0.0, body=0.85), post(0.8, 0.0, body=0.85))
+    goal = (2.5, -1.2, 0.0)
+    for start in ((-0.3, 1.4), (-0.3, 0.95)):  # outside the clearance, and within it
+        fleet_way = roadmap_of(pair, CLEARANCE).route(start, goal, APPROACH)
+        one_way = roadmap_of(pair, CLEARANCE, one_way=True).route(start, goal, APPROACH)
+        assert fleet_way and _turned(fleet_way, start) < 0.0
+        assert one_way and _turned(one_way, start) > 0.0
+        assert_keeps_clearance(list(pair), CLEARANCE, start, goal, APPROACH, one_way)
 
 
 def test_only_an_obstacle_standing_alone_grows_to_its_zone_for_routing() -> None:

@@ -330,6 +330,35 @@ def test_a_robot_routed_round_the_posts_zones_goes_round_a_standing_robot_outsid
     assert not any(segments_cross(a, b, (-0.8, 0.0), (0.8, 0.0)) for a, b in legs)
 
 
+def test_robots_sent_round_the_posts_zones_from_either_side_go_round_them_one_way() -> None:
+    """Two robots a stuck recovery sent round case III's posts' zones (``wide_way``), one
+    above the pair bound south, one at its north-west corner bound south-east: both go
+    round the pair counter-clockwise (the second's way clockwise along the top is much
+    shorter, and took it head-on into the first for 80 s of a disturbed benchmark run)."""
+    posts = (
+        Obstacle(x=0.8, y=0.0, radius=1.0, body=0.2),
+        Obstacle(x=-0.8, y=0.0, radius=1.0, body=0.2),
+    )
+    starts = {"r0": (0.1, 1.1, -math.pi / 2), "r1": (-0.8, 0.9, 0.0)}
+    goals = {"r0": (0.0, -2.0, 0.0), "r1": (2.5, -1.2, 0.0)}
+    driving = {"status": TaskStatus.DRIVING, "law": "ccw", "wide_way": True}
+    tasks = tuple(
+        replace(queued(f"t{r}", goals[r], r, direction="ccw"), robot_id=r, **driving)
+        for r in starts
+    )
+    robots = tuple(
+        RobotSnapshot(r, starts[r], RobotStatus.DRIVING, False, f"t{r}", "ccw") for r in starts
+    )
+    snapshot = PlanningSnapshot(
+        version=1, robots=robots, tasks=tasks, obstacles=posts, control_dt=0.05
+    )
+    for d in plan(snapshot).decisions:
+        start = starts[d.robot_id][:2]
+        angles = [math.atan2(y, x) for x, y in (start, *d.route)]
+        turned = sum(math.remainder(b - a, math.tau) for a, b in itertools.pairwise(angles))
+        assert d.route and turned > math.pi / 2, (d.robot_id, d.route)
+
+
 def test_a_robot_is_routed_round_one_that_gave_way_in_a_standoff_dead_ahead() -> None:
     """Nose to nose, each goal behind the other (both laws drive straight, Eq. (27) only
     slows them): the robot that gave way stands, and the other's way -- its last leg, with

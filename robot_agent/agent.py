@@ -53,6 +53,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from fleet.core.params import SafetyConfig
 from fleet.core.step import body_velocities
 from fleet.core.wire import (
     CancelAssignment,
@@ -83,7 +84,14 @@ from robot_agent.logic import (
     decide,
 )
 from robot_agent.operator import OperatorLatch
-from robot_agent.prediction import CommandLog, OwnPrediction, point_speed, predict_own
+from robot_agent.prediction import (
+    CommandLog,
+    OwnPrediction,
+    Posture,
+    nominal_pose,
+    point_speed,
+    predict_own,
+)
 from robot_agent.state_streams import StateStreams
 from robot_agent.world import WorldView
 from robot_agent.world_feed import WorldFeed
@@ -93,6 +101,12 @@ Inbound = ParkAssignment | CancelAssignment | ControlCommand
 #: Modes in which the robot stands with nothing to do: a drive with ``release()`` may fall
 #: silent there (an operator may teleop); every other stopped mode calls ``stop()`` each tick.
 _AT_REST = (RobotMode.IDLE, RobotMode.ARRIVED)
+
+
+def _predicts(safety: SafetyConfig) -> bool:
+    """Whether the agent carries its pose through its commands in flight (``prediction``
+    or ``compensate_latency``): it then logs its commands and measures its latency."""
+    return safety.prediction or safety.compensate_latency
 
 
 def _drive_faults(drive: Drive) -> list[tuple[str, str]]:
@@ -295,7 +309,7 @@ class RobotAgent:
             phase = "drive_error"
             pose, stamp = self.drive.read_pose()
             wheel_speeds = getattr(self.drive, "wheel_speeds", None)
-            if wheel_speeds is not None and self.settings.safety.prediction:
+            if wheel_speeds is not None and _predicts(self.settings.safety):
                 right, left, measured = wheel_speeds()
                 self.latency.measured(measured, right, left)
             phase = "tick_error"
@@ -329,11 +343,16 @@ class RobotAgent:
                 sent_at = self.clock.now()
                 predicting = safety.prediction
                 measured = pose.as_tuple()
+                nominal: Posture | None = None
                 if predicting:
                     prediction = predict_own(
                         measured, stamp, sent_at, self.commands, window, profile, safety,
                         self.period,
                     )  # fmt: skip
+                elif safety.compensate_latency:
+                    nominal = nominal_pose(
+                        measured, stamp, sent_at, self.commands, window, profile, self.period
+                    )
                 override = self.operator.mode
                 if override is not None:  # an operator's pause or e-stop: stand still, keep task
                     decision = TickResult(
@@ -360,6 +379,7 @@ class RobotAgent:
                         period=self.period,
                         own_spread=None if prediction is None else prediction.spread,
                         own_heading=0.0 if prediction is None else prediction.heading,
+                        nominal_pose=nominal,
                     )
                 drive_faults = _drive_faults(self.drive)
                 if drive_faults and override is None and decision.mode not in _AT_REST:
@@ -412,8 +432,8 @@ class RobotAgent:
     def _sent(self, at: float, right: float, left: float) -> None:
         """Remember a wheel command sent at ``at`` [s]: in flight for the prediction, for the
         latency estimate, and for the next command's speed-up cap (with ``prediction`` on;
-        off, the agent keeps nothing of it: it decides as before, at the same cost)."""
-        if not self.settings.safety.prediction:
+        off, and without latency compensation, the agent keeps nothing of it)."""
+        if not _predicts(self.settings.safety):
             return
         self.commands.add(at, right, left)
         self.latency.commanded(at, right, left)

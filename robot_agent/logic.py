@@ -247,6 +247,7 @@ def decide(
     period: float = 0.0,
     own_spread: float | None = None,
     own_heading: float = 0.0,
+    nominal_pose: Sequence[float] | None = None,
 ) -> TickResult:
     """Decide one control tick.
 
@@ -290,6 +291,11 @@ def decide(
         command acts (:func:`robot_agent.prediction.predict_own`); None: ``speed``'s.
     own_heading : float
         Uncertainty [rad] of that pose's heading: the filter widens every cone by it.
+    nominal_pose : (x [m], y [m], theta [rad]) or None
+        Where the law, Eq. (27) and the route's next via-point are reckoned from: the
+        robot's prediction of its pose when the command acts (latency compensation,
+        ``SafetyConfig.compensate_latency``), while the stop rule and the safety filter keep
+        ``pose`` and its spread; None: ``pose``.
     """
     if task is None:
         return _stopped(RobotMode.IDLE, None)
@@ -310,7 +316,8 @@ def decide(
         limit = min(limit, a.max_wheel_speed)  # never above the robot's own limit
     hold = task.waiting(now)
     params = _step_params(task, profile, limit)
-    leg = step.aim(pose[0], pose[1], pose[2], params, task.route, task.leg, obstacles)
+    at = pose if nominal_pose is None else nominal_pose
+    leg = step.aim(at[0], at[1], at[2], params, task.route, task.leg, obstacles)
     if leg != task.leg:
         task = replace(task, leg=leg)
     postures, shapes = peers
@@ -326,6 +333,7 @@ def decide(
         min_x_oa=avoid.min_x_oa,
         safety=filter_of(safety, speed, own_spread, own_heading),
         dt=period,
+        nominal=None if nominal_pose is None else (at[0], at[1], at[2]),
     )
     if result.done:  # the stop rule: this step is still applied (see the module docstring)
         mode, task = RobotMode.ARRIVED, replace(task, status=AgentTaskStatus.ARRIVED)

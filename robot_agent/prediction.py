@@ -208,6 +208,42 @@ def point_speed(u: float, omega: float, half_axle: float, safety: SafetyConfig) 
     return abs(u) + ahead * abs(omega) + e * s * (1.0 + ahead / half_axle)
 
 
+def _carried(
+    pose: Posture, commands: list[Sent], shift: float, start: float, until: float,
+    profile: RobotProfile, period: float,
+) -> Posture:  # fmt: skip
+    """``pose`` (measured at ``start`` [s]) carried to ``until`` [s] through ``commands``,
+    each acting ``shift`` [s] after its send: Euler steps of at most ``period`` [s], the
+    simulated drive's (:func:`~fleet.core.step.integrate_wheels`)."""
+    r, b = profile.wheel_radius, profile.half_axle
+    x, y, theta = pose
+    for duration, sent in _segments(commands, shift, start, until):
+        steps = max(1, math.ceil(duration / period - 1e-9))
+        x, y, theta = integrate_wheels(
+            x, y, theta, sent.right, sent.left, r, b, duration / steps, steps
+        )
+    return x, y, theta
+
+
+def nominal_pose(
+    pose: Posture,
+    measured_at: float,
+    now: float,
+    log: CommandLog,
+    window: LatencyWindow,
+    profile: RobotProfile,
+    period: float,
+) -> Posture:
+    """The robot's pose [m, m, rad] when a command sent at ``now`` [s] nominally acts:
+    ``pose``, measured at ``measured_at`` [s], carried through the commands in flight
+    (``log``) each acting the window's nominal latency after its send -- the pose of
+    :func:`predict_own` without what it cannot know (the agent's latency compensation:
+    the law decides on it, the safety filter keeps the measured pose and its spread)."""
+    start = min(measured_at, now)
+    commands = log.since(start - window.hi - period)
+    return _carried(pose, commands, window.nominal, start, now + window.nominal, profile, period)
+
+
 def predict_own(
     pose: Posture,
     measured_at: float,
@@ -232,7 +268,7 @@ def predict_own(
     commands = log.since(start - window.hi - period)
 
     # The prediction: Euler steps of at most one period through the nominal schedule.
-    x, y, theta = pose
+    x, y, theta = _carried(pose, commands, lam, start, t_nom, profile, period)
     path = 0.0  # centre path length over [start, t_hi]
     before = after = 0.0  # projected point's path over [t_lo, t_nom] and [t_nom, t_hi]
     before_turn = after_turn = 0.0  # heading turned over the same [rad]
@@ -248,12 +284,6 @@ def predict_own(
         before_turn += abs(omega) * early
         after_turn += abs(omega) * late
         path += abs(u) * duration
-        if t < t_nom:  # integrate up to the nominal instant only
-            span = min(end, t_nom) - t
-            steps = max(1, math.ceil(span / period - 1e-9))
-            x, y, theta = integrate_wheels(
-                x, y, theta, sent.right, sent.left, r, b, span / steps, steps
-            )
         t = end
 
     # What it cannot know (docs/safety.md): switches mistimed by up to delta, the wheels'

@@ -779,6 +779,9 @@ def robot_step(
     x: float,
     y: float,
     theta: float,
+    nominal_x: float,
+    nominal_y: float,
+    nominal_theta: float,
     params: FloatArray,
     i: int,
     hold: bool,
@@ -796,9 +799,13 @@ def robot_step(
 ) -> tuple[float, float, float, bool, float, float, float, float, float, bool, float, float, float]:
     """One closed-loop step of robot ``params[i]`` at (x, y, theta) (see the module docstring).
 
-    Peers are columns ``peer_lo .. peer_hi - 1`` of ``positions`` (x, y, theta) and
-    ``shapes`` (body radius, spread) except ``skip`` (the robot itself in a batch, -1
-    otherwise). Returns the fields of :class:`StepResult`.
+    The law and Eq. (27) (steps 4-5) act on the pose (``nominal_x``, ``nominal_y``,
+    ``nominal_theta``) -- the same pose, or the agent's prediction of its pose when its
+    command acts (latency compensation: docs/safety.md) --; the error, the stop rule, the
+    safety filter and the Euler step on (x, y, theta). Peers are columns
+    ``peer_lo .. peer_hi - 1`` of ``positions`` (x, y, theta) and ``shapes`` (body radius,
+    spread) except ``skip`` (the robot itself in a batch, -1 otherwise). Returns the fields
+    of :class:`StepResult`.
     """
     c, s = math.cos(theta), math.sin(theta)
     cw = params[i, CW] != 0.0
@@ -810,7 +817,17 @@ def robot_step(
     if hold:
         return x_e, y_e, theta_e, done, 0.0, 0.0, 0.0, 0.0, 0.0, False, x, y, theta
 
-    u, omega = posture_law(x_e, y_e, theta_e, params[i, KX], params[i, KY], params[i, KTHETA], cw)
+    nx_, ny_, nc, ns = x, y, c, s
+    xn_e, yn_e, thetan_e = x_e, y_e, theta_e
+    if nominal_x != x or nominal_y != y or nominal_theta != theta:
+        nx_, ny_ = nominal_x, nominal_y
+        nc, ns = math.cos(nominal_theta), math.sin(nominal_theta)
+        xn_e, yn_e, thetan_e = _error_in_frame(
+            nc, ns, nx_, ny_, nominal_theta, params[i, GOAL_X], params[i, GOAL_Y],
+            params[i, GOAL_HEADING], cw,
+        )  # fmt: skip
+    kx, ky, ktheta = params[i, KX], params[i, KY], params[i, KTHETA]
+    u, omega = posture_law(xn_e, yn_e, thetan_e, kx, ky, ktheta, cw)
     repulsion = 0.0
     avoiding = False
     if k_avoid > 0.0:
@@ -819,19 +836,19 @@ def robot_step(
         for j in range(peer_lo, peer_hi):
             if j == skip:
                 continue
-            dx, dy = positions[0, j] - x, positions[1, j] - y
+            dx, dy = positions[0, j] - nx_, positions[1, j] - ny_
             d_sq = dx * dx + dy * dy
             if d_sq < influence_sq:
                 repulsion += repulsion_term(
-                    c * dx + s * dy, d_sq, peer_radius, k_avoid, min_x_oa, smoothing
+                    nc * dx + ns * dy, d_sq, peer_radius, k_avoid, min_x_oa, smoothing
                 )  # Eq. (26)
                 avoiding = True
         for j in range(obstacles.shape[1]):
-            dx, dy = obstacle_offset(obstacles, j, x, y)
+            dx, dy = obstacle_offset(obstacles, j, nx_, ny_)
             d_sq = dx * dx + dy * dy
             if d_sq < obstacles[2, j] * obstacles[2, j]:
                 repulsion += repulsion_term(
-                    c * dx + s * dy, d_sq, obstacles[2, j], k_avoid, min_x_oa, smoothing
+                    nc * dx + ns * dy, d_sq, obstacles[2, j], k_avoid, min_x_oa, smoothing
                 )
                 avoiding = True
     max_wheel = params[i, MAX_WHEEL_SPEED]
@@ -853,7 +870,8 @@ _STEP_RESULT = "Tuple((float64, float64, float64, boolean, float64, float64, flo
 
 
 @njit(
-    _STEP_RESULT + "(float64, float64, float64, float64[:, ::1], boolean, float64[:, ::1], "
+    _STEP_RESULT + "(float64, float64, float64, float64, float64, float64, float64[:, ::1], "
+    "boolean, float64[:, ::1], "
     "float64[:, ::1], float64[:, ::1], float64, float64, float64, "
     "UniTuple(float64, 5), float64)",
     cache=True,
@@ -863,6 +881,9 @@ def _step_robot(
     x: float,
     y: float,
     theta: float,
+    nominal_x: float,
+    nominal_y: float,
+    nominal_theta: float,
     params: FloatArray,
     hold: bool,
     peers: FloatArray,
@@ -875,8 +896,8 @@ def _step_robot(
     dt: float,
 ) -> tuple[float, float, float, bool, float, float, float, float, float, bool, float, float, float]:
     return robot_step(
-        x, y, theta, params, 0, hold, peers, shapes, 0, peers.shape[1], -1, obstacles,
-        k_avoid, peer_radius, min_x_oa, safety, dt,
+        x, y, theta, nominal_x, nominal_y, nominal_theta, params, 0, hold, peers, shapes, 0,
+        peers.shape[1], -1, obstacles, k_avoid, peer_radius, min_x_oa, safety, dt,
     )  # fmt: skip
 
 
@@ -893,17 +914,21 @@ def step_robot(
     min_x_oa: float,
     safety: Safety = SAFETY_OFF,
     dt: float = 0.0,
+    nominal: tuple[float, float, float] | None = None,
 ) -> StepResult:
     """One step of one robot (the agent's tick): :func:`robot_step` on ``params``
-    (1, ``ROBOT_COLUMNS``).
+    (1, ``ROBOT_COLUMNS``), the law and Eq. (27) on ``nominal`` (x, y, theta) when given
+    (the agent's latency compensation), else on ``pose``.
 
     ``peers`` (3, M) = x, y, theta, ``shapes`` (2, M) = body radius, spread and
     ``obstacles`` (4, K) are C-contiguous float64 rows (see the module docstring). ``dt``
     [s] is the control period: the safety filter's step, and it moves the returned posture.
     """
+    at = pose if nominal is None else nominal
     return StepResult(
         *_step_robot(
-            float(pose[0]), float(pose[1]), float(pose[2]), params, hold, peers, shapes,
+            float(pose[0]), float(pose[1]), float(pose[2]), float(at[0]), float(at[1]),
+            float(at[2]), params, hold, peers, shapes,
             obstacles, k_avoid, peer_radius, min_x_oa,
             (float(safety[0]), float(safety[1]), float(safety[2]), float(safety[3]),
              float(safety[4])), dt,
@@ -1058,8 +1083,8 @@ def _advance_robot(
         leg[i] = _aim(x, y, theta, params, i, route, leg[i], obstacles)
     hold = t < params[i, DELAY_END]
     r = robot_step(
-        x, y, theta, params, i, hold, current, shapes, peer_lo, peer_hi, i, obstacles,
-        k_avoid, peer_radius, min_x_oa, safety, dt,
+        x, y, theta, x, y, theta, params, i, hold, current, shapes, peer_lo, peer_hi, i,
+        obstacles, k_avoid, peer_radius, min_x_oa, safety, dt,
     )  # fmt: skip
     finished = 0
     u = omega = 0.0

@@ -14,6 +14,7 @@ from fleet.core.wire import (
     ControlAction,
     ControlCommand,
     Keys,
+    Obstacle,
     ObstacleSet,
     ParkAssignment,
     Pose,
@@ -414,3 +415,49 @@ def test_a_drive_slower_than_the_configured_latency_is_reported_and_measured() -
     fault = [e for e in snap.errors if e.code == "latency_exceeded"]
     assert fault and fault[0].level.value == "warning"
     assert snap.mode is not RobotMode.HOLDING  # it drives on
+
+
+def _reversals_to_park(compensate: bool, latency_s: float) -> tuple[int, int | None]:
+    """The paper's case III: a robot from above the two posts to below them (law (17), the
+    case's gains), its drive acting every command ``latency_s`` late and nothing else
+    disturbed; the reversals of its commanded speed and the tick it parked at (None: not
+    in 40 s)."""
+    from sim_agent.disturbances import Disturbances, DisturbedDrive
+
+    clock = SteppedClock()
+    profile = load_settings().profile
+    drive = DisturbedDrive(
+        (0.0, 2.0, 0.0), profile, clock, Disturbances(latency_s=(latency_s, latency_s)),
+        np.random.default_rng(0),
+    )  # fmt: skip
+    settings = load_settings(safety={"compensate_latency": compensate})
+    agent = RobotAgent("r1", drive, None, settings, clock=clock)
+    posts = [Obstacle(x=x, y=0.0, radius=1.0, body=0.2) for x in (0.8, -0.8)]
+    agent.world.set_obstacles(ObstacleSet(obstacles=posts))
+    goal, gains = Pose(x=0.0, y=-2.0, theta=0.0), Gains(kx=0.6, ky=2.9, ktheta=2.4)
+    agent.submit(ASSIGNMENT.model_copy(update={"goal": goal, "gains": gains}))
+    reversals, sign = 0, 0
+    for k in range(2000):
+        snap = agent.tick()
+        clock.advance(0.02)
+        assert snap is not None
+        if snap.mode is RobotMode.ARRIVED:
+            return reversals, k
+        u = snap.decision.u
+        if abs(u) > 0.02:
+            reversals += sign != 0 and (u > 0) != (sign > 0)
+            sign = 1 if u > 0 else -1
+    return reversals, None
+
+
+def test_latency_compensation_keeps_the_law_from_oscillating_against_eq_27() -> None:
+    """With 100 ms from command to wheels, deciding on the measured pose turns Eq. (27)'s
+    stiff repulsion into an oscillation: the robot stops and reverses again and again in
+    the posts' zones and does not park in 40 s; deciding on the pose predicted for the
+    instant the command acts (the default) it drives as a robot without latency does."""
+    ideal, parked_ideal = _reversals_to_park(False, 0.0)  # no latency, nothing to predict
+    compensated, parked = _reversals_to_park(True, 0.1)
+    raw, parked_raw = _reversals_to_park(False, 0.1)
+    assert parked_ideal is not None and parked is not None
+    assert compensated <= ideal + 2 and parked <= 1.1 * parked_ideal
+    assert raw > 5 * max(compensated, 1) and parked_raw is None

@@ -442,3 +442,30 @@ def test_integrate_wheels_is_the_step_euler_update() -> None:
     )  # fmt: skip
     x, y, theta = step.integrate_wheels(0.2, -0.1, 0.3, got.right, got.left, R, B, 0.02, 1)
     assert (x, y, theta) == pytest.approx((got.x, got.y, got.theta), abs=1e-15)
+
+
+@settings(max_examples=60, deadline=None)
+@given(posture, posture, posture, law, st.sampled_from([0.0, 4.0]))
+def test_the_law_and_eq_27_act_on_the_nominal_pose_the_rest_on_the_measured_one(
+    pose: Posture, nominal: Posture, goal: Posture, which: Law, k_avoid: float
+) -> None:
+    """The agent's latency compensation: with a ``nominal`` pose the law and Eq. (27) give
+    the command they give at that pose; the error, the stop rule and the Euler step are the
+    measured pose's; the nominal pose equal to the measured one is no nominal at all."""
+    params = _params(goal, (1.0, 2.0, 1.0), which, 20.0, 0.2)
+    post = np.array([[0.5], [0.5], [1.5], [0.1], [0.5], [0.5]])  # start, radii, end
+
+    def at(where: Posture, nominal: Posture | None = None) -> step.StepResult:
+        return step.step_robot(
+            where, params, peers=np.zeros((3, 0)), shapes=np.zeros((2, 0)), obstacles=post,
+            k_avoid=k_avoid, peer_radius=1.0, min_x_oa=0.05, dt=0.02, nominal=nominal,
+        )  # fmt: skip
+
+    mixed, there, here = at(pose, nominal), at(nominal), at(pose)
+    assert (mixed.u, mixed.omega, mixed.repulsion) == (there.u, there.omega, there.repulsion)
+    assert (mixed.x_e, mixed.y_e, mixed.theta_e, mixed.done) == (
+        here.x_e, here.y_e, here.theta_e, here.done,
+    )  # fmt: skip
+    x, y, theta = step.integrate_wheels(*pose, mixed.right, mixed.left, R, B, 0.02, 1)
+    assert (x, y, theta) == pytest.approx((mixed.x, mixed.y, mixed.theta), abs=1e-12)
+    assert at(pose, pose) == here

@@ -77,12 +77,13 @@ class SafetyConfig(BaseModel):
     obstacle's body. ``projection_m`` [m]: the point ahead of the axle (at most the half
     axle); ``barrier_rate`` [1/s]: how fast a clearance may be used up.
 
-    With ``compensate_latency`` (on by default) the paper's law and Eq. (27) decide on the
-    robot's pose predicted for the instant its command acts (its commands in flight carried
-    forward at its measured latency: :func:`robot_agent.prediction.nominal_pose`), so that
-    command latency does not turn Eq. (27)'s stiff repulsion into an oscillation (stop and
-    reverse, docs/benchmarks.md, nineteenth stop); the safety filter keeps the measured
-    pose and the spreads below, so the guarantee is the same either way.
+    With ``compensate_latency`` (off by default: docs/safety.md, "Latency compensation")
+    the stop rule, the paper's law and Eq. (27) decide on the robot's pose predicted for the
+    instant its command acts (its commands in flight carried forward at its measured typical
+    latency: :func:`robot_agent.prediction.nominal_pose`), so that command latency does not
+    turn Eq. (27)'s stiff repulsion into an oscillation (stop and reverse); the safety
+    filter keeps the measured pose and the spreads below, so the guarantee is the same
+    either way.
 
     With ``prediction`` (off by default: docs/safety.md, "Latency where it lives") the robot
     decides on its pose predicted for the instant its command acts
@@ -125,7 +126,7 @@ class SafetyConfig(BaseModel):
     actuation_error: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.05
     clock_sync_s: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] | None = None
     prediction: bool = False
-    compensate_latency: bool = True
+    compensate_latency: bool = False
 
     def filter_terms(self, spread: float) -> tuple[float, float, float, float]:
         """The compiled step's filter parameters (``fleet.core.step.Safety``: margin,

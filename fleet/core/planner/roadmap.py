@@ -379,6 +379,9 @@ class _Senses:
         hulls = np.array(
             [shapely.convex_hull(shapely.union_all(shapes[g])) for g in islands], dtype=object
         )
+        # A hull of bodies (nearly) on one point is that point (no zero-length segment).
+        dot = (shapely.get_dimensions(hulls) == 1) & (shapely.length(hulls) < _POINT_M)
+        hulls[dot] = shapely.centroid(hulls[dot])
         centres = shapely.get_coordinates(shapely.centroid(hulls)).reshape(-1, 2)
         rings = np.array([ring[g].max() for g in islands], dtype=np.float64)
         return cls(hulls, centres, rings, shapely.STRtree(hulls) if len(hulls) else None)
@@ -413,10 +416,11 @@ def _islands(
     as the indices of its bodies: a group of bodies whose ``ring`` [m] overlaps the next one's
     (no robot passes between them; one body alone is a group too), with every other
     obstacle's ring at least ``room`` [m] (two robots passing) from each of its rings, and
-    small: its convex hull's longest way round no longer than half its largest ring's
-    circumference (a post; a wall segment whose straight sides are no longer than its round
-    ends; two or three posts side by side: robots circle it; along a longer one, a divider or
-    a row of posts, they drive by). The segments of one wall touch: they are one group."""
+    small: its convex hull's perimeter (a segment's: twice its length) no longer than its
+    largest ring's circumference (a post; a wall segment whose straight sides are no longer
+    than its round ends; two or three posts side by side: robots circle it; along a longer
+    one, a divider or a row of posts, they drive by). The segments of one wall touch: they
+    are one group."""
     if tree is None or len(shapes) == 0:
         return ()
     # Pairs nearer than their rings and the room: a tree query at the largest such

@@ -64,9 +64,6 @@ class LatencyWindow:
     hi: float
     measured: bool = False
     exceeded: bool = False
-    #: [s] the typical latency: the median of the samples' middles once measured, else 0
-    #: (the latency compensation's: a drive not measured yet is compensated for nothing)
-    typical: float = 0.0
 
     @property
     def nominal(self) -> float:
@@ -209,15 +206,13 @@ class LatencyEstimator:
             # may not be among the samples.
             margin = 0.5 * self.resolution
             lo, hi, measured = max(0.0, los[k] - margin), his[len(his) - 1 - k] + margin, True
-            middles = sorted(0.5 * (a + b) for a, b in self._samples)
-            typical = middles[len(middles) // 2]
         else:
-            lo, hi, measured, typical = 0.0, self.fallback_s, False, 0.0
+            lo, hi, measured = 0.0, self.fallback_s, False
         if exceeded:  # at least as far as the slowest latency ever certainly seen
             hi = max(hi, self._worst + self.resolution)
         else:  # the configured bound holds until a latency above it is measured
             lo, hi = min(lo, self.fallback_s), min(hi, self.fallback_s)
-        return LatencyWindow(lo, hi, measured, exceeded, min(max(typical, lo), hi))
+        return LatencyWindow(lo, hi, measured, exceeded)
 
     def window(self) -> LatencyWindow:
         """The latency window [s] for the next command (module docstring)."""

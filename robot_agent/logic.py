@@ -292,9 +292,9 @@ def decide(
     own_heading : float
         Uncertainty [rad] of that pose's heading: the filter widens every cone by it.
     nominal_pose : (x [m], y [m], theta [rad]) or None
-        Where the stop rule, the law, Eq. (27) and the route's next via-point are reckoned
-        from: the robot's prediction of its pose when the command acts (latency
-        compensation, ``SafetyConfig.compensate_latency``), while the safety filter keeps
+        Where the law, Eq. (27) and the route's next via-point are reckoned from: the
+        robot's prediction of its pose when the command acts (latency compensation,
+        ``SafetyConfig.compensate_latency``), while the stop rule and the safety filter keep
         ``pose`` and its spread; None: ``pose``.
     """
     if task is None:

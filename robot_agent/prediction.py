@@ -234,15 +234,14 @@ def nominal_pose(
     profile: RobotProfile,
     period: float,
 ) -> Posture:
-    """The robot's pose [m, m, rad] when a command sent at ``now`` [s] typically acts:
+    """The robot's pose [m, m, rad] when a command sent at ``now`` [s] nominally acts:
     ``pose``, measured at ``measured_at`` [s], carried through the commands in flight
-    (``log``) each acting the window's typical latency (0 before it is measured) after its
-    send, as :func:`predict_own` carries it (the agent's latency compensation: the law
-    decides on it, the safety filter keeps the measured pose and its spread)."""
+    (``log``) each acting the window's nominal latency after its send -- the pose of
+    :func:`predict_own` without what it cannot know (the agent's latency compensation:
+    the law decides on it, the safety filter keeps the measured pose and its spread)."""
     start = min(measured_at, now)
     commands = log.since(start - window.hi - period)
-    lag = window.typical
-    return _carried(pose, commands, lag, start, now + lag, profile, period)
+    return _carried(pose, commands, window.nominal, start, now + window.nominal, profile, period)
 
 
 def predict_own(

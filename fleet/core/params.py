@@ -78,9 +78,9 @@ class SafetyConfig(BaseModel):
     axle); ``barrier_rate`` [1/s]: how fast a clearance may be used up.
 
     With ``compensate_latency`` (off by default: docs/safety.md, "Latency compensation")
-    the stop rule, the paper's law and Eq. (27) decide on the robot's pose predicted for the
-    instant its command acts (its commands in flight carried forward at its measured typical
-    latency: :func:`robot_agent.prediction.nominal_pose`), so that command latency does not
+    the paper's law and Eq. (27) decide on the robot's pose predicted for the instant its
+    command acts (its commands in flight carried forward at its latency window's middle:
+    :func:`robot_agent.prediction.nominal_pose`), so that command latency does not
     turn Eq. (27)'s stiff repulsion into an oscillation (stop and reverse); the safety
     filter keeps the measured pose and the spreads below, so the guarantee is the same
     either way.

@@ -799,30 +799,35 @@ def robot_step(
 ) -> tuple[float, float, float, bool, float, float, float, float, float, bool, float, float, float]:
     """One closed-loop step of robot ``params[i]`` at (x, y, theta) (see the module docstring).
 
-    The error, the stop rule, the law and Eq. (27) (steps 1-5) act on the pose
-    (``nominal_x``, ``nominal_y``, ``nominal_theta``) -- the same pose, or the agent's
-    prediction of its pose when its command acts (latency compensation: docs/safety.md) --;
-    the safety filter and the Euler step on (x, y, theta). Peers are columns
+    The law and Eq. (27) (steps 4-5) act on the pose (``nominal_x``, ``nominal_y``,
+    ``nominal_theta``) -- the same pose, or the agent's prediction of its pose when its
+    command acts (latency compensation: docs/safety.md) --; the error, the stop rule, the
+    safety filter and the Euler step on (x, y, theta). Peers are columns
     ``peer_lo .. peer_hi - 1`` of ``positions`` (x, y, theta) and ``shapes`` (body radius,
     spread) except ``skip`` (the robot itself in a batch, -1 otherwise). Returns the fields
     of :class:`StepResult`.
     """
     c, s = math.cos(theta), math.sin(theta)
-    nx_, ny_, nc, ns = x, y, c, s
-    if nominal_x != x or nominal_y != y or nominal_theta != theta:
-        nx_, ny_ = nominal_x, nominal_y
-        nc, ns = math.cos(nominal_theta), math.sin(nominal_theta)
     cw = params[i, CW] != 0.0
     x_e, y_e, theta_e = _error_in_frame(
-        nc, ns, nx_, ny_, nominal_theta, params[i, GOAL_X], params[i, GOAL_Y],
-        params[i, GOAL_HEADING], cw,
-    )  # fmt: skip
+        c, s, x, y, theta, params[i, GOAL_X], params[i, GOAL_Y], params[i, GOAL_HEADING], cw
+    )
     done = within_tolerance(x_e, y_e, theta_e, params[i, TOL_POSITION_SQ], params[i, TOL_HEADING])
     r, b = params[i, WHEEL_RADIUS], params[i, HALF_AXLE]
     if hold:
         return x_e, y_e, theta_e, done, 0.0, 0.0, 0.0, 0.0, 0.0, False, x, y, theta
 
-    u, omega = posture_law(x_e, y_e, theta_e, params[i, KX], params[i, KY], params[i, KTHETA], cw)
+    nx_, ny_, nc, ns = x, y, c, s
+    xn_e, yn_e, thetan_e = x_e, y_e, theta_e
+    if nominal_x != x or nominal_y != y or nominal_theta != theta:
+        nx_, ny_ = nominal_x, nominal_y
+        nc, ns = math.cos(nominal_theta), math.sin(nominal_theta)
+        xn_e, yn_e, thetan_e = _error_in_frame(
+            nc, ns, nx_, ny_, nominal_theta, params[i, GOAL_X], params[i, GOAL_Y],
+            params[i, GOAL_HEADING], cw,
+        )  # fmt: skip
+    kx, ky, ktheta = params[i, KX], params[i, KY], params[i, KTHETA]
+    u, omega = posture_law(xn_e, yn_e, thetan_e, kx, ky, ktheta, cw)
     repulsion = 0.0
     avoiding = False
     if k_avoid > 0.0:
@@ -912,8 +917,8 @@ def step_robot(
     nominal: tuple[float, float, float] | None = None,
 ) -> StepResult:
     """One step of one robot (the agent's tick): :func:`robot_step` on ``params``
-    (1, ``ROBOT_COLUMNS``), the error, the stop rule, the law and Eq. (27) on ``nominal``
-    (x, y, theta) when given (the agent's latency compensation), else on ``pose``.
+    (1, ``ROBOT_COLUMNS``), the law and Eq. (27) on ``nominal`` (x, y, theta) when given
+    (the agent's latency compensation), else on ``pose``.
 
     ``peers`` (3, M) = x, y, theta, ``shapes`` (2, M) = body radius, spread and
     ``obstacles`` (4, K) are C-contiguous float64 rows (see the module docstring). ``dt``

@@ -449,9 +449,9 @@ def test_integrate_wheels_is_the_step_euler_update() -> None:
 def test_the_law_and_eq_27_act_on_the_nominal_pose_the_rest_on_the_measured_one(
     pose: Posture, nominal: Posture, goal: Posture, which: Law, k_avoid: float
 ) -> None:
-    """The agent's latency compensation: with a ``nominal`` pose the error, the stop rule,
-    the law and Eq. (27) are what they are at that pose; the Euler step starts from the
-    measured pose; the nominal pose equal to the measured one is no nominal at all."""
+    """The agent's latency compensation: with a ``nominal`` pose the law and Eq. (27) give
+    the command they give at that pose; the error, the stop rule and the Euler step are the
+    measured pose's; the nominal pose equal to the measured one is no nominal at all."""
     params = _params(goal, (1.0, 2.0, 1.0), which, 20.0, 0.2)
     post = np.array([[0.5], [0.5], [1.5], [0.1], [0.5], [0.5]])  # start, radii, end
 
@@ -462,10 +462,9 @@ def test_the_law_and_eq_27_act_on_the_nominal_pose_the_rest_on_the_measured_one(
         )  # fmt: skip
 
     mixed, there, here = at(pose, nominal), at(nominal), at(pose)
-    assert here.x_e == at(pose, pose).x_e
     assert (mixed.u, mixed.omega, mixed.repulsion) == (there.u, there.omega, there.repulsion)
     assert (mixed.x_e, mixed.y_e, mixed.theta_e, mixed.done) == (
-        there.x_e, there.y_e, there.theta_e, there.done,
+        here.x_e, here.y_e, here.theta_e, here.done,
     )  # fmt: skip
     x, y, theta = step.integrate_wheels(*pose, mixed.right, mixed.left, R, B, 0.02, 1)
     assert (x, y, theta) == pytest.approx((mixed.x, mixed.y, mixed.theta), abs=1e-12)

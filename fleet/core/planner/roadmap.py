@@ -314,19 +314,21 @@ class Roadmap:
         ids = ids[~self._blocked(_segments(starts, self.nodes[ids]), need)]
         return ids.tolist(), np.hypot(*d[ids].T).tolist()
 
-    def _priced(
-        self, point: Point, ids: list[int], lengths: list[float], *, leaving: bool,
-        to: Point | None = None,
-    ) -> dict[int, float]:  # fmt: skip
-        """The lengths [m] of the legs between ``point`` and the nodes ``ids`` (or the one
-        point ``to``), from ``point`` when ``leaving``, else to it, each priced as a graph
-        edge: ``1 + clockwise_price`` times when clockwise round an island it hugs."""
+    def _price(self, a: FloatArray, b: FloatArray) -> FloatArray:
+        """(n,) the factor on each segment ``a`` -> ``b`` ((n, 2) each) [m]'s length, as on
+        a graph edge: ``1 + clockwise_price`` clockwise round an island it hugs, else 1."""
+        return np.where(self._senses.of_segments(a, b) < 0, 1.0 + self.clockwise_price, 1.0)
+
+    def _legs(
+        self, point: Point, ids: list[int], lengths: list[float], *, leaving: bool
+    ) -> dict[int, float]:
+        """The priced lengths (:meth:`_price`) of the legs between ``point`` and the nodes
+        ``ids`` of ``lengths`` [m], from ``point`` when ``leaving``, else to it."""
         if not ids:
             return {}
         here = np.broadcast_to(np.array(point, dtype=np.float64), (len(ids), 2))
-        there = self.nodes[ids] if to is None else np.array([to], dtype=np.float64)
-        sense = self._senses.of_segments(*((here, there) if leaving else (there, here)))
-        price = np.where(sense < 0, 1.0 + self.clockwise_price, 1.0)
+        there = self.nodes[ids]
+        price = self._price(here, there) if leaving else self._price(there, here)
         return dict(zip(ids, (np.asarray(lengths) * price).tolist(), strict=True))
 
     def _shortest(
@@ -335,13 +337,12 @@ class Roadmap:
         """The nodes [m] of the shortest path from ``s`` to ``t`` (both excluded), or None.
         Every segment clockwise round an island it hugs costs ``1 + clockwise_price`` times
         its length, the query's own first and last legs too."""
-        from_s = self._priced(s, *self._visible(s, need_s), leaving=True)
-        to_t = self._priced(t, *self._visible(t, need_t), leaving=False)
-        direct = (
-            None
-            if self._segment_blocked(s, t, np.minimum(need_s, need_t))
-            else self._priced(s, [_TARGET], [math.dist(s, t)], leaving=True, to=t)[_TARGET]
-        )
+        from_s = self._legs(s, *self._visible(s, need_s), leaving=True)
+        to_t = self._legs(t, *self._visible(t, need_t), leaving=False)
+        direct = None
+        if not self._segment_blocked(s, t, np.minimum(need_s, need_t)):
+            ends = np.array([s], dtype=np.float64), np.array([t], dtype=np.float64)
+            direct = math.dist(s, t) * float(self._price(*ends)[0])
 
         def weight(u: int, v: int, data: dict[str, float]) -> float | None:
             if u >= 0 and v >= 0:  # u -> v: clockwise round the post it hugs costs more

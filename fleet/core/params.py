@@ -60,6 +60,16 @@ class Avoidance(BaseModel):
     (from 0 to -K_avoid / radius at the edge; from -K_avoid / min_x_oa to +K_avoid / min_x_oa
     abeam), so a robot's pose noise there flips its speed tick by tick (the stop-and-turn
     of docs/benchmarks.md). 0: the paper's term exactly.
+
+    The default, 0.6 m, keeps the term's slopes low enough for command latency: a robot
+    held by the term (speed u = law + term, decided tau [s] before the wheels turn at it)
+    is, about its standstill, the loop ds/dt = -a s(t - tau) in its advance s [m], with a
+    the term's slope [1/s]: it oscillates once a tau > pi/2.
+    The slope is K_avoid / w^2 in the abeam band (4 / 0.6^2 = 11 /s; 64 /s at 0.25 m)
+    and about K_avoid / (radius w) at the fade's edge (a peer: 6.7 /s; 16 /s at 0.25 m),
+    against pi / (2 x 0.15 s) = 10 /s at ``SafetyConfig.max_latency_s``'s default: the
+    band at the edge of it for the slowest latency, the fade below (docs/benchmarks.md,
+    "Eq. (27)'s bands widened for latency").
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -67,7 +77,7 @@ class Avoidance(BaseModel):
     k_avoid: Annotated[float, Field(ge=0.0, allow_inf_nan=False)] = 4.0
     peer_radius: PositiveFloat = 1.0
     min_x_oa: PositiveFloat = 0.05
-    smoothing_m: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] = 0.25
+    smoothing_m: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] = 0.6
 
 
 class SafetyConfig(BaseModel):

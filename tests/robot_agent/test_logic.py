@@ -163,14 +163,22 @@ def test_heading_outside_tolerance_is_not_arrived() -> None:
 
 
 # -- avoidance (Eq. 27) ------------------------------------------------------------------
+PAPERS_TERM = Avoidance(smoothing_m=0.0)  # Eq. (27) as the paper writes it
+
+
 def test_peer_ahead_inside_radius_slows_the_robot_and_sets_avoiding() -> None:
-    task = AgentTask(park())
+    task = AgentTask(park(avoidance=PAPERS_TERM))
     free = tick((0.0, 0.0, 0.0), task)
     peer_ahead = np.array([[0.5, 0.0]])
     blocked = tick((0.0, 0.0, 0.0), task, peers=peer_ahead)
     assert blocked.mode is RobotMode.AVOIDING
     assert blocked.repulsion == pytest.approx(-4.0 / 0.5)  # -K_avoid / x_OA
     assert blocked.u < free.u
+    smoothed = tick((0.0, 0.0, 0.0), AgentTask(park()), peers=peer_ahead)  # the fleet's default
+    w = DEFAULT_AVOIDANCE.smoothing_m  # linear in x_OA within w of abeam, faded in over w
+    term = -4.0 * 0.5 / w**2 if w > 0.5 else -4.0 / 0.5
+    assert smoothed.repulsion == pytest.approx(min(1.0, (1.0 - 0.5) / w) * term)
+    assert smoothed.mode is RobotMode.AVOIDING and smoothed.u < free.u
 
 
 def test_peer_outside_radius_changes_nothing() -> None:
@@ -181,7 +189,7 @@ def test_peer_outside_radius_changes_nothing() -> None:
 
 
 def test_static_obstacle_uses_its_own_radius() -> None:
-    task = AgentTask(park())
+    task = AgentTask(park(avoidance=PAPERS_TERM))
     obstacles = obstacle_arrays([Obstacle(x=1.5, y=0.0, radius=2.0)])
     d = tick((0.0, 0.0, 0.0), task, obstacles=obstacles)
     assert d.mode is RobotMode.AVOIDING and d.repulsion == pytest.approx(-4.0 / 1.5)

@@ -58,6 +58,11 @@ BLOCK_MARGIN_M = 0.1
 #: [m] beyond the separation: a new robot whose every solo path passes this near a robot
 #: standing there is stuck (the repulsion bends paths towards it by up to about this).
 STUCK_MARGIN_M = 0.3
+#: [m] beyond a post's influence radius: where the way round its Eq. (27) zone (a stalled
+#: robot's, ``_wide``) keeps its via-points. Inside the zone's fade the term held a robot
+#: short of a via-point at its edge (docs/benchmarks.md, ninth stop); the fade was 0.25 m
+#: wide then, and the way round keeps that margin with the wider bands since.
+ZONE_WAY_MARGIN_M = 0.25
 
 NEW, UNDER_WAY, HELD = 0, 1, 2
 LAW_INDEX: dict[Law, int] = {"ccw": 0, "cw": 1}
@@ -402,7 +407,7 @@ def _routes(
     radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
     clearance = route_clearance(limits, world, config)
     plain = route_graph(world.obstacles, clearance, world.lanes)
-    wide = _wide(world.obstacles, clearance, world.avoidance.smoothing_m) if any(wide_way) else ()
+    wide = _wide(world.obstacles, clearance, ZONE_WAY_MARGIN_M) if any(wide_way) else ()
     wide_map = route_graph(wide, clearance, world.lanes, one_way=True) if wide else plain
     reach = radii + world.profile.radius + world.safety.contact_margin_m  # (k,) [m]
     out = []
@@ -461,7 +466,7 @@ def route_clearance(limits: FloatArray, world: World, config: PlannerConfig) -> 
 @functools.lru_cache(maxsize=8)
 def _wide(obstacles: tuple[Obstacle, ...], clearance: float, beyond: float) -> tuple[Obstacle, ...]:
     """``obstacles`` with every post's body grown to its influence radius + ``beyond`` [m]
-    (Eq. (27)'s fade-in width) less the route ``clearance`` [m], so that a route's
+    (``ZONE_WAY_MARGIN_M``) less the route ``clearance`` [m], so that a route's
     via-points (``clearance`` beyond a body) lie outside the post's Eq. (27) zone and a gap
     whose middle two posts' zones cover is closed. Inside a zone the repulsion can hold a
     robot short of a via-point, and in such a gap's mouth the two posts' terms hold a robot

@@ -166,13 +166,13 @@ def test_a_message_without_a_term_is_term_zero_and_an_old_payload_still_parses()
 
 
 def test_eq_27_smoothing_travels_and_its_absence_is_the_papers_term() -> None:
-    """A service sends ``smoothing_m`` (the fleet's default 0.25 m) and the robot drives
+    """A service sends ``smoothing_m`` (the fleet's default 0.6 m) and the robot drives
     it; an older service sends none and plans the paper's term: read as 0; a 0 is left
     out, so a robot of an older release (Avoidance forbids unknown fields) still parses."""
     sent = _park(None)
-    assert sent.avoidance.smoothing_m == 0.25
+    assert sent.avoidance.smoothing_m == 0.6
     got = Decoder().decode(ParkAssignment, encode(sent))
-    assert got is not None and got.avoidance.smoothing_m == 0.25
+    assert got is not None and got.avoidance.smoothing_m == 0.6
     legacy = json.loads(encode(sent))
     del legacy["avoidance"]["smoothing_m"]
     older = Decoder().decode(ParkAssignment, json.dumps(legacy).encode())

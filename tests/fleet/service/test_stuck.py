@@ -10,7 +10,7 @@ from itertools import pairwise
 import pytest
 
 from fleet.core.geometry import segments_cross
-from fleet.core.params import Gains
+from fleet.core.params import Avoidance, Gains
 from fleet.core.planner import Plan, PlanningSnapshot, plan
 from fleet.core.tasks import RobotStatus, RobotView, TaskStatus
 from fleet.core.wire import Obstacle, Pose, RobotMode
@@ -376,15 +376,31 @@ def test_a_robot_stuck_by_posts_without_a_route_is_routed_round_their_zones(
     assert not any(segments_cross(a, b, (-0.8, 0.0), (0.8, 0.0)) for a, b in pairwise(way))
 
 
+@pytest.fixture
+def narrow_bands_fleet(planner: RecordingPlanner) -> Iterator[Fleet]:
+    """The fleet above with Eq. (27)'s bands 0.25 m wide (the default before 0.6 m): its
+    planner sends the robot of the next test through case III's gap on a route (with the
+    wider bands it sends it without one)."""
+    f = Fleet(
+        planner=planner,
+        task_timeout_s=1000.0,
+        stuck_after_s=WINDOW,
+        avoidance=Avoidance(smoothing_m=0.25),
+    )
+    yield f
+    f.service.close()
+
+
 @pytest.mark.parametrize("peer_near", [False, True], ids=["alone", "a-peer-near"])
 def test_a_robot_stuck_by_posts_on_a_route_through_their_gap_goes_round_their_zones_when_alone(
-    fleet: Fleet, planner: RecordingPlanner, peer_near: bool
+    narrow_bands_fleet: Fleet, planner: RecordingPlanner, peer_near: bool
 ) -> None:
     """A route through the case III pair's gap, the robot held in the gap's mouth facing
     the via-point: leaving the route for the law's own way leaves it in the mouth (a
     benchmark run circled there for 100 s); the flip routes it round the pair's zones --
     when it is alone: robots near each other sent round the posts meet again there, so
     with a peer near it leaves its route for the law's own way."""
+    fleet = narrow_bands_fleet
     posts = [Obstacle(x=x, y=0.0, radius=1.0, body=0.2) for x in (0.8, -0.8)]
     fleet.service.set_obstacles(posts)
     fleet.join("r1", -0.5, 1.3)

@@ -321,8 +321,9 @@ def test_a_robot_routed_round_the_posts_zones_goes_round_a_standing_robot_outsid
         assert d.predicted_arrival_s is not None
         return d.route
 
-    parked = (2.1, 0.0)
-    assert parked in route()  # its way round the right post's zone: counter-clockwise
+    right = posts[0]
+    parked = max(route(), key=lambda p: p[0])  # its way's east end, where a robot now stands
+    assert parked[0] > right.x + right.radius  # round the right post's zone: counter-clockwise
     way = route(parked)
     assert way and all(math.dist(p, parked) > Avoidance().peer_radius for p in way)
     assert all(math.dist(p, (o.x, o.y)) >= o.radius for p in way for o in posts)

@@ -456,8 +456,8 @@ def test_latency_compensation_keeps_the_law_from_oscillating_against_eq_27() -> 
     """With 100 ms from command to wheels, deciding on the measured pose turns Eq. (27)'s
     stiff repulsion into an oscillation: robots stop and reverse again and again in the
     posts' zones, and some never get past. Over case III's four starts and both laws,
-    deciding on the pose predicted for the instant the command acts (``compensate_latency``,
-    once the latency is measured) reverses less than half as often and parks no fewer."""
+    deciding on the pose predicted for the instant the command acts (``compensate_latency``:
+    at the latency window's middle) reverses less than half as often and parks no fewer."""
     trips = [
         ((0.0, 2.0, 0.0), (0.0, -2.0, 0.0)),
         ((0.0, -3.2, 0.0), (0.0, 3.2, 0.0)),

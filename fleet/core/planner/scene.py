@@ -407,7 +407,7 @@ def _routes(
     radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
     clearance = route_clearance(limits, world, config)
     plain = route_graph(world.obstacles, clearance, world.lanes)
-    wide = _wide(world.obstacles, clearance, ZONE_WAY_MARGIN_M) if any(wide_way) else ()
+    wide = _wide(world.obstacles, clearance) if any(wide_way) else ()
     wide_map = route_graph(wide, clearance, world.lanes, one_way=True) if wide else plain
     reach = radii + world.profile.radius + world.safety.contact_margin_m  # (k,) [m]
     out = []
@@ -464,19 +464,20 @@ def route_clearance(limits: FloatArray, world: World, config: PlannerConfig) -> 
 
 
 @functools.lru_cache(maxsize=8)
-def _wide(obstacles: tuple[Obstacle, ...], clearance: float, beyond: float) -> tuple[Obstacle, ...]:
-    """``obstacles`` with every post's body grown to its influence radius + ``beyond`` [m]
-    (``ZONE_WAY_MARGIN_M``) less the route ``clearance`` [m], so that a route's
+def _wide(obstacles: tuple[Obstacle, ...], clearance: float) -> tuple[Obstacle, ...]:
+    """``obstacles`` with every post's body grown to its influence radius +
+    ``ZONE_WAY_MARGIN_M`` less the route ``clearance`` [m], so that a route's
     via-points (``clearance`` beyond a body) lie outside the post's Eq. (27) zone and a gap
     whose middle two posts' zones cover is closed. Inside a zone the repulsion can hold a
     robot short of a via-point, and in such a gap's mouth the two posts' terms hold a robot
     driving the law for good (docs/benchmarks.md, ninth stop: case III with four robots).
     Walls keep their body (corridors stay open). Only for robots found stalled: the way
     round is longer, and robots sent round together meet each other there."""
+    grown = ZONE_WAY_MARGIN_M - clearance  # [m] beyond the influence radius
     return tuple(
         o
-        if o.end is not None or o.radius + beyond - clearance <= o.body_radius
-        else o.model_copy(update={"body": o.radius + beyond - clearance})
+        if o.end is not None or o.radius + grown <= o.body_radius
+        else o.model_copy(update={"body": o.radius + grown})
         for o in obstacles
     )
 

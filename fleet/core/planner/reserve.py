@@ -12,7 +12,10 @@ paths of those placed before it:
   arrives first (delay + solo time) among those whose solo path, shifted by the delay
   (standing at its start meanwhile), stays at least ``reach`` [m] from every placed path
   at the same sample time (one sample either side) and from every standing robot;
-* a robot with no such option takes the one whose first conflict comes latest.
+* a robot with no such option takes the one whose first conflict comes latest, leaving
+  out the start delays that only postpone it: a delay that moves the conflict by exactly
+  itself (a standing robot, one parked, a path that stays in the way) buys nothing, and
+  would otherwise always win (the longest delay there is).
 
 Paths are the scene's solo predictions (each robot alone, static obstacles, no peers),
 sampled every ``period`` [s]; a robot that arrived stays at its goal. The repulsion of
@@ -65,6 +68,21 @@ def _first_conflicts(
     return first
 
 
+def _latest_real_conflict(first: IntArray, laws: IntArray, shifts: IntArray) -> int:
+    """The option (index) whose first conflict (sample) comes latest among those whose
+    delay (``shifts``, samples) does more than postpone the conflict of the same law's
+    shortest delay; ties to the earliest index (the soonest arrival)."""
+    useful = np.ones(first.size, dtype=bool)
+    driven = first - shifts  # samples each option drives before its first conflict
+    for law in np.unique(laws):
+        same = laws == law
+        shortest = shifts[same].min()
+        ref = driven[same & (shifts == shortest)][0]
+        useful &= ~(same & (shifts > shortest) & (driven == ref))
+    options = np.flatnonzero(useful)
+    return int(options[np.argmax(first[options])])
+
+
 def reservation(
     fleet: Fleet,
     movers: Sequence[int],
@@ -114,7 +132,7 @@ def reservation(
         options = _options(fleet.solo_xy[:, i], laws, shift, length)
         first = _first_conflicts(options, paths[placed], fixed, reach, stand_reach)
         clear = np.flatnonzero(first == length)
-        pick = int(clear[0]) if clear.size else int(np.argmax(first))
+        pick = int(clear[0]) if clear.size else _latest_real_conflict(first, laws, shift)
         keep.law[p], keep.delay[p] = int(laws[pick]), float(wait[pick])
         paths[p] = options[pick]
         placed.append(p)

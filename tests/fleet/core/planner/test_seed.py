@@ -7,9 +7,9 @@ import math
 from dataclasses import replace
 
 import numpy as np
-from planning import scene
+from planning import idle, queued, scene
 
-from fleet.core.planner import PlannerConfig
+from fleet.core.planner import PlannerConfig, PlanningSnapshot
 from fleet.core.planner.assign import pair_queued
 from fleet.core.planner.cost import Limits
 from fleet.core.planner.reserve import reservation
@@ -29,6 +29,25 @@ def test_the_seed_makes_one_of_two_crossing_robots_wait() -> None:
     assert sorted(seed.delay > 0) == [False, True] and not seed.hold.any()
     gap = np.hypot(*(paths[0] - paths[1]).T)
     assert gap.min() >= 1.0  # the staggered solo paths never come within reach
+
+
+def test_the_seed_does_not_delay_a_robot_whose_way_a_standing_robot_blocks() -> None:
+    """Waiting does not move a standing robot out of the way: the seed starts the robot at
+    once (the search and the filter take it round), rather than with the longest delay
+    there is (which postpones the conflict furthest: a parked robot held a case-III robot
+    20 s so on the fleet benchmark)."""
+    snapshot = PlanningSnapshot(
+        version=1,
+        robots=(idle("r0", (-4.0, 0.0, 0.0)), idle("r1", (0.0, 0.1, 0.0))),
+        tasks=(queued("t0", (4.0, 0.0, 0.0), "r0"),),
+        separation_m=0.5,
+        control_dt=0.05,
+    )
+    config = PlannerConfig()
+    fleet = build_fleet(snapshot, pair_queued(snapshot, config), config)
+    seed, paths = reservation(fleet, [0], [0], config.reserve_delays_s, 1.0, 0.75)
+    assert np.hypot(*(paths[0] - [0.0, 0.1]).T).min() < 0.75  # no option is clear of it
+    assert seed.delay.tolist() == [0.0] and not seed.hold.any()
 
 
 def test_a_pair_that_starts_close_may_not_get_closer() -> None:

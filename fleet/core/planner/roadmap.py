@@ -363,6 +363,12 @@ class Roadmap:
         return tuple((float(self.nodes[n, 0]), float(self.nodes[n, 1])) for n in path[1:-1])
 
 
+def _snap(xy: FloatArray) -> FloatArray:
+    """Coordinates [m] to the nearest multiple of ``_POINT_M``."""
+    snapped: FloatArray = np.round(xy / _POINT_M) * _POINT_M
+    return snapped
+
+
 @dataclass(frozen=True)
 class _Senses:
     """Which way a segment runs round the island it hugs (:func:`_islands`): the island's
@@ -377,8 +383,14 @@ class _Senses:
 
     @classmethod
     def of(cls, shapes: GeometryArray, islands: tuple[IntArray, ...], ring: FloatArray) -> _Senses:
+        # On a nanometre grid first: bodies a rounding error thick make a sliver hull, whose
+        # distances divide by zero in GEOS; snapped, it is the line it is.
         hulls = np.array(
-            [shapely.convex_hull(shapely.union_all(shapes[g])) for g in islands], dtype=object
+            [
+                shapely.convex_hull(shapely.transform(shapely.union_all(shapes[g]), _snap))
+                for g in islands
+            ],
+            dtype=object,
         )
         # A hull of bodies (nearly) on one point is that point (no zero-length segment).
         dot = (shapely.get_dimensions(hulls) == 1) & (shapely.length(hulls) < _POINT_M)

@@ -33,9 +33,9 @@ def test_the_seed_makes_one_of_two_crossing_robots_wait() -> None:
 
 def test_the_seed_does_not_delay_a_robot_whose_way_a_standing_robot_blocks() -> None:
     """Waiting does not move a standing robot out of the way: the seed starts the robot at
-    once (the search and the filter take it round), rather than with the longest delay
-    there is (which postpones the conflict furthest: a parked robot held a case-III robot
-    20 s so on the fleet benchmark)."""
+    once (the search and the filter take it round), not with the longest delay there is,
+    which only postpones the conflict furthest (on the fleet benchmark a robot stood 20 s
+    behind a parked one that way)."""
     snapshot = PlanningSnapshot(
         version=1,
         robots=(idle("r0", (-4.0, 0.0, 0.0)), idle("r1", (0.0, 0.1, 0.0))),

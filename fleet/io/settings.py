@@ -296,6 +296,11 @@ class Settings(RobotSettings):
     # [m] what counts as progress in that window: a robot held off by another creeps and
     # dithers, a few centimetres nearer its goal now and then, and stays in the standoff.
     standoff_progress_m: Annotated[float, Field(gt=0, le=5.0)] = 0.25
+    # A robot alone (no robot within the peer radius) within a post's influence radius,
+    # ``avoiding`` with no progress this long [s, its own time], is held by the posts'
+    # Eq. (27) terms, which no waiting undoes: its first stuck recovery comes then (flip,
+    # routed round the posts' zones) instead of after ``standoff_after_s``.
+    post_stall_after_s: Annotated[float, Field(gt=0)] = 3.0
     # Site map (fleet/core/site.py: yard, obstacles, keep-out zones, bays), TOML or JSON;
     # its yard replaces ``yard``. Loaded and checked when the settings are.
     site_file: Path | None = None

@@ -466,12 +466,14 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         and the others' windows restart; returns what was done, one line per standoff, and
         how many stuck recoveries it began. A robot alone (no robot within the peer radius:
         held by an obstacle's repulsion or body) is stuck, not in a standoff: within a
-        post's influence radius it gets its first stuck recovery now (flip, routed round the
-        posts' zones: two posts' terms can hold it in a gap's mouth for good),
-        the others after the stuck watch's whole window."""
+        post's influence radius it gets its first stuck recovery (flip, routed round the
+        posts' zones: two posts' terms can hold it in a gap's mouth for good) once it has
+        stalled ``post_stall_after_s`` -- no peer there will move away --, the others
+        after the stuck watch's whole window."""
+        early = self._recover_post_stalls(now, wall)
         tasks = self._ledger.standoffs()
         if not tasks:
-            return [], 0
+            return [], early
         radius = self.settings.avoidance.peer_radius
         where: dict[str, tuple[float, float]] = {}
         for task in tasks:
@@ -484,7 +486,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             for i, j in itertools.combinations(range(len(tasks)), 2)
             if math.dist(where[tasks[i].id], where[tasks[j].id]) <= radius
         ]
-        done, early = [], 0
+        done: list[str] = []
         for members in components(len(tasks), links):
             group = [tasks[i] for i in members]
             gives = max(group, key=lambda t: (t.created_at, t.robot_id or ""))
@@ -518,6 +520,17 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             if d <= radius:
                 near.append((d, rec.robot_id))
         return min(near) if near else None
+
+    def _recover_post_stalls(self, now: float, wall: float) -> int:
+        """The first stuck recovery of every robot alone by a post that has stalled
+        ``post_stall_after_s`` (call with the lock held); returns how many began."""
+        began = 0
+        for task in self._ledger.standoffs(self.settings.post_stall_after_s):
+            watch = self._ledger.stuck_watch
+            if watch.attempts(task.id) == 0 and self._by_post(task) and self._alone(task):
+                self._recover(task, now, wall)
+                began += 1
+        return began
 
     def _standoff_cause(self, robot_id: str, at: tuple[float, float], radius: float) -> str | None:
         """The robot nearest ``robot_id`` (at ``at``) within ``radius`` [m], as words (None:

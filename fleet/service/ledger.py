@@ -803,8 +803,9 @@ class TaskLedger:
             and watch.stuck(t.id, now)
         ]
 
-    def standoffs(self) -> list[Task]:
-        """Tasks driving, their robot not held, in a standoff (:mod:`~fleet.service.stuck`)."""
+    def standoffs(self, after_s: float | None = None) -> list[Task]:
+        """Tasks driving, their robot not held, in a standoff (:mod:`~fleet.service.stuck`)
+        of ``after_s`` robot seconds (default: the standoff window)."""
         watch = self.stuck_watch
         return [
             t
@@ -812,7 +813,7 @@ class TaskLedger:
             if t.status is TaskStatus.DRIVING
             and self._tracking[t.id].held_at is None
             and not t.hold
-            and watch.standoff(t.id)
+            and watch.standoff(t.id, after_s)
         ]
 
     def break_standoff(self, task_id: str, cause: str, now: float, wall: float) -> Effects:

@@ -132,11 +132,12 @@ class StuckWatch:
         if held or restarted or left < p.stuck_best - self.min_progress_m:
             p.stuck_best, p.stuck_since = left, robot_t
 
-    def standoff(self, task_id: str) -> bool:
+    def standoff(self, task_id: str, after_s: float | None = None) -> bool:
         """The task's robot reports ``avoiding`` and has not come ``standoff_progress_m``
-        nearer its goal for ``standoff_after_s`` on its own clock."""
+        nearer its goal for ``after_s`` (default ``standoff_after_s``) on its own clock."""
         p = self._tasks.get(task_id)
-        return p is not None and p.avoiding and p.robot_now - p.robot_since >= self.standoff_after_s
+        window = self.standoff_after_s if after_s is None else after_s
+        return p is not None and p.avoiding and p.robot_now - p.robot_since >= window
 
     def restart(self, task_id: str) -> None:
         """A fresh standoff window for the task (another robot gave way)."""

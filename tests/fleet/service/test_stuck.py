@@ -296,9 +296,10 @@ def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_pla
 
 def test_a_robot_alone_by_posts_gets_only_its_first_stuck_recovery_early() -> None:
     """In the mouth of the gap between case III's posts, no robot near, without progress
-    for the standoff window: the first stuck recovery comes then (routed round the posts'
-    zones); once resumed, standing as long again is not another early recovery (the
-    later ones wait for the stuck watch's whole window)."""
+    for ``post_stall_after_s`` (3 s of its own time, not the standoff's 8): the first
+    stuck recovery comes then (routed round the posts' zones); a robot alone away from
+    the posts stalled as long is left to the stuck watch; once resumed, standing as long
+    again is not another early recovery (the later ones wait for the whole window)."""
     from fleet.core.planner import TaskDecision
     from fleet.core.wire import RobotState
     from tests.fleet.service.conftest import ScriptedPlanner
@@ -317,20 +318,26 @@ def test_a_robot_alone_by_posts_gets_only_its_first_stuck_recovery_early() -> No
     try:
         f.service.set_obstacles([Obstacle(x=x, y=0.0, radius=1.0, body=0.2) for x in (0.8, -0.8)])
         f.join("alone", 0.0, 0.5)
+        f.join("afield", 6.0, 6.0)
         task = f.service.submit(req(0.0, -2.0, robot="alone"))
+        afield = f.service.submit(req(6.0, 3.0, robot="afield"))
         f.service.tick()
 
         def state(seq: int) -> None:
-            revision = f.service.task(task.id).revision
-            f.bus.deliver_state(
-                RobotState(robot_id="alone", seq=seq, stamp=f.clock.wall(),
-                           pose=Pose(x=0.0, y=0.5), mode=RobotMode.AVOIDING,
-                           task_id=task.id, revision=revision)
-            )  # fmt: skip
+            for rid, (x, y), t in (("alone", (0.0, 0.5), task), ("afield", (6.0, 6.0), afield)):
+                f.bus.deliver_state(
+                    RobotState(robot_id=rid, seq=seq, stamp=f.clock.wall(),
+                               pose=Pose(x=x, y=y), mode=RobotMode.AVOIDING,
+                               task_id=t.id, revision=f.service.task(t.id).revision)
+                )  # fmt: skip
 
-        for seq in (100, 300, 500):  # 8 s of its own time (50 Hz), not a metre nearer
-            state(seq)
+        state(100)
+        state(249)  # 2.98 s of its own time (50 Hz), not a metre nearer
         f.service.tick()
+        assert "recovery" not in [e for _, e, _ in f.service.history(task.id)]
+        state(250)  # 3 s
+        f.service.tick()
+        assert "recovery" not in [e for _, e, _ in f.service.history(afield.id)]
         (recovery,) = [t for _, e, t in f.service.history(task.id) if e == "recovery"]
         assert recovery.reason is not None and recovery.reason.endswith(
             "recovery 1: flip (routed round the posts' Eq. (27) zones)"

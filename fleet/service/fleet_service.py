@@ -463,7 +463,9 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
     def _break_standoffs(self, now: float, wall: float) -> tuple[list[str], int]:
         """Break every standoff (call with the lock held): the robots in one (within the
         peer radius of each other) are a group, the one with the youngest task gives way
-        and the others' windows restart; returns what was done, one line per standoff, and
+        (unless the robot it is held off by is held by the plan: that one stands aside, the
+        plans route the group round it) and the others' windows restart; returns what was
+        done, one line per standoff, and
         how many stuck recoveries it began. A robot alone (no robot within the peer radius:
         held by an obstacle's repulsion or body) is stuck, not in a standoff: within a
         post's influence radius it gets its first stuck recovery (flip, routed round the
@@ -491,7 +493,16 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             group = [tasks[i] for i in members]
             gives = max(group, key=lambda t: (t.created_at, t.robot_id or ""))
             assert gives.robot_id is not None
-            cause = self._standoff_cause(gives.robot_id, where[gives.id], radius)
+            nearest = self._nearest_robot(gives.robot_id, where[gives.id], radius)
+            cause = None if nearest is None else self._standoff_words(nearest)
+            blocker = None if nearest is None else self._ledger.task_of_robot(nearest[1])
+            if cause is not None and blocker is not None and self._ledger.stands_aside(blocker):
+                # the robot it waits on is itself held by the plan (for a zone it holds,
+                # say): giving way would wait for a robot that waits for it
+                for other in group:
+                    self._ledger.stuck_watch.restart(other.id)
+                done.append(f"{gives.robot_id} goes round {blocker.robot_id}, held ({cause})")
+                continue
             if cause is None:  # alone (by an obstacle): stuck, not a standoff
                 if self._ledger.stuck_watch.attempts(gives.id) == 0 and self._by_post(gives):
                     self._recover(gives, now, wall)
@@ -532,12 +543,8 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
                 began += 1
         return began
 
-    def _standoff_cause(self, robot_id: str, at: tuple[float, float], radius: float) -> str | None:
-        """The robot nearest ``robot_id`` (at ``at``) within ``radius`` [m], as words (None:
-        no robot is that near)."""
-        nearest = self._nearest_robot(robot_id, at, radius)
-        if nearest is None:
-            return None
+    def _standoff_words(self, nearest: tuple[float, str]) -> str:
+        """A standoff's cause as words: the nearest robot (distance [m], id)."""
         d, other = nearest
         seconds = self.settings.standoff_after_s
         return f"no progress for {seconds:g} s while avoiding {other} at {d:.2f} m"

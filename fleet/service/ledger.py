@@ -816,6 +816,16 @@ class TaskLedger:
             and watch.standoff(t.id, after_s)
         ]
 
+    def stands_aside(self, task: Task) -> bool:
+        """A robot in a standoff is held off by ``task``'s robot, which the plan holds (for
+        a zone the other holds, say): the planner sends the others round it as round one
+        that gave way (:meth:`gave_way`). False -- it is not held, or already so -- and the
+        standoff is broken the usual way."""
+        if task.id not in self._under_way or not task.hold or task.id in self._gave_way:
+            return False
+        self._gave_way.add(task.id)
+        return True
+
     def break_standoff(self, task_id: str, cause: str, now: float, wall: float) -> Effects:
         """The task's robot gives way in a standoff: a held revision (it stands until a plan
         resumes it through the plan's check), with the other law pinned for an ``auto``

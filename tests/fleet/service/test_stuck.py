@@ -294,6 +294,64 @@ def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_pla
         f.service.close()
 
 
+def test_a_robot_held_off_by_one_the_plan_holds_is_routed_round_it_instead_of_giving_way() -> None:
+    """The robot a standoff's robot is held off by is itself held by the plan (waiting for
+    the zone the other holds, say): giving way would wait for a robot that waits for it
+    (a loop seen on case III with four robots: a give-way every 8 s for 100 s). The held
+    robot stands aside instead -- the plan routes the other round it, as round one that
+    gave way --; a second standoff of the same pair is broken the usual way."""
+    from fleet.core.planner import TaskDecision
+    from fleet.core.wire import RobotState
+    from tests.fleet.service.conftest import ScriptedPlanner
+
+    def decide(snapshot: PlanningSnapshot) -> list[TaskDecision]:
+        return [
+            TaskDecision(
+                t.task_id, t.named_robot or "", "assign", "cw", hold=t.named_robot == "held"
+            )
+            for t in snapshot.tasks
+            if t.status is TaskStatus.QUEUED
+        ]
+
+    planner = ScriptedPlanner(decide)
+    f = Fleet(planner=planner, task_timeout_s=1000.0)
+    try:
+        f.join("mover", -0.3, 0.0)
+        f.join("held", 0.3, 0.0)
+        moving = f.service.submit(req(4.0, 0.0, robot="mover"))
+        waiting = f.service.submit(req(-4.0, 0.0, robot="held"))
+        f.service.tick()
+        assert f.service.task(waiting.id).hold and not f.service.task(moving.id).hold
+
+        def states(seq: int) -> None:
+            for rid, x, task, mode in (
+                ("mover", -0.3, moving, RobotMode.AVOIDING),
+                ("held", 0.3, waiting, RobotMode.WAITING),
+            ):
+                f.bus.deliver_state(
+                    RobotState(robot_id=rid, seq=seq, stamp=f.clock.wall(),
+                               pose=Pose(x=x, y=0.0), mode=mode, task_id=task.id,
+                               revision=f.service.task(task.id).revision)
+                )  # fmt: skip
+
+        states(100)
+        states(500)  # 8 s of the mover's own time without progress
+        f.service.tick()
+        assert f.service.counters["standoffs_broken"] == 1
+        assert not f.service.task(moving.id).hold  # it did not give way
+        assert "standoff" not in [e for _, e, _ in f.service.history(moving.id)]
+        f.clock.advance(5.0)
+        f.service.tick()  # the plan the standoff asked for
+        assert {t.task_id for t in planner.snapshots[-1].tasks if t.gave_way} == {waiting.id}
+        states(900)
+        states(1300)  # 8 s more, still held off
+        f.service.tick()
+        assert f.service.task(moving.id).hold  # now it gives way, the usual way
+        assert [e for _, e, _ in f.service.history(moving.id)][-1] == "standoff"
+    finally:
+        f.service.close()
+
+
 def test_a_robot_alone_by_posts_gets_only_its_first_stuck_recovery_early() -> None:
     """In the mouth of the gap between case III's posts, no robot near, without progress
     for ``post_stall_after_s`` (3 s of its own time, not the standoff's 8): the first

@@ -463,10 +463,10 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
     def _break_standoffs(self, now: float, wall: float) -> tuple[list[str], int]:
         """Break every standoff (call with the lock held): the robots in one (within the
         peer radius of each other) are a group, the one with the youngest task gives way
-        (unless the robot it is held off by is held by the plan: that one stands aside, the
-        plans route the group round it) and the others' windows restart; returns what was
-        done, one line per standoff, and
-        how many stuck recoveries it began. A robot alone (no robot within the peer radius:
+        (unless the robot it is held off by is held by the plan for a zone it holds: that
+        one stands aside, the plans route the group round it) and the others' windows
+        restart; returns what was done, one line per standoff, and how many stuck
+        recoveries it began. A robot alone (no robot within the peer radius:
         held by an obstacle's repulsion or body) is stuck, not in a standoff: within a
         post's influence radius it gets its first stuck recovery (flip, routed round the
         posts' zones: two posts' terms can hold it in a gap's mouth for good) once it has
@@ -496,9 +496,13 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
             nearest = self._nearest_robot(gives.robot_id, where[gives.id], radius)
             cause = None if nearest is None else self._standoff_words(nearest)
             blocker = None if nearest is None else self._ledger.task_of_robot(nearest[1])
-            if cause is not None and blocker is not None and self._ledger.stands_aside(blocker):
-                # the robot it waits on is itself held by the plan (for a zone it holds,
-                # say): giving way would wait for a robot that waits for it
+            if (
+                cause is not None
+                and blocker is not None
+                and self._ledger.stands_aside(blocker, gives.robot_id)
+            ):
+                # the robot it waits on is held by the plan for a zone it holds: giving
+                # way would wait for a robot that waits for it
                 for other in group:
                     self._ledger.stuck_watch.restart(other.id)
                 done.append(f"{gives.robot_id} goes round {blocker.robot_id}, held ({cause})")

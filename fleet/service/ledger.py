@@ -229,6 +229,7 @@ class TaskLedger:
         self._own_way: set[str] = set()  # tasks under way a recovery took off their route
         self._wide_way: set[str] = set()  # tasks under way a recovery sent round posts' zones
         self._gave_way: set[str] = set()  # tasks whose robot gave way in a standoff, held
+        self._zone_wait: dict[str, str] = {}  # tasks the plan holds for a zone -> the zone
         self._active: dict[str, Task] = {}  # every non-final task, by id
         self._queued: dict[str, Task] = {}
         self._under_way: dict[str, Task] = {}  # assigned, driving, waiting (with a robot)
@@ -399,6 +400,7 @@ class TaskLedger:
         self._own_way.discard(task_id)
         self._wide_way.discard(task_id)
         self._gave_way.discard(task_id)
+        self._zone_wait.pop(task_id, None)
 
     def _transition(self, task: Task, event: str, effects: Effects) -> None:
         """Record ``task``'s new version in memory; store it, then announce it."""
@@ -540,6 +542,26 @@ class TaskLedger:
         ``relaxed``: the plan's note when it was made at the standstill margin -- a robot it
         starts or re-plans carries it as its task's reason, so the history says so.
         """
+        outcome, effects = self._apply(
+            decision, robot_available, plan_safe, origin_seq, now, wall, relaxed
+        )
+        if outcome in (Outcome.APPLIED, Outcome.UNCHANGED):
+            if decision.hold and decision.waits_for is not None:
+                self._zone_wait[decision.task_id] = decision.waits_for
+            else:
+                self._zone_wait.pop(decision.task_id, None)
+        return outcome, effects
+
+    def _apply(
+        self,
+        decision: TaskDecision,
+        robot_available: bool,
+        plan_safe: bool,
+        origin_seq: float | None,
+        now: float,
+        wall: float,
+        relaxed: str | None,
+    ) -> tuple[Outcome, Effects]:
         task = self._active.get(decision.task_id)
         if task is None:
             return Outcome.STALE, []
@@ -816,12 +838,20 @@ class TaskLedger:
             and watch.standoff(t.id, after_s)
         ]
 
-    def stands_aside(self, task: Task) -> bool:
-        """A robot in a standoff is held off by ``task``'s robot, which the plan holds (for
-        a zone the other holds, say): the planner sends the others round it as round one
-        that gave way (:meth:`gave_way`). False -- it is not held, or already so -- and the
+    def stands_aside(self, task: Task, robot_id: str) -> bool:
+        """Robot ``robot_id``, in a standoff, is held off by ``task``'s robot, which the
+        plan holds until a zone ``robot_id`` holds is free -- each waits for the other --:
+        the planner sends the others round it as round one that gave way (:meth:`gave_way`).
+        False -- it waits for nothing ``robot_id`` holds, or already stands aside -- and the
         standoff is broken the usual way."""
-        if task.id not in self._under_way or not task.hold or task.id in self._gave_way:
+        zone = self._zone_wait.get(task.id)
+        if (
+            task.id not in self._under_way
+            or not task.hold
+            or zone is None
+            or zone not in self.zones.held_by(robot_id)
+            or task.id in self._gave_way
+        ):
             return False
         self._gave_way.add(task.id)
         return True

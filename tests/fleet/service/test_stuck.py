@@ -12,7 +12,7 @@ import pytest
 from fleet.core.geometry import segments_cross
 from fleet.core.params import Avoidance, Gains
 from fleet.core.planner import Plan, PlanningSnapshot, plan
-from fleet.core.tasks import RobotStatus, RobotView, TaskStatus
+from fleet.core.tasks import RobotStatus, RobotView, Task, TaskStatus
 from fleet.core.wire import Obstacle, Pose, RobotMode
 from fleet.service.stuck import StuckWatch, remaining, stuck_cause
 from tests.fleet.service.conftest import Fleet, req
@@ -294,48 +294,70 @@ def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_pla
         f.service.close()
 
 
-def test_a_robot_held_off_by_one_the_plan_holds_is_routed_round_it_instead_of_giving_way() -> None:
-    """The robot a standoff's robot is held off by is itself held by the plan (waiting for
-    the zone the other holds, say): giving way would wait for a robot that waits for it
-    (a loop seen on case III with four robots: a give-way every 8 s for 100 s). The held
-    robot stands aside instead -- the plan routes the other round it, as round one that
-    gave way --; a second standoff of the same pair is broken the usual way."""
+def test_a_robot_held_off_by_one_waiting_for_its_zone_has_that_one_stand_aside() -> None:
+    """A standoff's robot is held off by a robot the plan holds until a zone the first
+    holds is free: giving way would wait for a robot that waits for it (a loop seen on
+    case III with four robots: a give-way every 8 s for 100 s). The waiting robot stands
+    aside instead -- the plan routes the other round it, as round one that gave way --; a
+    second standoff of the pair is broken the usual way. Held for anything else (no zone
+    of the other's), the other gives way at once."""
     from fleet.core.planner import TaskDecision
+    from fleet.core.site import Wall
     from fleet.core.wire import RobotState
+    from fleet.core.zones import ZonePass
     from tests.fleet.service.conftest import ScriptedPlanner
 
-    def decide(snapshot: PlanningSnapshot) -> list[TaskDecision]:
-        return [
-            TaskDecision(
-                t.task_id, t.named_robot or "", "assign", "cw", hold=t.named_robot == "held"
-            )
-            for t in snapshot.tasks
-            if t.status is TaskStatus.QUEUED
-        ]
+    corridor = Wall(
+        points=[(-10, 5), (-4, 5), (-4, 0.6), (4, 0.6), (4, 5), (10, 5), (10, -5), (4, -5),
+                (4, -0.6), (-4, -0.6), (-4, -5), (-10, -5)],
+        closed=True, body=0.05,
+    ).segments()  # fmt: skip
 
-    planner = ScriptedPlanner(decide)
-    f = Fleet(planner=planner, task_timeout_s=1000.0)
-    try:
+    def run(waits_for: str | None) -> tuple[Fleet, Task, Task, ScriptedPlanner]:
+        def decide(snapshot: PlanningSnapshot) -> list[TaskDecision]:
+            through = ZonePass("passage-1", (-4.0, 0.0), (4.0, 0.0))
+            return [
+                TaskDecision(
+                    t.task_id,
+                    t.named_robot or "",
+                    "assign",
+                    "cw",
+                    hold=t.named_robot == "held",
+                    waits_for=waits_for if t.named_robot == "held" else None,
+                    zones=(through,) if t.named_robot == "mover" else (),
+                )
+                for t in snapshot.tasks
+                if t.status is TaskStatus.QUEUED
+            ]
+
+        planner = ScriptedPlanner(decide)
+        f = Fleet(planner=planner, task_timeout_s=1000.0, yard=(-11.0, 11.0, -6.0, 6.0))
+        f.service.set_obstacles(corridor)
         f.join("mover", -0.3, 0.0)
         f.join("held", 0.3, 0.0)
-        moving = f.service.submit(req(4.0, 0.0, robot="mover"))
-        waiting = f.service.submit(req(-4.0, 0.0, robot="held"))
+        moving = f.service.submit(req(7.0, 2.5, robot="mover"))
+        waiting = f.service.submit(req(-7.0, -2.5, robot="held"))
         f.service.tick()
+        (passage,) = f.service.zones()
+        assert passage.robot_ids == ("mover",)
         assert f.service.task(waiting.id).hold and not f.service.task(moving.id).hold
+        return f, moving, waiting, planner
 
-        def states(seq: int) -> None:
-            for rid, x, task, mode in (
-                ("mover", -0.3, moving, RobotMode.AVOIDING),
-                ("held", 0.3, waiting, RobotMode.WAITING),
-            ):
-                f.bus.deliver_state(
-                    RobotState(robot_id=rid, seq=seq, stamp=f.clock.wall(),
-                               pose=Pose(x=x, y=0.0), mode=mode, task_id=task.id,
-                               revision=f.service.task(task.id).revision)
-                )  # fmt: skip
+    def states(f: Fleet, moving: Task, waiting: Task, seq: int) -> None:
+        for rid, x, task, mode in (
+            ("mover", -0.3, moving, RobotMode.AVOIDING),
+            ("held", 0.3, waiting, RobotMode.WAITING),
+        ):
+            f.bus.deliver_state(
+                RobotState(robot_id=rid, seq=seq, stamp=f.clock.wall(),
+                           pose=Pose(x=x, y=0.0), mode=mode, task_id=task.id,
+                           revision=f.service.task(task.id).revision)
+            )  # fmt: skip
 
-        states(100)
-        states(500)  # 8 s of the mover's own time without progress
+    f, moving, waiting, planner = run("passage-1")
+    try:
+        states(f, moving, waiting, 100)
+        states(f, moving, waiting, 500)  # 8 s of the mover's own time without progress
         f.service.tick()
         assert f.service.counters["standoffs_broken"] == 1
         assert not f.service.task(moving.id).hold  # it did not give way
@@ -343,10 +365,19 @@ def test_a_robot_held_off_by_one_the_plan_holds_is_routed_round_it_instead_of_gi
         f.clock.advance(5.0)
         f.service.tick()  # the plan the standoff asked for
         assert {t.task_id for t in planner.snapshots[-1].tasks if t.gave_way} == {waiting.id}
-        states(900)
-        states(1300)  # 8 s more, still held off
+        states(f, moving, waiting, 900)
+        states(f, moving, waiting, 1300)  # 8 s more, still held off
         f.service.tick()
         assert f.service.task(moving.id).hold  # now it gives way, the usual way
+        assert [e for _, e, _ in f.service.history(moving.id)][-1] == "standoff"
+    finally:
+        f.service.close()
+    f, moving, waiting, planner = run(None)  # held, but for no zone of the mover's
+    try:
+        states(f, moving, waiting, 100)
+        states(f, moving, waiting, 500)
+        f.service.tick()
+        assert f.service.task(moving.id).hold
         assert [e for _, e, _ in f.service.history(moving.id)][-1] == "standoff"
     finally:
         f.service.close()

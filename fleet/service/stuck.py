@@ -26,8 +26,8 @@ dithers, and a few centimetres of that are no way out) is in a standoff with the
 it -- typically two robots nose to nose, each one's filter holding it off the other.
 :meth:`StuckWatch.standoff` lists it; the service breaks each standoff by making one robot
 give way (:meth:`fleet.service.ledger.TaskLedger.break_standoff`) -- or, when the robot it
-is held off by is itself held by the plan, by routing it round that one
-(:meth:`~fleet.service.ledger.TaskLedger.stands_aside`) -- and restarts the windows of the
+is held off by is held by the plan until a zone it holds is free, by routing it round that
+one (:meth:`~fleet.service.ledger.TaskLedger.stands_aside`) -- and restarts the windows of the
 others (:meth:`StuckWatch.restart`). A robot alone by a post gets its first stuck recovery
 after a shorter window of the same kind (``post_stall_after_s``: no peer there will move
 away).

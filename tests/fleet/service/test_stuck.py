@@ -338,10 +338,12 @@ def test_a_robot_held_off_by_one_waiting_for_its_zone_has_that_one_stand_aside()
         moving = f.service.submit(req(7.0, 2.5, robot="mover"))
         waiting = f.service.submit(req(-7.0, -2.5, robot="held"))
         f.service.tick()
+        return f, moving, waiting, planner
+
+    def started(f: Fleet, moving: Task, waiting: Task) -> None:
         (passage,) = f.service.zones()
         assert passage.robot_ids == ("mover",)
         assert f.service.task(waiting.id).hold and not f.service.task(moving.id).hold
-        return f, moving, waiting, planner
 
     def states(f: Fleet, moving: Task, waiting: Task, seq: int) -> None:
         for rid, x, task, mode in (
@@ -356,6 +358,7 @@ def test_a_robot_held_off_by_one_waiting_for_its_zone_has_that_one_stand_aside()
 
     f, moving, waiting, planner = run("passage-1")
     try:
+        started(f, moving, waiting)
         states(f, moving, waiting, 100)
         states(f, moving, waiting, 500)  # 8 s of the mover's own time without progress
         f.service.tick()
@@ -374,6 +377,7 @@ def test_a_robot_held_off_by_one_waiting_for_its_zone_has_that_one_stand_aside()
         f.service.close()
     f, moving, waiting, planner = run(None)  # held, but for no zone of the mover's
     try:
+        started(f, moving, waiting)
         states(f, moving, waiting, 100)
         states(f, moving, waiting, 500)
         f.service.tick()

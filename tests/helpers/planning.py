@@ -121,7 +121,7 @@ def replay(snapshot: PlanningSnapshot, result: Plan, max_time: float = 300.0) ->
         gains,
         laws,
         tolerance=tols,
-        profile=snapshot.profile,
+        profile=[r.profile or snapshot.profile for r in snapshot.robots],
         **obstacle_columns(obstacles),
         k_avoid=avoid.k_avoid,
         peer_radius=avoid.peer_radius,

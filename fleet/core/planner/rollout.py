@@ -83,11 +83,18 @@ class Rows:
         return self.route if self.route is not None else (NO_ROUTE,) * self.size
 
     @staticmethod
-    def standing(xy: FloatArray) -> Rows:
-        """Robots standing still at ``xy`` (m, 2): done from the first step, never moving."""
+    def standing(
+        xy: FloatArray, heading: FloatArray | None = None, limits: FloatArray | None = None
+    ) -> Rows:
+        """Robots standing still at ``xy`` (m, 2) [m] facing ``heading`` (m,) [rad] (None:
+        0; the safety filter's projected point of a peer lies ahead of it), with their own
+        ``limits`` (m, 4) (None: the world's profile): done from the first step, never
+        moving."""
         m = xy.shape[0]
         pose = np.zeros((m, 3))
         pose[:, :2] = xy
+        if heading is not None:
+            pose[:, 2] = heading
         return Rows(
             start=pose,
             goal=pose.copy(),
@@ -95,6 +102,7 @@ class Rows:
             cw=np.zeros(m, dtype=bool),
             tolerance=np.tile(STANDING_TOLERANCE, (m, 1)),
             delay=np.full(m, STANDING_DELAY),
+            limits=limits,
         )
 
     @staticmethod

@@ -148,6 +148,8 @@ class Fleet:
     movers: Movers
     standing_ids: tuple[str, ...]
     standing_xy: FloatArray  # (s, 2)
+    standing_heading: FloatArray  # (s,) [rad]
+    standing_limits: FloatArray  # (s, 4), rows as ``Movers.limits``
     world: World
     separation: float  # [m]
     dt: float  # the agents' control step [s]
@@ -259,6 +261,8 @@ def build_fleet(
     allowed = np.array([_allowed(t) for t in tasks], dtype=bool).reshape(k, 2)
     limits = limits_of([r.profile for r in owners])
     standing_xy = np.array([r.pose[:2] for r in standing], dtype=np.float64).reshape(-1, 2)
+    standing_heading = np.array([r.pose[2] for r in standing], dtype=np.float64)
+    standing_limits = limits_of([r.profile for r in standing]).reshape(-1, 4)
     world = World(
         snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles), snapshot.safety,
         config.pass_m, snapshot.lanes,
@@ -286,7 +290,7 @@ def build_fleet(
                     limits=limits,
                     route=_standing_still(route, np.arange(k), still),
                 ),
-                Rows.standing(standing_xy),
+                Rows.standing(standing_xy, standing_heading, standing_limits),
             ]
         )
         (result,) = roll_out([rows], world, dt=snapshot.control_dt, max_time=lead)
@@ -352,6 +356,8 @@ def build_fleet(
         movers=movers,
         standing_ids=tuple(r.robot_id for r in standing),
         standing_xy=standing_xy,
+        standing_heading=standing_heading,
+        standing_limits=standing_limits,
         world=world,
         separation=snapshot.separation_m,
         dt=snapshot.control_dt,
@@ -714,12 +720,17 @@ def scene_rows(fleet: Fleet, cluster: Cluster, c: Candidate) -> Rows:
         limits=m.limits[idx],
         route=m.routes(idx, c.hold),
     )
-    still = [fleet.standing_xy[np.asarray(cluster.standing, dtype=np.int64)].reshape(-1, 2)]
-    still.append(np.array([p[:2] for p in cluster.phantoms], dtype=np.float64).reshape(-1, 2))
-    fixed = np.concatenate(still)
+    near = np.asarray(cluster.standing, dtype=np.int64)
+    phantoms = np.array([p[:2] for p in cluster.phantoms], dtype=np.float64).reshape(-1, 2)
+    fixed = np.concatenate([fleet.standing_xy[near].reshape(-1, 2), phantoms])
     if fixed.shape[0] == 0:
         return rows
-    return Rows.concat([rows, Rows.standing(fixed)])
+    # phantoms (other clusters' movers where they start or end): heading 0, own limits
+    heading = np.concatenate([fleet.standing_heading[near], np.zeros(len(phantoms))])
+    limits = np.concatenate(
+        [fleet.standing_limits[near].reshape(-1, 4), m.limits[[p[2] for p in cluster.phantoms]]]
+    ).reshape(-1, 4)
+    return Rows.concat([rows, Rows.standing(fixed, heading, limits)])
 
 
 def row_names(fleet: Fleet, cluster: Cluster) -> list[str]:

@@ -398,6 +398,29 @@ def test_a_robot_is_routed_round_one_that_gave_way_in_a_standoff_dead_ahead() ->
     assert arrival is not None and float(run.result.time[0]) == pytest.approx(arrival, abs=1e-6)
 
 
+@pytest.mark.parametrize("heading", [0.0, math.pi / 2, -math.pi / 2])
+@pytest.mark.parametrize("radius", [None, 0.35])
+def test_the_plan_sees_a_standing_robot_as_it_is_its_heading_and_its_own_body(
+    heading: float, radius: float | None
+) -> None:
+    """A robot standing beside a mover's way, facing ``heading``, with its own body
+    (described) or the fleet's: the safety filter's constraint lies ahead of a peer's axle
+    and round its body, so the plan's predicted arrival is the replay's to the step only
+    when the rollouts give a standing robot its heading and its profile."""
+    driving = replace(
+        queued("t0", (4.0, 0.0, 0.0), "r0"), status=TaskStatus.DRIVING, robot_id="r0", law="cw"
+    )
+    mover = RobotSnapshot("r0", (0.0, 0.0, 0.0), RobotStatus.DRIVING, False, "t0", "cw")
+    profile = None if radius is None else RobotProfile(radius=radius)
+    beside = replace(idle("r1", (2.0, 0.7, heading)), profile=profile)
+    snap = PlanningSnapshot(version=1, robots=(mover, beside), tasks=(driving,), control_dt=0.05)
+    result = plan(snap)
+    (decided,) = result.decisions
+    run = replay(snap, result)
+    assert decided.predicted_arrival_s is not None and result.safe
+    assert float(run.result.time[0]) == pytest.approx(decided.predicted_arrival_s, abs=1e-6)
+
+
 def test_a_task_taken_from_a_stuck_robot_goes_to_another_one_and_keeps_its_revision() -> None:
     near, far = idle("near", (2.0, 0.0, 0.0)), idle("far", (-4.0, 4.0, 0.0))
     requeued = replace(queued("t", (4.0, 0.0, 0.0), None, 1.0), revision=3)

@@ -464,14 +464,15 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         """Break every standoff (call with the lock held): the robots in one (within the
         peer radius of each other) are a group, the one with the youngest task gives way
         (unless the robot it is held off by is held by the plan for a zone it holds: that
-        one stands aside, the plans route the group round it) and the others' windows
-        restart; returns what was done, one line per standoff, and how many stuck
-        recoveries it began. A robot alone (no robot within the peer radius:
-        held by an obstacle's repulsion or body) is stuck, not in a standoff: within a
-        post's influence radius it gets its first stuck recovery (flip, routed round the
-        posts' zones: two posts' terms can hold it in a gap's mouth for good) once it has
-        stalled ``post_stall_after_s`` -- no peer there will move away --, the others
-        after the stuck watch's whole window."""
+        one stands aside, the plans route the group round it; or stands with no task: the
+        plans route it round that robot -- once per robot, a second standoff is broken the
+        usual way) and the others' windows restart; returns what was done, one line per
+        standoff, and how many stuck recoveries it began. A robot alone (no robot within
+        the peer radius: held by an obstacle's repulsion or body) is stuck, not in a
+        standoff: within a post's influence radius it gets its first stuck recovery (flip,
+        routed round the posts' zones: two posts' terms can hold it in a gap's mouth for
+        good) once it has stalled ``post_stall_after_s`` -- no peer there will move away
+        --, the others after the stuck watch's whole window."""
         early = self._recover_post_stalls(now, wall)
         tasks = self._ledger.standoffs()
         if not tasks:
@@ -506,6 +507,16 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
                 for other in group:
                     self._ledger.stuck_watch.restart(other.id)
                 done.append(f"{gives.robot_id} goes round {blocker.robot_id}, held ({cause})")
+                continue
+            if (
+                nearest is not None
+                and blocker is None
+                and self._ledger.goes_round(gives.id, nearest[1])
+            ):
+                # the robot it is held off by stands (no task): giving way changes nothing
+                for other in group:
+                    self._ledger.stuck_watch.restart(other.id)
+                done.append(f"{gives.robot_id} goes round {nearest[1]}, standing ({cause})")
                 continue
             if cause is None:  # alone (by an obstacle): stuck, not a standoff
                 if self._ledger.stuck_watch.attempts(gives.id) == 0 and self._by_post(gives):

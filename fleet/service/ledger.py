@@ -230,6 +230,7 @@ class TaskLedger:
         self._wide_way: set[str] = set()  # tasks under way a recovery sent round posts' zones
         self._gave_way: set[str] = set()  # tasks whose robot gave way in a standoff, held
         self._zone_wait: dict[str, str] = {}  # tasks the plan holds for a zone -> the zone
+        self._round: dict[str, tuple[str, ...]] = {}  # task -> standing robots it goes round
         self._active: dict[str, Task] = {}  # every non-final task, by id
         self._queued: dict[str, Task] = {}
         self._under_way: dict[str, Task] = {}  # assigned, driving, waiting (with a robot)
@@ -312,6 +313,12 @@ class TaskLedger:
         planner sends the other robots round it: with both laws driving straight at each
         other, nothing else gets one past the other)."""
         return frozenset(self._gave_way)
+
+    def round_robots(self) -> dict[str, tuple[str, ...]]:
+        """Tasks under way -> the standing robots that held their robot off in a standoff
+        (the planner routes it round them while they stand: giving way to a robot that does
+        not move changes nothing)."""
+        return dict(self._round)
 
     def acknowledged_at(self) -> dict[str, float]:
         """Tasks under way whose robot reports their current revision -> when it first did
@@ -401,6 +408,7 @@ class TaskLedger:
         self._wide_way.discard(task_id)
         self._gave_way.discard(task_id)
         self._zone_wait.pop(task_id, None)
+        self._round.pop(task_id, None)
 
     def _transition(self, task: Task, event: str, effects: Effects) -> None:
         """Record ``task``'s new version in memory; store it, then announce it."""
@@ -854,6 +862,18 @@ class TaskLedger:
         ):
             return False
         self._gave_way.add(task.id)
+        return True
+
+    def goes_round(self, task_id: str, robot_id: str) -> bool:
+        """The task's robot, in a standoff, is held off by ``robot_id``, which stands (no
+        task under way): the planner routes it round that robot (:meth:`round_robots`) and
+        its stuck window restarts. False -- it went round that robot before -- and the
+        standoff is broken the usual way."""
+        if task_id not in self._under_way or robot_id in self._round.get(task_id, ()):
+            return False
+        self._round[task_id] = (*self._round.get(task_id, ()), robot_id)
+        self.stuck_watch.restart(task_id)
+        self._version += 1
         return True
 
     def break_standoff(self, task_id: str, cause: str, now: float, wall: float) -> Effects:

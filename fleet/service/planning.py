@@ -61,6 +61,7 @@ class PlannerGlue(ServiceState):
             own_way = self._ledger.own_way()
             wide_way = self._ledger.wide_way()
             gave_way = self._ledger.gave_way()
+            round_robots = self._ledger.round_robots()
             acknowledged = {t: now - at for t, at in self._ledger.acknowledged_at().items()}
             obstacles = list(self._obstacles)
             zones = self._ledger.zones.shapes
@@ -85,6 +86,7 @@ class PlannerGlue(ServiceState):
             own_way=own_way,
             wide_way=wide_way,
             gave_way=gave_way,
+            round_robots=round_robots,
             zones=zones,
             zone_holders=zone_holders,
         )

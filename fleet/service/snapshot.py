@@ -69,6 +69,7 @@ def _task_snapshot(
     own_way: Collection[str],
     wide_way: Collection[str],
     gave_way: Collection[str],
+    round_robots: Mapping[str, tuple[str, ...]],
 ) -> TaskSnapshot:
     request = task.request
     under_way = task.status.under_way
@@ -90,6 +91,7 @@ def _task_snapshot(
         own_way=under_way and task.id in own_way,
         wide_way=under_way and task.id in wide_way,
         gave_way=under_way and task.hold and task.id in gave_way,
+        round_robots=round_robots.get(task.id, ()) if under_way else (),
         avoid_robot=avoided.get(task.id),
         start_delay_left_s=(
             max(0.0, task.start_delay_s - running_s[task.id]) if task.id in running_s else None
@@ -113,6 +115,7 @@ def planning_input(
     own_way: Collection[str] = (),
     wide_way: Collection[str] = (),
     gave_way: Collection[str] = (),
+    round_robots: Mapping[str, tuple[str, ...]] | None = None,
     zones: Sequence[ZoneShape] = (),
     zone_holders: Mapping[str, Mapping[str, ZonePass | None]] | None = None,
 ) -> PlanInput:
@@ -127,7 +130,9 @@ def planning_input(
     stuck recovery chose (the planner may only use it); ``own_way``: tasks under way a
     stuck recovery took off their route (the planner routes them no more); ``wide_way``:
     tasks under way a stuck recovery sent round the posts' Eq. (27) zones; ``gave_way``:
-    tasks whose robot gave way in a standoff (held: the others are routed round it); ``zones``: the
+    tasks whose robot gave way in a standoff (held: the others are routed round it);
+    ``round_robots``: task under way -> the standing robots that held its robot off in a
+    standoff (it is routed round them); ``zones``: the
     single-robot zones, ``zone_holders``: zone -> robot -> its pass, the robots holding each."""
     hz = settings.control_rate_hz
     available = {r.state.robot_id for r in robots if r.available}
@@ -160,7 +165,15 @@ def planning_input(
         robots=tuple(robot_snaps),
         tasks=tuple(
             _task_snapshot(
-                t, held, avoided or {}, running, pinned or {}, own_way, wide_way, gave_way
+                t,
+                held,
+                avoided or {},
+                running,
+                pinned or {},
+                own_way,
+                wide_way,
+                gave_way,
+                round_robots or {},
             )
             for t in sorted(tasks, key=lambda t: t.created_at)
         ),

@@ -120,6 +120,10 @@ class TaskSnapshot:
     #: its robot gave way in a standoff and stands until a plan resumes it: the plan sends
     #: the other movers round it, on their last leg too (under way and held only)
     gave_way: bool = False
+    #: standing robots (ids) that held its robot off in a standoff: giving way to a robot
+    #: that does not move changes nothing, so the plan sends it round them while they
+    #: stand, on its last leg too (under way only)
+    round_robots: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -267,9 +267,17 @@ def build_fleet(
         snapshot.profile, snapshot.avoidance, tuple(snapshot.obstacles), snapshot.safety,
         config.pass_m, snapshot.lanes,
     )  # fmt: skip
+    standing_at = {r.robot_id: r.pose[:2] for r in standing}
+    round_xy = [
+        np.array([standing_at[r] for r in t.round_robots if r in standing_at], np.float64).reshape(
+            -1, 2
+        )
+        for t in tasks
+    ]
     route, last_leg = _routes(
         pose0, goal, limits, world, config, [t.route for t in tasks], [t.own_way for t in tasks],
         standing_xy, [t.wide_way for t in tasks], np.array([t.gave_way for t in tasks], bool),
+        round_xy,
     )  # fmt: skip
 
     # Lead-in: robots under way go on as they are; new and held robots stand.
@@ -382,6 +390,7 @@ def _routes(
     standing_xy: FloatArray,
     wide_way: Sequence[bool],
     gave_way: BoolArray,
+    round_xy: Sequence[FloatArray] = (),
 ) -> tuple[tuple[FloatArray, ...], BoolArray]:
     """Each mover's via-points (m_i, 2) from ``pose`` (k, 3) to ``goal`` (k, 3) around the
     static obstacles: the rest of the route its robot was ``sent`` while its body's straight
@@ -401,11 +410,13 @@ def _routes(
     the posts' Eq. (27) zones, not only their bodies (:func:`_wide`). A mover whose way
     -- its last leg too -- passes a robot that ``gave_way`` (k,) in a standoff and stands
     goes round that robot (:func:`_round_givers`): the laws drive straight at a robot
-    standing dead ahead, and Eq. (27) only slows them. Also which movers are on their last
-    leg (``Movers.last_leg``)."""
+    standing dead ahead, and Eq. (27) only slows them; so does a mover round the standing
+    robots at ``round_xy[i]`` (g_i, 2) [m] that held it off in a standoff. Also which movers
+    are on their last leg (``Movers.last_leg``)."""
     k = pose.shape[0]
     last_leg = np.zeros(k, dtype=bool)
-    if not (world.obstacles or gave_way.any()) or k == 0:
+    rounds = any(len(r) for r in round_xy)
+    if not (world.obstacles or gave_way.any() or rounds) or k == 0:
         return (), last_leg
     # shapely and networkx on first use: the fleet service plans with them, a robot never.
     from fleet.core.planner.lanes import route_graph
@@ -452,9 +463,12 @@ def _routes(
         points = (points or ())[:MAX_ROUTE_POINTS]
         out.append(np.array(points, dtype=np.float64).reshape(-1, 2) if points else NO_ROUTE)
     givers = pose[gave_way, :2]
-    for i in np.flatnonzero(~gave_way).tolist() if len(givers) else []:
+    for i in np.flatnonzero(~gave_way).tolist() if len(givers) or rounds else []:
+        ahead = np.vstack([givers, round_xy[i]]) if rounds and len(round_xy[i]) else givers
+        if not len(ahead):
+            continue
         around = _round_givers(
-            out[i], pose[i], goal[i], givers, standing_xy, float(reach[i]), world, clearance,
+            out[i], pose[i], goal[i], ahead, standing_xy, float(reach[i]), world, clearance,
             config, wide if wide_way[i] else world.obstacles, one_way=wide_way[i],
         )  # fmt: skip
         if around is not None:
@@ -564,16 +578,28 @@ def _route_round(
     one_way: bool = False,
 ) -> tuple[tuple[float, float], ...] | None:  # fmt: skip
     """The route from ``here`` to ``target`` of a graph of ``obstacles`` (``one_way``: see
-    :func:`~fleet.core.planner.lanes.route_graph`) where the robots
-    standing at ``blockers`` (b, 2) [m] are posts whose grown body (``clearance`` [m] beyond
-    it, on a ``STANDING_GRID_M`` grid) holds their body and their peers' influence radius,
-    shrunk (not below a body) so that ``here`` lies outside it: a robot already within a
-    peer's influence radius is routed round it from where it is. None: no way."""
+    :func:`~fleet.core.planner.lanes.route_graph`) where the robots standing at
+    ``blockers`` (b, 2) [m] are posts whose grown body (``clearance`` [m] beyond it, on a
+    ``STANDING_GRID_M`` grid) holds their body and their peers' influence radius. A robot
+    already within that of one backs straight out of it first (:func:`_backed_out`, when
+    that way is clear of the obstacles): routed round it from where it is, its via-points
+    would lie within the peer's Eq. (27) zone, where the repulsion holds it short of them
+    (a robot 0.7 m behind a standing one stalled for good). Else the bodies are shrunk (not
+    below a body) so that ``here`` lies outside them. None: no way."""
     from fleet.core.planner.lanes import route_graph
 
     body = max(world.profile.radius, world.avoidance.peer_radius - clearance) + STANDING_GRID_M
     grid = np.round(blockers / STANDING_GRID_M) * STANDING_GRID_M
     near = np.hypot(grid[:, 0] - here[0], grid[:, 1] - here[1]) - clearance - STANDING_GRID_M
+    whole = tuple(Obstacle(x=float(x), y=float(y), radius=body, body=body) for x, y in grid)
+    away = _backed_out(here, whole, clearance + STANDING_GRID_M) if (near < body).any() else None
+    if away is not None and route_graph(obstacles, clearance, world.lanes).clear(
+        here, away, world.profile.radius
+    ):
+        graph = route_graph(obstacles + whole, clearance, world.lanes, one_way=one_way)
+        after = graph.route(away, target, config.approach_m)
+        if after is not None:
+            return (away, *after)
     posts = tuple(
         Obstacle(x=float(x), y=float(y), radius=b, body=b)
         for (x, y), b in zip(grid, np.clip(near, world.profile.radius, body), strict=True)
@@ -589,7 +615,8 @@ def _round_givers(
     config: PlannerConfig, obstacles: tuple[Obstacle, ...], one_way: bool = False,
 ) -> FloatArray | None:  # fmt: skip
     """A way (m, 2) [m] for a mover at ``pose`` driving ``way`` (its via-points) to
-    ``goal`` round the robots at ``givers`` (g, 2) [m] that gave way in a standoff, when
+    ``goal`` round the robots at ``givers`` (g, 2) [m] that gave way in a standoff (or,
+    standing, held it off in one), when
     its way, the last leg included, passes one of them (:func:`_in_the_way` with the goal)
     -- and round the ``standing_xy`` robots in the new way -- on a graph of ``obstacles``
     (:func:`_route_round`, ``one_way``); None: no giver in its way, or no way round."""

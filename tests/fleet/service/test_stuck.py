@@ -294,6 +294,54 @@ def test_in_a_standoff_the_younger_task_gives_way_with_the_other_law_until_a_pla
         f.service.close()
 
 
+def test_a_robot_held_off_by_a_standing_robot_is_routed_round_it_not_made_to_give_way() -> None:
+    """A standoff's robot is held off by a robot that stands with no task (parked, idle):
+    giving way to it changes nothing (seen on case III with four robots: the last robot
+    stood off against two parked ones). The plans route the mover round that robot
+    (``round_robots``) and its window restarts; a second standoff against the same robot
+    is broken the usual way (it gives way)."""
+    from fleet.core.wire import RobotState
+    from tests.fleet.service.conftest import ScriptedPlanner, assign_queued
+
+    planner = ScriptedPlanner(assign_queued("ccw"))
+    f = Fleet(planner=planner, task_timeout_s=1000.0)
+    try:
+        f.join("mover", -0.3, 0.0)
+        f.join("parked", 0.4, 0.0)
+        moving = f.service.submit(req(4.0, 0.0, robot="mover"))
+        f.service.tick()
+
+        def states(seq: int) -> None:
+            f.bus.deliver_state(
+                RobotState(robot_id="mover", seq=seq, stamp=f.clock.wall(),
+                           pose=Pose(x=-0.3, y=0.0), mode=RobotMode.AVOIDING,
+                           task_id=moving.id, revision=f.service.task(moving.id).revision)
+            )  # fmt: skip
+
+        def round_robots() -> tuple[str, ...]:
+            f.clock.advance(5.0)
+            f.service.tick()  # the plan the standoff asked for
+            (task,) = [t for t in planner.snapshots[-1].tasks if t.task_id == moving.id]
+            return task.round_robots
+
+        states(100)
+        assert round_robots() == ()
+        states(500)  # 8 s of the mover's own time without progress
+        f.service.tick()
+        assert f.service.counters["standoffs_broken"] == 1
+        assert not f.service.task(moving.id).hold  # it did not give way
+        assert "standoff" not in [e for _, e, _ in f.service.history(moving.id)]
+        assert round_robots() == ("parked",)
+        states(900)
+        states(1300)  # 8 s more, still held off by the same robot
+        f.service.tick()
+        assert f.service.counters["standoffs_broken"] == 2
+        assert f.service.task(moving.id).hold  # now it gives way, the usual way
+        assert [e for _, e, _ in f.service.history(moving.id)][-1] == "standoff"
+    finally:
+        f.service.close()
+
+
 def test_a_robot_held_off_by_one_waiting_for_its_zone_has_that_one_stand_aside() -> None:
     """A standoff's robot is held off by a robot the plan holds until a zone the first
     holds is free: giving way would wait for a robot that waits for it (a loop seen on

@@ -360,27 +360,38 @@ def test_robots_sent_round_the_posts_zones_from_either_side_go_round_them_one_wa
         assert d.route and turned > math.pi / 2, (d.robot_id, d.route)
 
 
-def test_a_robot_is_routed_round_one_that_gave_way_in_a_standoff_dead_ahead() -> None:
-    """Nose to nose, each goal behind the other (both laws drive straight, Eq. (27) only
-    slows them): the robot that gave way stands, and the other's way -- its last leg, with
-    no post to route round -- goes round it, its legs beyond two bodies and the contact
-    margin; the plan's prediction is what the robots do, and both park."""
+@pytest.mark.parametrize("ahead_is", ["gave way", "standing"])
+def test_a_robot_is_routed_round_one_that_gave_way_or_stands_in_a_standoff_dead_ahead(
+    ahead_is: str,
+) -> None:
+    """Nose to nose, the mover's goal behind the other (the laws drive straight, Eq. (27)
+    only slows them): the other robot gave way and stands (each goal behind the other), or
+    stands with no task and held the mover off in a standoff (``round_robots``); the mover's
+    way -- its last leg, with no post to route round -- goes round it, its legs beyond two
+    bodies and the contact margin; the plan's prediction is what the robots do, and the
+    movers park."""
     ahead = (0.7, 0.0)
 
-    def snapshot(gave_way: bool) -> PlanningSnapshot:
+    def snapshot(flagged: bool) -> PlanningSnapshot:
         driving = replace(
             queued("t0", (4.0, 0.0, 0.0), "r0"),
             status=TaskStatus.DRIVING, robot_id="r0", law="cw",
+            round_robots=("r1",) if flagged and ahead_is == "standing" else (),
         )  # fmt: skip
+        mover = RobotSnapshot("r0", (0.0, 0.0, 0.0), RobotStatus.AVOIDING, False, "t0", "cw")
+        if ahead_is == "standing":
+            other = idle("r1", (*ahead, math.pi))
+            return PlanningSnapshot(
+                version=1, robots=(mover, other), tasks=(driving,), control_dt=0.05
+            )
         held = replace(
             queued("t1", (-3.0, 0.0, math.pi), "r1", 1.0, direction="ccw"),
-            status=TaskStatus.WAITING, robot_id="r1", law="ccw", hold=True, gave_way=gave_way,
+            status=TaskStatus.WAITING, robot_id="r1", law="ccw", hold=True, gave_way=flagged,
         )  # fmt: skip
-        robots = (
-            RobotSnapshot("r0", (0.0, 0.0, 0.0), RobotStatus.AVOIDING, False, "t0", "cw"),
-            RobotSnapshot("r1", (*ahead, math.pi), RobotStatus.WAITING, False, "t1", "ccw"),
+        other = RobotSnapshot("r1", (*ahead, math.pi), RobotStatus.WAITING, False, "t1", "ccw")
+        return PlanningSnapshot(
+            version=1, robots=(mover, other), tasks=(driving, held), control_dt=0.05
         )
-        return PlanningSnapshot(version=1, robots=robots, tasks=(driving, held), control_dt=0.05)
 
     straight = {d.robot_id: d for d in plan(snapshot(False)).decisions}
     assert straight["r0"].route == ()
@@ -393,7 +404,7 @@ def test_a_robot_is_routed_round_one_that_gave_way_in_a_standoff_dead_ahead() ->
     legs = itertools.pairwise([(0.0, 0.0), *way, (4.0, 0.0)])
     assert all(segment_distance(*ahead, a, b) >= reach for a, b in legs)
     run = replay(snap, result)
-    assert run.result.done.all()
+    assert run.result.done[: len(snap.tasks)].all()
     arrival = decided["r0"].predicted_arrival_s
     assert arrival is not None and float(run.result.time[0]) == pytest.approx(arrival, abs=1e-6)
 

@@ -178,10 +178,11 @@ def may_join(
     zone: ZoneShape, holders: Mapping[str, ZonePass | None], robot_id: str, want: ZonePass
 ) -> bool:
     """Whether ``robot_id`` may hold ``zone`` on pass ``want`` beside its ``holders``
-    (robot -> pass; None: it stands in the zone): nobody else holds it, or the zone allows
-    convoys and every other holder goes the same way (:meth:`ZonePass.same_way`)."""
+    (robot -> pass; None: it stands in the zone): it stands in the zone (it goes on, out
+    of it), nobody else holds it, or the zone allows convoys and every other holder goes
+    the same way (:meth:`ZonePass.same_way`)."""
     others = [p for r, p in holders.items() if r != robot_id]
-    if not others:
+    if not others or (robot_id in holders and holders[robot_id] is None):
         return True
     return zone.convoys and all(p is not None and want.same_way(p) for p in others)
 

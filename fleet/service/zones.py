@@ -10,9 +10,12 @@ passes (:class:`fleet.core.zones.ZonePass`):
   else holds the zone, or -- a zone that allows convoys -- everybody holding it goes the
   same way), then the robot holds them
   (:meth:`ZoneBook.take`);
-* every state of a robot: a zone it stands in that nobody holds becomes its own (a robot
-  that got there without a plan: lost on its way, an older release; it goes no way, so
-  nobody may join it); a zone it holds is given back once it stands outside it and the
+* every state of a robot: a zone it stands in becomes its own, beside any holder (a robot
+  that got there without a plan: lost on its way, an older release, swung in by a stuck
+  recovery; it goes no way, so nobody may join it, and it may always go on: holding a
+  robot inside a zone for that zone blocks the zone's holders for good -- seen on case III
+  with four robots, a robot held in the gap for 100 s while the gap's holder stood at its
+  mouth); a zone it holds is given back once it stands outside it and the
   rest of its way does not enter it (:meth:`ZoneBook.observe`) -- unless that way is no
   path: a leg of it passes through an obstacle's body grown by the robot's radius (the law
   and Eq. (27) will take the robot round the post, perhaps through the zone: a robot swung
@@ -157,7 +160,7 @@ class ZoneBook:
             return False
         changed = False
         for name, shape in self._shapes.items():
-            if name not in self._holders and shape.contains(x, y):
+            if robot_id not in self._holders.get(name, {}) and shape.contains(x, y):
                 self._hold(name, robot_id, None)
                 changed = True
         mine = self._held.get(robot_id)

@@ -15,7 +15,9 @@ A mover whose zones are all free (or its own; in a zone that allows convoys, hel
 robots going its way) gets them for this plan, each with its pass
 (:class:`fleet.core.zones.ZonePass`); the zones it takes are taken for every mover after it.
 A mover one of whose zones another robot holds -- a robot standing in it, lost in it, one
-earlier in the order, or in a convoy zone one going the other way -- must hold: it waits
+earlier in the order, or in a convoy zone one going the other way -- must hold, unless it
+stands in that zone itself (the zone book counts it a holder, :func:`fleet.core.zones.may_join`:
+held there it would block the zone for good; it goes on, out of it): it waits
 where it stands, and its reason names the zone and the holder. A plan is made with those robots
 held (:attr:`fleet.core.planner.scene.Movers.must_hold`); once the holder has left the zone
 the service gives it back and plans again, and the next robot goes. Granting every zone of
@@ -137,8 +139,10 @@ def gate(
         ]
         if blocked:
             zone = blocked[0]
-            others = ", ".join(r for r in taken.get(zone.name, {}) if r != me)
-            way_ = " going the other way" if zone.convoys else ""
+            held = {r: p for r, p in taken.get(zone.name, {}).items() if r != me}
+            others = ", ".join(held)
+            standing = any(p is None for p in held.values())  # in it: no way to name
+            way_ = " going the other way" if zone.convoys and not standing else ""
             must_hold[i] = True
             waits_for[i] = zone.name
             reasons[i] = f"waiting for single-robot zone {zone.name} (held by {others}{way_})"

@@ -390,7 +390,7 @@ def test_a_robot_held_off_by_one_waiting_for_its_zone_has_that_one_stand_aside()
 
     def started(f: Fleet, moving: Task, waiting: Task) -> None:
         (passage,) = f.service.zones()
-        assert passage.robot_ids == ("mover",)
+        assert passage.robot_ids == ("mover", "held")  # "held" stands in it
         assert f.service.task(waiting.id).hold and not f.service.task(moving.id).hold
 
     def states(f: Fleet, moving: Task, waiting: Task, seq: int) -> None:

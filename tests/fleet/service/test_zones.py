@@ -71,6 +71,21 @@ def test_a_convoy_zone_is_held_by_robots_going_one_way_only() -> None:
     assert book.can_take("r3", [WEST])
 
 
+def test_a_robot_standing_in_a_zone_another_holds_holds_it_too_and_may_go_on() -> None:
+    """A robot in a zone it was not granted (swung in by a stuck recovery, lost on its way)
+    holds it too, standing (pass None): it may go on, out of it, whoever else holds it;
+    nobody may join it; it gives the zone back once out and past."""
+    book = ZoneBook([ZoneShape("gate", GATE.outline, convoys=True)])
+    assert book.take("holder", [WEST])
+    assert not book.can_take("inside", [EAST])
+    assert book.observe("inside", 0.2, 0.3, lambda: [(0.2, 0.3), (6.0, 0.0)])
+    assert book.holding("gate") == ("holder", "inside")
+    assert book.can_take("inside", [EAST])  # it goes on, out of the zone
+    assert not book.can_take("third", [WEST])  # nobody joins a robot standing in it
+    assert book.observe("inside", 3.0, 0.0, lambda: [(3.0, 0.0), (6.0, 0.0)])
+    assert book.holding("gate") == ("holder",)
+
+
 def test_zones_that_are_gone_lose_their_holders() -> None:
     book = ZoneBook([GATE])
     book.take("r1", [EAST])

@@ -50,6 +50,22 @@ def test_a_robot_driving_goes_first_and_a_robot_standing_in_the_zone_holds_it() 
     assert lost.reasons[1] == "waiting for single-robot zone gate (held by lost-one)"
 
 
+def test_a_robot_standing_in_a_zone_another_holds_goes_on_and_the_holder_waits() -> None:
+    """A robot got into a convoy zone another robot holds going the other way (swung in by
+    a stuck recovery: case III with four robots, one held in the gap for 100 s while the
+    gap's holder stood at its mouth): it holds the zone too (the zone book records it
+    standing in it, pass None), so it goes on, out of it, and the holder waits."""
+    convoy = ZoneShape("gate", GATE.outline, convoys=True)
+    west = ZonePass("gate", (1.0, 0.0), (-1.0, 0.0))
+    holders = {"gate": {"holder": west, "inside": None}}
+    g = gate([convoy], holders, ["holder", "inside"], np.array([True, False]),
+             poses((2.0, 0.5), (0.2, 0.3)), [NO_ROUTE, NO_ROUTE],
+             poses((-6.0, 0.0), (6.0, 0.0)), [0.0, 1.0])  # fmt: skip
+    assert g.must_hold.tolist() == [True, False]
+    assert g.reasons[0] == "waiting for single-robot zone gate (held by inside)"
+    assert [p.zone for p in g.granted[1]] == ["gate"]
+
+
 def test_a_robot_whose_way_passes_the_others_goal_goes_before_it() -> None:
     starts = poses((-6.0, 0.0), (3.0, 0.0))
     goals = poses((6.0, 0.0), (-6.0, 0.0))

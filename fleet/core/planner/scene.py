@@ -416,17 +416,19 @@ def _routes(
     k = pose.shape[0]
     last_leg = np.zeros(k, dtype=bool)
     rounds = any(len(r) for r in round_xy)
-    if not (world.obstacles or gave_way.any() or rounds) or k == 0:
+    radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
+    reach = radii + world.profile.radius + world.safety.contact_margin_m  # (k,) [m]
+    straight = segment_distances(standing_xy[None], pose[:, :2], goal[:, :2])[0]  # (s, k)
+    ahead = bool((straight < reach[None, :]).any()) if k else False
+    if not (world.obstacles or gave_way.any() or rounds or ahead) or k == 0:
         return (), last_leg
     # shapely and networkx on first use: the fleet service plans with them, a robot never.
     from fleet.core.planner.lanes import route_graph
 
-    radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
     clearance = route_clearance(limits, world, config)
     plain = route_graph(world.obstacles, clearance, world.lanes)
     wide = _wide(world.obstacles, clearance) if any(wide_way) else ()
     wide_map = route_graph(wide, clearance, world.lanes, one_way=True) if wide else plain
-    reach = radii + world.profile.radius + world.safety.contact_margin_m  # (k,) [m]
     out = []
     for i in range(k):
         roadmap = wide_map if wide_way[i] else plain
@@ -463,13 +465,15 @@ def _routes(
         points = (points or ())[:MAX_ROUTE_POINTS]
         out.append(np.array(points, dtype=np.float64).reshape(-1, 2) if points else NO_ROUTE)
     givers = pose[gave_way, :2]
-    for i in np.flatnonzero(~gave_way).tolist() if len(givers) or rounds else []:
-        ahead = np.vstack([givers, round_xy[i]]) if rounds and len(round_xy[i]) else givers
-        if not len(ahead):
+    for i in np.flatnonzero(~gave_way).tolist():
+        blockers = np.vstack([givers, NO_ROUTE if own_way[i] else standing_xy])
+        held_off = round_xy[i] if rounds else NO_ROUTE
+        if not (len(blockers) or len(held_off)):
             continue
         around = _round_givers(
-            out[i], pose[i], goal[i], ahead, standing_xy, float(reach[i]), world, clearance,
-            config, wide if wide_way[i] else world.obstacles, one_way=wide_way[i],
+            out[i], pose[i], goal[i], blockers, standing_xy, float(reach[i]), world,
+            clearance, config, wide if wide_way[i] else world.obstacles, one_way=wide_way[i],
+            held_off=held_off,
         )  # fmt: skip
         if around is not None:
             out[i], last_leg[i] = around, False
@@ -613,17 +617,25 @@ def _round_givers(
     way: FloatArray, pose: FloatArray, goal: FloatArray, givers: FloatArray,
     standing_xy: FloatArray, reach: float, world: World, clearance: float,
     config: PlannerConfig, obstacles: tuple[Obstacle, ...], one_way: bool = False,
+    held_off: FloatArray = NO_ROUTE,
 ) -> FloatArray | None:  # fmt: skip
     """A way (m, 2) [m] for a mover at ``pose`` driving ``way`` (its via-points) to
-    ``goal`` round the robots at ``givers`` (g, 2) [m] that gave way in a standoff (or,
-    standing, held it off in one), when
-    its way, the last leg included, passes one of them (:func:`_in_the_way` with the goal)
-    -- and round the ``standing_xy`` robots in the new way -- on a graph of ``obstacles``
-    (:func:`_route_round`, ``one_way``); None: no giver in its way, or no way round."""
+    ``goal`` round the robots at ``givers`` (g, 2) [m] -- robots that gave way in a
+    standoff, or stand -- when its way, the last leg included, passes one of them
+    (:func:`_in_the_way` with the goal), and round the standing robots at ``held_off``
+    (h, 2) [m] that held it off in a standoff when its way passes within their influence
+    radius -- and round the ``standing_xy`` robots in the new way -- on a graph of
+    ``obstacles`` (:func:`_route_round`, ``one_way``); None: none in its way, or no way
+    round."""
     here = (float(pose[0]), float(pose[1]))
     target = (float(goal[0]), float(goal[1]), float(goal[2]))
     influence = world.avoidance.peer_radius
-    ahead = _in_the_way(here, way, givers, reach, influence, target[:2])
+    ahead = np.vstack(
+        [
+            _in_the_way(here, way, givers, reach, influence, target[:2]),
+            _in_the_way(here, way, held_off, max(reach, influence), influence, target[:2]),
+        ]
+    )
     if ahead.shape[0] == 0:
         return None
     around = _route_round(here, target, ahead, world, clearance, config, obstacles, one_way)

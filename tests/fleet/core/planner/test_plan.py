@@ -360,27 +360,31 @@ def test_robots_sent_round_the_posts_zones_from_either_side_go_round_them_one_wa
         assert d.route and turned > math.pi / 2, (d.robot_id, d.route)
 
 
-@pytest.mark.parametrize("ahead_is", ["gave way", "standing"])
-def test_a_robot_is_routed_round_one_that_gave_way_or_stands_in_a_standoff_dead_ahead(
-    ahead_is: str,
+@pytest.mark.parametrize(
+    ("other_is", "at"),
+    [("gave way", (0.7, 0.0)), ("standing", (0.7, 0.0)), ("holding off", (0.8, 0.5))],
+)
+def test_a_robot_is_routed_round_one_that_gave_way_stands_ahead_or_held_it_off(
+    other_is: str, at: tuple[float, float]
 ) -> None:
-    """Nose to nose, the mover's goal behind the other (the laws drive straight, Eq. (27)
-    only slows them): the other robot gave way and stands (each goal behind the other), or
-    stands with no task and held the mover off in a standoff (``round_robots``); the mover's
-    way -- its last leg, with no post to route round -- goes round it, its legs beyond two
-    bodies and the contact margin; the plan's prediction is what the robots do, and the
-    movers park."""
-    ahead = (0.7, 0.0)
+    """The mover's goal lies behind the other robot (the laws drive straight at a robot
+    dead ahead, Eq. (27) only slows them): the other gave way in a standoff and stands;
+    or stands with no task on the mover's straight way (no flag needed); or stands beside
+    that way, within its influence radius, and held the mover off in a standoff
+    (``round_robots``). The mover's way -- its last leg, with no post to route round --
+    goes round it, backing out of its zone first when the mover is in it, its legs beyond
+    two bodies and the contact margin; the plan's prediction is what the robots do, the
+    mover parks, and sooner than the law's own way past it."""
 
     def snapshot(flagged: bool) -> PlanningSnapshot:
         driving = replace(
             queued("t0", (4.0, 0.0, 0.0), "r0"),
             status=TaskStatus.DRIVING, robot_id="r0", law="cw",
-            round_robots=("r1",) if flagged and ahead_is == "standing" else (),
+            round_robots=("r1",) if flagged and other_is == "holding off" else (),
         )  # fmt: skip
         mover = RobotSnapshot("r0", (0.0, 0.0, 0.0), RobotStatus.AVOIDING, False, "t0", "cw")
-        if ahead_is == "standing":
-            other = idle("r1", (*ahead, math.pi))
+        if other_is != "gave way":
+            other = idle("r1", (*at, math.pi))
             return PlanningSnapshot(
                 version=1, robots=(mover, other), tasks=(driving,), control_dt=0.05
             )
@@ -388,25 +392,29 @@ def test_a_robot_is_routed_round_one_that_gave_way_or_stands_in_a_standoff_dead_
             queued("t1", (-3.0, 0.0, math.pi), "r1", 1.0, direction="ccw"),
             status=TaskStatus.WAITING, robot_id="r1", law="ccw", hold=True, gave_way=flagged,
         )  # fmt: skip
-        other = RobotSnapshot("r1", (*ahead, math.pi), RobotStatus.WAITING, False, "t1", "ccw")
+        other = RobotSnapshot("r1", (*at, math.pi), RobotStatus.WAITING, False, "t1", "ccw")
         return PlanningSnapshot(
             version=1, robots=(mover, other), tasks=(driving, held), control_dt=0.05
         )
 
-    straight = {d.robot_id: d for d in plan(snapshot(False)).decisions}
-    assert straight["r0"].route == ()
+    unflagged = {d.robot_id: d for d in plan(snapshot(False)).decisions}["r0"]
+    assert (unflagged.route == ()) == (other_is != "standing")
     snap = snapshot(True)
     result = plan(snap)
     decided = {d.robot_id: d for d in result.decisions}
     way = decided["r0"].route
     assert way and result.safe
+    assert math.dist(way[0], at) >= Avoidance().peer_radius  # backed out first
     reach = 2 * RobotProfile().radius + SafetyConfig().contact_margin_m
     legs = itertools.pairwise([(0.0, 0.0), *way, (4.0, 0.0)])
-    assert all(segment_distance(*ahead, a, b) >= reach for a, b in legs)
+    assert all(segment_distance(*at, a, b) >= reach for a, b in legs)
     run = replay(snap, result)
     assert run.result.done[: len(snap.tasks)].all()
     arrival = decided["r0"].predicted_arrival_s
     assert arrival is not None and float(run.result.time[0]) == pytest.approx(arrival, abs=1e-6)
+    if other_is == "holding off":
+        assert unflagged.predicted_arrival_s is not None
+        assert arrival < unflagged.predicted_arrival_s
 
 
 @pytest.mark.parametrize("heading", [0.0, math.pi / 2, -math.pi / 2])

@@ -35,10 +35,11 @@ def test_the_seed_does_not_delay_a_robot_whose_way_a_standing_robot_blocks() -> 
     """Waiting does not move a standing robot out of the way: the seed starts the robot at
     once (the search and the filter take it round), not with the longest delay there is,
     which only postpones the conflict furthest (on the fleet benchmark a robot stood 20 s
-    behind a parked one that way)."""
+    behind a parked one that way). The parked robot stands beside the goal, too near it for
+    a route round it (one dead ahead further off is gone round)."""
     snapshot = PlanningSnapshot(
         version=1,
-        robots=(idle("r0", (-4.0, 0.0, 0.0)), idle("r1", (0.0, 0.1, 0.0))),
+        robots=(idle("r0", (-4.0, 0.0, 0.0)), idle("r1", (3.3, 0.1, 0.0))),
         tasks=(queued("t0", (4.0, 0.0, 0.0), "r0"),),
         separation_m=0.5,
         control_dt=0.05,
@@ -46,7 +47,7 @@ def test_the_seed_does_not_delay_a_robot_whose_way_a_standing_robot_blocks() -> 
     config = PlannerConfig()
     fleet = build_fleet(snapshot, pair_queued(snapshot, config), config)
     seed, paths = reservation(fleet, [0], [0], config.reserve_delays_s, 1.0, 0.75)
-    assert np.hypot(*(paths[0] - [0.0, 0.1]).T).min() < 0.75  # no option is clear of it
+    assert np.hypot(*(paths[0] - [3.3, 0.1]).T).min() < 0.75  # no option is clear of it
     assert seed.delay.tolist() == [0.0] and not seed.hold.any()
 
 

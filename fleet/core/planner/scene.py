@@ -557,6 +557,11 @@ def _in_the_way(
 #: robot's reported pose wanders with its pose noise.
 STANDING_GRID_M = 0.05
 
+#: [m] how much longer than the way round standing robots' shrunk bodies a way that backs
+#: out of one's zone first may be (a way round a whole garage, its gate closed by a
+#: standing robot's whole grown body, is no way round it).
+ROUND_DETOUR_M = 4.0
+
 
 def _round_standing(
     points: tuple[tuple[float, float], ...], here: tuple[float, float],
@@ -588,29 +593,49 @@ def _route_round(
     already within that of one backs straight out of it first (:func:`_backed_out`, when
     that way is clear of the obstacles): routed round it from where it is, its via-points
     would lie within the peer's Eq. (27) zone, where the repulsion holds it short of them
-    (a robot 0.7 m behind a standing one stalled for good). Else the bodies are shrunk (not
-    below a body) so that ``here`` lies outside them. None: no way."""
+    (a robot 0.7 m behind a standing one stalled for good). Else -- or when that way is
+    more than ``ROUND_DETOUR_M`` longer: the whole bodies closed a passage, as a garage's
+    gate -- the bodies are shrunk (not below a body) so that ``here`` lies outside them.
+    None: no way."""
     from fleet.core.planner.lanes import route_graph
 
     body = max(world.profile.radius, world.avoidance.peer_radius - clearance) + STANDING_GRID_M
     grid = np.round(blockers / STANDING_GRID_M) * STANDING_GRID_M
     near = np.hypot(grid[:, 0] - here[0], grid[:, 1] - here[1]) - clearance - STANDING_GRID_M
-    whole = tuple(Obstacle(x=float(x), y=float(y), radius=body, body=body) for x, y in grid)
-    away = _backed_out(here, whole, clearance + STANDING_GRID_M) if (near < body).any() else None
-    if away is not None and route_graph(obstacles, clearance, world.lanes).clear(
-        here, away, world.profile.radius
-    ):
-        graph = route_graph(obstacles + whole, clearance, world.lanes, one_way=one_way)
-        after = graph.route(away, target, config.approach_m)
-        if after is not None:
-            return (away, *after)
     posts = tuple(
         Obstacle(x=float(x), y=float(y), radius=b, body=b)
         for (x, y), b in zip(grid, np.clip(near, world.profile.radius, body), strict=True)
     )
-    return route_graph(obstacles + posts, clearance, world.lanes, one_way=one_way).route(
+    shrunk = route_graph(obstacles + posts, clearance, world.lanes, one_way=one_way).route(
         here, target, config.approach_m
     )
+    whole = tuple(Obstacle(x=float(x), y=float(y), radius=body, body=body) for x, y in grid)
+    away = _backed_out(here, whole, clearance + STANDING_GRID_M) if (near < body).any() else None
+    if away is None or not route_graph(obstacles, clearance, world.lanes).clear(
+        here, away, world.profile.radius
+    ):
+        return shrunk
+    graph = route_graph(obstacles + whole, clearance, world.lanes, one_way=one_way)
+    after = graph.route(away, target, config.approach_m)
+    if after is None:
+        return shrunk
+    backed = (away, *after)
+    goal = target[:2]
+    if (
+        shrunk is None
+        or _way_length(here, backed, goal) <= _way_length(here, shrunk, goal) + ROUND_DETOUR_M
+    ):
+        return backed
+    return shrunk  # the whole bodies close a passage the shrunk ones leave open
+
+
+def _way_length(
+    here: tuple[float, float], via: Sequence[tuple[float, float]] | FloatArray,
+    goal: tuple[float, float],
+) -> float:  # fmt: skip
+    """[m] the polyline from ``here`` through ``via`` (m, 2) to ``goal``."""
+    points = np.vstack([np.asarray(here), np.asarray(via).reshape(-1, 2), np.asarray(goal)])
+    return float(np.hypot(*np.diff(points, axis=0).T).sum())
 
 
 def _round_givers(

@@ -417,6 +417,40 @@ def test_a_robot_is_routed_round_one_that_gave_way_stands_ahead_or_held_it_off(
         assert arrival < unflagged.predicted_arrival_s
 
 
+def test_a_robot_in_a_gate_beside_a_standing_robot_is_not_sent_round_the_whole_wall(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A mover in a wall's 2 m gate, 0.9 m from a robot standing just past it (within its
+    zone): backing out of the zone first, the standing robot's whole grown body closes the
+    gate, and the way round it runs round the wall's far end (seen in the garage: a route
+    round the whole garage, 38 s lost). The way round the body shrunk to where the mover is
+    stays in the gate -- taken, as the back-out way is that much longer
+    (``ROUND_DETOUR_M``) -- and the plan predicts the mover parks."""
+    from fleet.core.planner import scene as scene_module
+
+    walls = (
+        Obstacle(x=0.0, y=-10.0, end=(0.0, -1.0), radius=0.3, body=0.05),
+        Obstacle(x=0.0, y=1.0, end=(0.0, 10.0), radius=0.3, body=0.05),
+    )
+    driving = replace(
+        queued("t0", (4.0, 0.0, 0.0), "r0"), status=TaskStatus.DRIVING, robot_id="r0", law="cw"
+    )
+    mover = RobotSnapshot("r0", (0.1, 0.0, 0.0), RobotStatus.DRIVING, False, "t0", "cw")
+    snap = PlanningSnapshot(
+        version=1, robots=(mover, idle("r1", (1.0, 0.0, 0.0))), tasks=(driving,),
+        obstacles=walls, control_dt=0.05,
+    )  # fmt: skip
+
+    def far_side(result: Plan) -> float:
+        (decided,) = result.decisions
+        assert decided.route and result.safe and decided.predicted_arrival_s is not None
+        return max(abs(y) for _, y in decided.route)
+
+    assert far_side(plan(snap)) < 2.0  # through the gate
+    monkeypatch.setattr(scene_module, "ROUND_DETOUR_M", math.inf)
+    assert far_side(plan(snap)) > 9.0  # backed out: round the wall's end
+
+
 @pytest.mark.parametrize("heading", [0.0, math.pi / 2, -math.pi / 2])
 @pytest.mark.parametrize("radius", [None, 0.35])
 def test_the_plan_sees_a_standing_robot_as_it_is_its_heading_and_its_own_body(

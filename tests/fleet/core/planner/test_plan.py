@@ -373,8 +373,8 @@ def test_a_robot_is_routed_round_one_that_gave_way_stands_ahead_or_held_it_off(
     that way, within its influence radius, and held the mover off in a standoff
     (``round_robots``). The mover's way -- its last leg, with no post to route round --
     goes round it, backing out of its zone first when the mover is in it, its legs beyond
-    two bodies and the contact margin; the plan's prediction is what the robots do, the
-    mover parks, and sooner than the law's own way past it."""
+    two bodies and the contact margin; the plan's prediction is what the robots do and the
+    mover parks -- held off beside its way, sooner than the law's own way past it."""
 
     def snapshot(flagged: bool) -> PlanningSnapshot:
         driving = replace(

@@ -6,7 +6,9 @@ bucket, :mod:`fleet.core.planner.rollout`) and sends back their scores
 (:mod:`fleet.core.planner.cost`). Rounds:
 
 1. **Baseline** (one round): what the robots do now (robots under way keep their law and
-   delay, held robots stay held, new robots take their fastest solo law at once), the
+   delay, held robots stay held, new robots take their fastest solo law at once), each
+   robot under way whose other law alone arrives more than ``flip_gain_s`` sooner with
+   that law (and all of them together), the
    seeds the planner passes (the prioritised plan on the solo predictions,
    :mod:`fleet.core.planner.reserve`, or the plans of clusters now merged), held robots
    released,
@@ -128,7 +130,7 @@ class ClusterSearch:
 
     def _baseline(self) -> list[Candidate]:
         keep = self.keep()
-        out = [keep, *self._seeds]
+        out = [keep, *self._faster_flips(keep), *self._seeds]
         released = Candidate(keep.law.copy(), keep.delay.copy(), np.zeros(self.size, dtype=bool))
         if keep.hold.any():
             out.append(released)
@@ -147,6 +149,27 @@ class ClusterSearch:
             c = Candidate(released.law.copy(), released.delay.copy(), released.hold.copy())
             c.delay[later] += d
             out.append(c)
+        return out
+
+    def _faster_flips(self, keep: Candidate) -> list[Candidate]:
+        """``keep`` with each robot under way flipped whose other law, alone from where it
+        is (the solo predictions), arrives more than ``flip_gain_s`` sooner, and with all
+        of them flipped (the cost's change penalty still has to be paid)."""
+        rows = np.arange(self.size)
+        gain = self.solo[rows, keep.law] - self.solo[rows, 1 - keep.law]
+        flips = [
+            i
+            for i in rows.tolist()
+            if self._kind[i] == UNDER_WAY
+            and not keep.hold[i]
+            and self._flippable(i)
+            and gain[i] > self.config.flip_gain_s
+        ]
+        out = [keep.with_(i, law=1 - int(keep.law[i])) for i in flips]
+        if len(flips) > 1:
+            every = Candidate(keep.law.copy(), keep.delay.copy(), keep.hold.copy())
+            every.law[flips] = 1 - every.law[flips]
+            out.append(every)
         return out
 
     def _every_other_round(self) -> IntArray:

@@ -24,6 +24,7 @@ from fleet.core.planner import (
     plan,
 )
 from fleet.core.tasks import DEFAULT_GAINS, RobotStatus, TaskStatus
+from fleet.core.types import Law, Posture
 from fleet.core.wire import Obstacle
 
 
@@ -155,6 +156,47 @@ def test_a_robot_under_way_on_a_collision_course_is_revised() -> None:
     revised = [d for d in result.decisions if d.action == "revise"]
     assert revised and all(d.revision == 3 for d in revised)
     assert replay(moving, result).worst_shortfall(CROSSING_SEPARATION) <= 0
+
+
+def _driving_alone(law: Law, pose: Posture, goal: Posture) -> PlanningSnapshot:
+    """One robot under way (revision 2) with ``law`` from ``pose`` to ``goal``."""
+    snapshot = scene([pose], [goal])
+    task = dataclasses.replace(
+        snapshot.tasks[0], status=TaskStatus.DRIVING, robot_id="r0", law=law, revision=2
+    )
+    robot = RobotSnapshot("r0", pose, RobotStatus.DRIVING, False, "t0", law, 2)
+    return dataclasses.replace(snapshot, robots=(robot,), tasks=(task,))
+
+
+#: A robot 1.3 m short of its goal (2.5, -1.2, 0) heading 63 degrees: law (17) turns it
+#: counter-clockwise the long way round (297 degrees), law (20) turns it back 63 degrees.
+PAST_ITS_HEADING = (1.30, -1.75, math.radians(63.0))
+
+
+def test_a_robot_under_way_turned_past_its_goal_takes_the_law_that_turns_back() -> None:
+    """Disturbed, a robot under way may be turned past its goal's heading in its law's
+    rotation sense: that law goes the long way round. The plan flips it, as a revision,
+    when the other law alone arrives more than ``flip_gain_s`` sooner -- and the robot
+    (the replay) arrives as predicted, sooner than it would have kept on."""
+    snapshot = _driving_alone("ccw", PAST_ITS_HEADING, (2.5, -1.2, 0.0))
+    kept = plan(snapshot, PlannerConfig(flip_gain_s=math.inf))
+    result = plan(snapshot)
+    (before,), (d,) = kept.decisions, result.decisions
+    assert (before.action, before.law) == ("keep", "ccw")
+    assert (d.action, d.law, d.revision) == ("revise", "cw", 2) and not d.hold
+    assert d.predicted_arrival_s is not None and before.predicted_arrival_s is not None
+    assert d.predicted_arrival_s < before.predicted_arrival_s - PlannerConfig().flip_gain_s
+    run = replay(snapshot, result)
+    assert float(run.result.time[0]) == pytest.approx(d.predicted_arrival_s, abs=0.05)
+
+
+@pytest.mark.parametrize("law", ["ccw", "cw"])
+def test_a_robot_under_way_whose_other_law_is_not_much_faster_keeps_its_law(law: Law) -> None:
+    """Near its goal's heading both laws arrive within a fraction of a second of each
+    other: no flip (a stable plan stays stable)."""
+    snapshot = _driving_alone(law, (2.25, -1.38, math.radians(347.0)), (2.5, -1.2, 0.0))
+    (d,) = plan(snapshot).decisions
+    assert (d.action, d.law) == ("keep", law)
 
 
 def test_a_lost_robot_far_away_is_not_part_of_the_plan() -> None:

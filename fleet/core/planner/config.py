@@ -22,9 +22,11 @@ class PlannerConfig:
     tried for a robot in a conflict (added to its current one); ``change_penalty_s`` --
     a flip, new delay or hold of a robot under way must shorten the makespan by more than
     this to be chosen (keeps stable decisions stable); ``flip_gain_s`` -- a robot under
-    way whose other law, alone from where it is, arrives more than this sooner is tried
-    with it from the first round (the laws turn one way only: a robot that the
-    disturbances or its peers turned past its goal's heading goes the long way round);
+    way on its last leg within ``flip_within_m`` of its goal whose other law, alone from
+    where it is, arrives more than this sooner is tried with it from the first round (the
+    laws turn one way only: a robot that the disturbances or its peers turned past its
+    goal's heading goes the long way round; farther out the law's rotation sense is the
+    plan's way past its peers, and flips there jammed perfect robots in the car park);
     ``good_enough`` -- stop improving a
     safe plan once its makespan is within this factor of the solo lower bound.
 
@@ -57,6 +59,7 @@ class PlannerConfig:
     repair_targets: int = 3
     change_penalty_s: float = 1.0
     flip_gain_s: float = 2.0
+    flip_within_m: float = 2.0
     #: prioritised seed: delays it may give, and how far [m] beyond the separation placed
     #: paths must stay apart (half that from standing robots)
     reserve_delays_s: tuple[float, ...] = (1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 13.0, 16.0, 20.0)

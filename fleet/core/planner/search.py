@@ -7,8 +7,9 @@ bucket, :mod:`fleet.core.planner.rollout`) and sends back their scores
 
 1. **Baseline** (one round): what the robots do now (robots under way keep their law and
    delay, held robots stay held, new robots take their fastest solo law at once), each
-   robot under way whose other law alone arrives more than ``flip_gain_s`` sooner with
-   that law (and all of them together), the
+   robot under way on its last leg within ``flip_within_m`` of its goal whose other law
+   alone arrives more than ``flip_gain_s`` sooner with that law (and all of them
+   together), the
    seeds the planner passes (the prioritised plan on the solo predictions,
    :mod:`fleet.core.planner.reserve`, or the plans of clusters now merged), held robots
    released,
@@ -152,11 +153,13 @@ class ClusterSearch:
         return out
 
     def _faster_flips(self, keep: Candidate) -> list[Candidate]:
-        """``keep`` with each robot under way flipped whose other law, alone from where it
-        is (the solo predictions), arrives more than ``flip_gain_s`` sooner, and with all
-        of them flipped (the cost's change penalty still has to be paid)."""
-        rows = np.arange(self.size)
+        """``keep`` with each robot under way flipped that drives straight to its goal from
+        within ``flip_within_m`` of it and whose other law, alone from where it is (the solo
+        predictions), arrives more than ``flip_gain_s`` sooner, and with all of them
+        flipped (the cost's change penalty still has to be paid)."""
+        m, rows = self.fleet.movers, np.arange(self.size)
         gain = self.solo[rows, keep.law] - self.solo[rows, 1 - keep.law]
+        near = np.hypot(*(m.start[self._idx, :2] - m.goal[self._idx, :2]).T)
         flips = [
             i
             for i in rows.tolist()
@@ -164,6 +167,8 @@ class ClusterSearch:
             and not keep.hold[i]
             and self._flippable(i)
             and gain[i] > self.config.flip_gain_s
+            and near[i] <= self.config.flip_within_m
+            and not (m.route and len(m.route[int(self._idx[i])]))
         ]
         out = [keep.with_(i, law=1 - int(keep.law[i])) for i in flips]
         if len(flips) > 1:

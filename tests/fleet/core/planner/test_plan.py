@@ -175,14 +175,17 @@ PAST_ITS_HEADING = (1.30, -1.75, math.radians(63.0))
 
 def test_a_robot_under_way_turned_past_its_goal_takes_the_law_that_turns_back() -> None:
     """Disturbed, a robot under way may be turned past its goal's heading in its law's
-    rotation sense: that law goes the long way round. The plan flips it, as a revision,
-    when the other law alone arrives more than ``flip_gain_s`` sooner -- and the robot
-    (the replay) arrives as predicted, sooner than it would have kept on."""
+    rotation sense: that law goes the long way round. Within ``flip_within_m`` of its goal
+    the plan flips it, as a revision, when the other law alone arrives more than
+    ``flip_gain_s`` sooner -- and the robot (the replay) arrives as predicted, sooner than
+    it would have kept on."""
     snapshot = _driving_alone("ccw", PAST_ITS_HEADING, (2.5, -1.2, 0.0))
     kept = plan(snapshot, PlannerConfig(flip_gain_s=math.inf))
     result = plan(snapshot)
     (before,), (d,) = kept.decisions, result.decisions
     assert (before.action, before.law) == ("keep", "ccw")
+    farther = plan(snapshot, PlannerConfig(flip_within_m=1.0))  # 1.3 m from its goal
+    assert [(f.action, f.law) for f in farther.decisions] == [("keep", "ccw")]
     assert (d.action, d.law, d.revision) == ("revise", "cw", 2) and not d.hold
     assert d.predicted_arrival_s is not None and before.predicted_arrival_s is not None
     assert d.predicted_arrival_s < before.predicted_arrival_s - PlannerConfig().flip_gain_s

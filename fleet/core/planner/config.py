@@ -111,6 +111,8 @@ class PlannerConfig:
             raise ValueError("sample periods must be positive")
         if self.approach_m < 0 or self.pass_m <= 0 or self.route_slack_m < 0:
             raise ValueError("approach_m and route_slack_m must be >= 0, pass_m > 0")
+        if not (self.flip_gain_s >= 0 and self.flip_within_m >= 0):  # NaN too
+            raise ValueError("flip_gain_s and flip_within_m must be >= 0 (inf: no flips)")
 
 
 __all__ = ["PlannerConfig"]

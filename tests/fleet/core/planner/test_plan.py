@@ -202,6 +202,13 @@ def test_a_robot_under_way_whose_other_law_is_not_much_faster_keeps_its_law(law:
     assert (d.action, d.law) == ("keep", law)
 
 
+@pytest.mark.parametrize("field", ["flip_gain_s", "flip_within_m"])
+@pytest.mark.parametrize("value", [-1.0, math.nan])
+def test_a_negative_or_nan_flip_bound_is_refused_with_its_name(field: str, value: float) -> None:
+    with pytest.raises(ValueError, match=field):
+        PlannerConfig(**{field: value})  # type: ignore[arg-type]
+
+
 def test_a_lost_robot_far_away_is_not_part_of_the_plan() -> None:
     snapshot = swap2()
     lost = RobotSnapshot("gone", (80.0, 80.0, 0.0), RobotStatus.LOST, available=False)

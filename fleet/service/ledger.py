@@ -862,6 +862,7 @@ class TaskLedger:
         ):
             return False
         self._gave_way.add(task.id)
+        self._version += 1  # the plans route the others round it now
         return True
 
     def goes_round(self, task_id: str, robot_id: str) -> bool:

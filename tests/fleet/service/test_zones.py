@@ -212,3 +212,22 @@ def test_a_goal_in_a_site_maps_zone_is_refused_naming_it(tmp_path: Path) -> None
         f.service.submit(req(0.0, 2.0))
     finally:
         f.service.close()
+
+
+def test_a_robot_standing_aside_for_the_zone_it_waits_on_makes_a_plan_made_before_stale() -> None:
+    """r2 waits for the gate r1 holds and holds r1 off: it stands aside (the others are
+    routed round it), a change the plan depends on -- once."""
+    ledger = _ledger()
+    ledger.add(_task("t1", 5.0))
+    ledger.add(_task("t2", -5.0))
+    assert _apply(ledger, TaskDecision("t1", "r1", "assign", "cw", zones=(EAST,))) is (
+        Outcome.APPLIED
+    )
+    waits = TaskDecision("t2", "r2", "assign", "cw", hold=True, waits_for="gate")
+    assert _apply(ledger, waits) is Outcome.APPLIED
+    version = ledger.version
+    assert ledger.stands_aside(ledger.active["t2"], "r1")
+    assert ledger.version > version  # a plan made before is stale
+    version = ledger.version
+    assert not ledger.stands_aside(ledger.active["t2"], "r1")  # already aside
+    assert ledger.version == version

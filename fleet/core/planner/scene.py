@@ -408,9 +408,10 @@ def _routes(
     goes round it (:func:`_round_standing`): the robot could never reach that via-point.
     A mover a stuck recovery found stalled without a route (``wide_way``) is routed round
     the posts' Eq. (27) zones, not only their bodies (:func:`_wide`). A mover whose way
-    -- its last leg too -- passes a robot that ``gave_way`` (k,) in a standoff and stands
-    goes round that robot (:func:`_round_givers`): the laws drive straight at a robot
-    standing dead ahead, and Eq. (27) only slows them; so does a mover round the standing
+    -- its last leg too -- passes a robot standing still (one that ``gave_way`` (k,) in a
+    standoff, or any at ``standing_xy`` unless it drives its ``own_way``) goes round that
+    robot (:func:`_round_givers`): the laws drive straight at a robot standing dead ahead,
+    and Eq. (27) only slows them; so does a mover round the standing
     robots at ``round_xy[i]`` (g_i, 2) [m] that held it off in a standoff. Also which movers
     are on their last leg (``Movers.last_leg``)."""
     k = pose.shape[0]
@@ -418,9 +419,15 @@ def _routes(
     rounds = any(len(r) for r in round_xy)
     radii = np.where(np.isnan(limits[:, 3]), world.profile.radius, limits[:, 3])
     reach = radii + world.profile.radius + world.safety.contact_margin_m  # (k,) [m]
-    straight = segment_distances(standing_xy[None], pose[:, :2], goal[:, :2])[0]  # (s, k)
-    ahead = bool((straight < reach[None, :]).any()) if k else False
-    if not (world.obstacles or gave_way.any() or rounds or ahead) or k == 0:
+    if (
+        k == 0
+        or not (
+            world.obstacles
+            or gave_way.any()
+            or rounds  # else: a robot standing on a mover's straight way, (s, k) distances
+            or (segment_distances(standing_xy[None], pose[:, :2], goal[:, :2])[0] < reach).any()
+        )
+    ):
         return (), last_leg
     # shapely and networkx on first use: the fleet service plans with them, a robot never.
     from fleet.core.planner.lanes import route_graph

@@ -131,6 +131,9 @@ class LedgerConfig:
     standoff_after_s: float = math.inf
     #: [m] progress that restarts the standoff window (less in it: no way out)
     standoff_progress_m: float = 0.05
+    #: [m] a law a recovery or a standoff pinned holds until its robot has come this much
+    #: nearer its goal than it was then (:meth:`TaskLedger.pinned`)
+    pin_release_m: float = 0.5
 
 
 def ledger_config(settings: Settings) -> LedgerConfig:
@@ -225,7 +228,9 @@ class TaskLedger:
         )
         self._held: dict[str, str] = {}  # robots an operator holds still -> why
         self._avoid: dict[str, str] = {}  # task -> robot it was taken from (stuck)
-        self._pinned: dict[str, Law] = {}  # task under way -> the law a recovery chose
+        #: task under way -> the law a recovery chose, and its robot's remaining distance
+        #: to the goal then [m] (:meth:`StuckWatch.left`; inf: unknown)
+        self._pinned: dict[str, tuple[Law, float]] = {}
         self._own_way: set[str] = set()  # tasks under way a recovery took off their route
         self._wide_way: set[str] = set()  # tasks under way a recovery sent round posts' zones
         self._gave_way: set[str] = set()  # tasks whose robot gave way in a standoff, held
@@ -294,9 +299,16 @@ class TaskLedger:
         return {tid: rid for tid, rid in self._avoid.items() if tid in self._queued}
 
     def pinned(self) -> dict[str, Law]:
-        """Tasks under way whose law a stuck recovery flipped -> that law (the planner
-        keeps it: the robot was stuck with the other)."""
-        return dict(self._pinned)
+        """Tasks under way whose law a stuck recovery or a standoff flipped -> that law
+        (the planner keeps it: the robot was held with the other), until the robot has come
+        ``pin_release_m`` nearer its goal than it was then: it has left that place, and the
+        plans choose its law again (near its goal, the one that arrives sooner)."""
+        release = self.config.pin_release_m
+        return {
+            task_id: law
+            for task_id, (law, at) in self._pinned.items()
+            if not (math.isfinite(at) and self.stuck_watch.left(task_id) <= at - release)
+        }
 
     def own_way(self) -> frozenset[str]:
         """Tasks under way a stuck recovery took off their route (the planner routes them
@@ -896,7 +908,7 @@ class TaskLedger:
         if task.request.direction != "auto":
             return task.law
         law: Law = "cw" if task.law == "ccw" else "ccw"
-        self._pinned[task.id] = law
+        self._pinned[task.id] = (law, self.stuck_watch.left(task.id))
         return law
 
     def _held_revision(

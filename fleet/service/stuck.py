@@ -51,6 +51,7 @@ class _Progress:
     since: float  # [s, monotonic] when ``best`` last shrank by min_progress_m
     seen: float  # [s, monotonic] last state of the task's robot
     checked: float = -math.inf  # [s, monotonic] last distance measured
+    left: float = math.inf  # [m] the remaining distance last measured (inf: none yet)
     attempts: int = 0
     #: the standoff window, on the robot's clock [s]: its best distance, when that last
     #: shrank, its time at its last state, and whether it then reported ``avoiding``
@@ -116,7 +117,7 @@ class StuckWatch:
         if now - progress.checked < self.check_interval_s:
             return
         progress.checked = now
-        left = remaining(pose, goal, self.heading_arm)
+        left = progress.left = remaining(pose, goal, self.heading_arm)
         if left < progress.best - self.min_progress_m:
             progress.best, progress.since = left, now
 
@@ -183,6 +184,12 @@ class StuckWatch:
             return None
         progress.attempts += 1
         return RECOVERIES[progress.attempts - 1]
+
+    def left(self, task_id: str) -> float:
+        """The task's remaining distance [m] (:func:`remaining`) when last measured, at most
+        ``check_interval_s`` old while its robot drives (inf: never measured)."""
+        progress = self._tasks.get(task_id)
+        return math.inf if progress is None else progress.left
 
     def attempts(self, task_id: str) -> int:
         progress = self._tasks.get(task_id)

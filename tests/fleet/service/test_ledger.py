@@ -382,6 +382,35 @@ def test_a_stuck_task_is_recovered_in_order_then_failed() -> None:
     assert ledger.sizes()["tasks_watched_stuck"] == 0
 
 
+def test_a_pinned_law_holds_until_its_robot_has_come_nearer_its_goal() -> None:
+    """A stuck recovery pins the other law where the robot was held (3 m short of its
+    goal); the planner keeps it until the robot is ``pin_release_m`` nearer its goal --
+    it has left that place -- and then chooses the law again (near the goal: the faster)."""
+    ledger = TaskLedger(LedgerConfig(task_timeout_s=1e6, stuck_after_s=30.0))
+    ledger.add(task("t1"))  # goal (3, 0)
+    applied(ledger, assign("t1", "r1", law="ccw"), now=0.0)
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING), 0.0, WALL)
+    (stuck,) = ledger.stuck(30.0)
+    ledger.recover_stuck(stuck.id, "an obstacle in the way", 30.0, WALL)
+    assert ledger.pinned() == {"t1": "cw"}
+    resume = TaskDecision("t1", "r1", "revise", "cw", revision=1)
+    ledger.apply(resume, robot_available=False, plan_safe=True, origin_seq=None, now=31.0,
+                 wall=WALL)  # fmt: skip
+    for seq, (now, x) in enumerate([(32.0, -1.0), (33.0, 0.4), (34.0, 0.45)], start=2):
+        ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=seq, revision=2, x=x), now, WALL)
+        assert ledger.pinned() == {"t1": "cw"}  # round the way it was held: not 0.5 m nearer
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=5, revision=2, x=0.55), 35.0, WALL)
+    assert ledger.pinned() == {}
+
+
+def test_a_law_pinned_before_its_robot_was_measured_stays_pinned(ledger: TaskLedger) -> None:
+    ledger.add(task("t1"))
+    applied(ledger, assign("t1", "r1", law="ccw"))
+    ledger.break_standoff("t1", "nose to nose", 1.0, WALL)  # no state of r1 seen yet
+    ledger.observe(state("r1", "t1", RobotMode.WAITING, seq=2, revision=1, x=2.9), 2.0, WALL)
+    assert ledger.pinned() == {"t1": "cw"}
+
+
 def test_a_bay_is_held_from_the_reservation_until_the_task_ends(ledger: TaskLedger) -> None:
     t1 = task("t1", bay="A1")
     ledger.reserve(t1)

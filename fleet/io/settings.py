@@ -305,7 +305,9 @@ class Settings(RobotSettings):
     # its yard replaces ``yard``. Loaded and checked when the settings are.
     site_file: Path | None = None
     _site: Site | None = PrivateAttr(default=None)
-    # Receding horizon: the planner runs again every replan_period_s [s], when a robot is
+    # Receding horizon: the planner runs again every replan_period_s [s] of the robots' time
+    # (their measured time scale: a simulation at 5x is planned for 5x as often on the
+    # service's clock, never less often than every replan_period_s of it), when a robot is
     # farther than replan_corridor_m [m] from its predicted path at the same robot time, and
     # when two robots (one moving) come closer than safety_separation_m + this margin [m].
     replan_period_s: Annotated[float, Field(gt=0)] = 2.0

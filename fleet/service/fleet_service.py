@@ -314,6 +314,10 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         scale = (state.seq - rec.rate_seq) / self.settings.control_rate_hz / (now - rec.rate_at)
         self._time_scale = scale if self._time_scale is None else max(self._time_scale, scale)
         rec.rate_seq, rec.rate_at = state.seq, now
+        # The receding horizon's period is robot time, as the stuck and standoff windows
+        # are: a simulation at 5x is planned for as often as real robots would be (never
+        # less often than ``replan_period_s`` of the service's time).
+        self._planner.period_s = self.settings.replan_period_s / max(self._time_scale, 1.0)
 
     def _stop_stray(self, rec: RobotRecord, state: RobotState) -> Batch | None:
         """The robot drives a task that is not active: cancel it if it is known finished

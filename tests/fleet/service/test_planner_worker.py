@@ -23,7 +23,7 @@ from fleet.core.wire import ParkAssignment, Pose, RobotMode, RobotState
 from fleet.io.settings import Settings
 from fleet.service.bus import MemoryBus
 from fleet.service.clock import FakeClock
-from fleet.service.fleet_service import RESEND_INTERVAL_S, FleetService
+from fleet.service.fleet_service import RATE_WINDOW_S, RESEND_INTERVAL_S, FleetService
 from fleet.service.store import MemoryTaskStore
 from tests.fleet.service.conftest import ScriptedPlanner, assign_queued, req
 
@@ -264,3 +264,31 @@ def test_the_worker_replans_as_the_yard_changes_and_resends_only_changes(
     assert y.service.counters["replan_requests_separation"] == 1
     y.service.tick()  # still close: no new trigger
     assert len(planner.snapshots) == 5
+
+
+@pytest.mark.parametrize("scale", [1, 5])
+def test_the_periodic_plan_runs_every_replan_period_of_the_robots_time(
+    yards: Callable[..., Yard], scale: int
+) -> None:
+    """Robots whose states run ``scale`` times faster than the service's clock (a
+    time-scaled simulation) are planned for every ``replan_period_s`` of *their* time, as
+    real robots would be; robots in real time every ``replan_period_s`` of the service's."""
+    planner = ScriptedPlanner(assign_queued())
+    y = yards(planner)
+    y.join("r1", 0.0)
+    task = y.service.submit(req(5.0, 0.0))
+    y.service.tick()
+    hz, period = y.service.settings.control_rate_hz, y.service.settings.replan_period_s
+    step = period / 10  # [s] of the service's clock between states
+    seq = y.seq  # its clock runs on from the state it joined with
+    before = y.service.counters["replan_requests_period"]
+    for _ in range(40):  # 4 periods of the service's clock
+        y.clock.advance(step)
+        seq += round(step * scale * hz)
+        y.state("r1", 0.0, RobotMode.DRIVING, task.id, seq=seq)
+        y.service.tick()
+    periodic = y.service.counters["replan_requests_period"] - before
+    # The rate is measured over its first window (RATE_WINDOW_S, one period here): one
+    # plan at the end of it, then every period / scale of the service's clock.
+    expected = 1 + round((4 * period - RATE_WINDOW_S) * scale / period)
+    assert abs(periodic - expected) <= 1, (periodic, expected)

@@ -302,13 +302,16 @@ class TaskLedger:
         """Tasks under way whose law a stuck recovery or a standoff flipped -> that law
         (the planner keeps it: the robot was held with the other), until the robot has come
         ``pin_release_m`` nearer its goal than it was then: it has left that place, and the
-        plans choose its law again (near its goal, the one that arrives sooner)."""
+        plans choose its law again (near its goal, the one that arrives sooner). A pin once
+        released is gone: a robot that then backs away is not pinned again."""
         release = self.config.pin_release_m
-        return {
-            task_id: law
-            for task_id, (law, at) in self._pinned.items()
-            if not (math.isfinite(at) and self.stuck_watch.left(task_id) <= at - release)
-        }
+        for task_id in [
+            task_id
+            for task_id, (_, at) in self._pinned.items()
+            if math.isfinite(at) and self.stuck_watch.left(task_id) <= at - release
+        ]:
+            del self._pinned[task_id]
+        return {task_id: law for task_id, (law, _) in self._pinned.items()}
 
     def own_way(self) -> frozenset[str]:
         """Tasks under way a stuck recovery took off their route (the planner routes them

@@ -403,6 +403,21 @@ def test_a_pinned_law_holds_until_its_robot_has_come_nearer_its_goal() -> None:
     assert ledger.pinned() == {}
 
 
+def test_a_released_pin_stays_released_when_its_robot_backs_away() -> None:
+    ledger = TaskLedger(LedgerConfig(task_timeout_s=1e6, stuck_after_s=30.0))
+    ledger.add(task("t1"))  # goal (3, 0)
+    applied(ledger, assign("t1", "r1", law="ccw"), now=0.0)
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING), 0.0, WALL)
+    ledger.recover_stuck("t1", "an obstacle in the way", 30.0, WALL)
+    resume = TaskDecision("t1", "r1", "revise", "cw", revision=1)
+    ledger.apply(resume, robot_available=False, plan_safe=True, origin_seq=None, now=31.0,
+                 wall=WALL)  # fmt: skip
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=2, revision=2, x=1.0), 32.0, WALL)
+    assert ledger.pinned() == {}
+    ledger.observe(state("r1", "t1", RobotMode.DRIVING, seq=3, revision=2, x=-1.0), 33.0, WALL)
+    assert ledger.pinned() == {}  # the planner keeps choosing: no flip back and forth
+
+
 def test_a_law_pinned_before_its_robot_was_measured_stays_pinned(ledger: TaskLedger) -> None:
     ledger.add(task("t1"))
     applied(ledger, assign("t1", "r1", law="ccw"))

@@ -175,14 +175,19 @@ class ZoneShape:
 
 
 def may_join(
-    zone: ZoneShape, holders: Mapping[str, ZonePass | None], robot_id: str, want: ZonePass
+    zone: ZoneShape,
+    holders: Mapping[str, ZonePass | None],
+    robot_id: str,
+    want: ZonePass,
+    standing: bool = False,
 ) -> bool:
     """Whether ``robot_id`` may hold ``zone`` on pass ``want`` beside its ``holders``
-    (robot -> pass; None: it stands in the zone): it stands in the zone (it goes on, out
-    of it), nobody else holds it, or the zone allows convoys and every other holder goes
-    the same way (:meth:`ZonePass.same_way`)."""
+    (robot -> pass; None: it stands in the zone): it stands in the zone (``standing``, or
+    recorded so by the zone book -- it goes on, out of it, whatever its pass: held there it
+    would block the zone for good), nobody else holds it, or the zone allows convoys and
+    every other holder goes the same way (:meth:`ZonePass.same_way`)."""
     others = [p for r, p in holders.items() if r != robot_id]
-    if not others or (robot_id in holders and holders[robot_id] is None):
+    if not others or standing or (robot_id in holders and holders[robot_id] is None):
         return True
     return zone.convoys and all(p is not None and want.same_way(p) for p in others)
 

@@ -12,10 +12,12 @@ passes (:class:`fleet.core.zones.ZonePass`):
   (:meth:`ZoneBook.take`);
 * every state of a robot: a zone it stands in becomes its own, beside any holder (a robot
   that got there without a plan: lost on its way, an older release, swung in by a stuck
-  recovery; it goes no way, so nobody may join it, and it may always go on: holding a
-  robot inside a zone for that zone blocks the zone's holders for good -- seen on case III
-  with four robots, a robot held in the gap for 100 s while the gap's holder stood at its
-  mouth); a zone it holds is given back once it stands outside it and the
+  recovery; it goes no way, so nobody may join it), and a robot standing in a zone may
+  always go on, whatever pass it holds (:meth:`ZoneBook.can_take`): holding a robot inside
+  a zone for that zone blocks the zone's holders for good -- seen on case III with four
+  robots, a robot held in the gap for 100 s while the gap's holder stood at its mouth, and
+  in the corridor, a convoy's leader held at the far mouth in front of its followers; a
+  zone it holds is given back once it stands outside it and the
   rest of its way does not enter it (:meth:`ZoneBook.observe`) -- unless that way is no
   path: a leg of it passes through an obstacle's body grown by the robot's radius (the law
   and Eq. (27) will take the robot round the post, perhaps through the zone: a robot swung
@@ -93,6 +95,7 @@ class ZoneBook:
         self._boxes = _boxes(())
         self._holders: dict[str, dict[str, ZonePass | None]] = {}  # zone -> robot -> pass
         self._held: dict[str, set[str]] = {}  # robot -> zones
+        self._inside: dict[str, frozenset[str]] = {}  # robot -> zones it last stood in
         self.set_zones(shapes)
 
     # -- the zones ---------------------------------------------------------------------
@@ -106,6 +109,11 @@ class ZoneBook:
         for name in [n for n in self._holders if n not in self._shapes]:
             for robot in list(self._holders[name]):
                 self._drop(name, robot)
+        self._inside = {
+            robot: kept
+            for robot, zones in self._inside.items()
+            if (kept := zones & self._shapes.keys())
+        }
 
     @property
     def shapes(self) -> tuple[ZoneShape, ...]:
@@ -129,10 +137,18 @@ class ZoneBook:
 
     def can_take(self, robot_id: str, passes: Iterable[ZonePass]) -> bool:
         """Whether ``robot_id`` may hold every zone of ``passes``
-        (:func:`fleet.core.zones.may_join`; a zone gone since the plan counts as free)."""
+        (:func:`fleet.core.zones.may_join`, standing in it where :meth:`observe` last saw
+        it; a zone gone since the plan counts as free)."""
+        inside = self._inside.get(robot_id, frozenset())
         return all(
             p.zone not in self._shapes
-            or may_join(self._shapes[p.zone], self._holders.get(p.zone, {}), robot_id, p)
+            or may_join(
+                self._shapes[p.zone],
+                self._holders.get(p.zone, {}),
+                robot_id,
+                p,
+                standing=p.zone in inside,
+            )
             for p in passes
         )
 
@@ -159,8 +175,13 @@ class ZoneBook:
         if not self._shapes:
             return False
         changed = False
-        for name, shape in self._shapes.items():
-            if robot_id not in self._holders.get(name, {}) and shape.contains(x, y):
+        inside = frozenset(n for n, shape in self._shapes.items() if shape.contains(x, y))
+        if inside:
+            self._inside[robot_id] = inside
+        else:
+            self._inside.pop(robot_id, None)
+        for name in inside:
+            if robot_id not in self._holders.get(name, {}):
                 self._hold(name, robot_id, None)
                 changed = True
         mine = self._held.get(robot_id)
@@ -168,9 +189,9 @@ class ZoneBook:
             return changed
         rest: Sequence[Point] | None = None
         for name in sorted(mine):
-            shape = self._shapes[name]
-            if shape.contains(x, y):
+            if name in inside:
                 continue
+            shape = self._shapes[name]
             if way is not None:
                 if rest is None:
                     rest = way()
@@ -184,6 +205,7 @@ class ZoneBook:
         """``robot_id`` left the fleet: every zone it held is free of it; whether it held
         any."""
         zones = list(self._held.get(robot_id, ()))
+        self._inside.pop(robot_id, None)
         for z in zones:
             self._drop(z, robot_id)
         return bool(zones)

@@ -16,8 +16,10 @@ robots going its way) gets them for this plan, each with its pass
 (:class:`fleet.core.zones.ZonePass`); the zones it takes are taken for every mover after it.
 A mover one of whose zones another robot holds -- a robot standing in it, lost in it, one
 earlier in the order, or in a convoy zone one going the other way -- must hold, unless it
-stands in that zone itself (the zone book counts it a holder, :func:`fleet.core.zones.may_join`:
-held there it would block the zone for good; it goes on, out of it): it waits
+stands in that zone itself (:func:`fleet.core.zones.may_join`: held there it would block the
+zone for good -- a convoy's leader held at the far mouth, its way out bending off the
+convoy's direction, blocked its followers behind it for 280 s in the corridor; it goes on,
+out of it): it waits
 where it stands, and its reason names the zone and the holder. A plan is made with those robots
 held (:attr:`fleet.core.planner.scene.Movers.must_hold`); once the holder has left the zone
 the service gives it back and plans again, and the next robot goes. Granting every zone of
@@ -132,10 +134,11 @@ def gate(
     for i in preferred:
         me = robot_ids[i]
         passes = [z.pass_of(ways[i]) for z in needs[i]]
+        x, y = float(start[i, 0]), float(start[i, 1])
         blocked = [
             z
             for z, p in zip(needs[i], passes, strict=True)
-            if p is None or not may_join(z, taken.get(z.name, {}), me, p)
+            if p is None or not may_join(z, taken.get(z.name, {}), me, p, z.contains(x, y))
         ]
         if blocked:
             zone = blocked[0]

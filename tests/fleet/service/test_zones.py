@@ -86,6 +86,24 @@ def test_a_robot_standing_in_a_zone_another_holds_holds_it_too_and_may_go_on() -
     assert book.holding("gate") == ("holder",)
 
 
+def test_a_holder_standing_in_a_zone_may_go_on_whichever_way_it_leaves() -> None:
+    """A convoy's leader standing at the far mouth, its follower behind it: a plan that
+    sends it out of the zone off the convoy's direction is applied (held there, it would
+    block the follower for good); out of the zone, the convoy rule holds again."""
+    book = ZoneBook([ZoneShape("gate", GATE.outline, convoys=True)])
+    assert book.take("leader", [WEST]) and book.take("follower", [WEST])
+    south = ZonePass("gate", (-0.9, 0.1), (-0.9, -1.0))
+    assert not book.can_take("leader", [south])  # not yet seen in the zone
+    book.observe("leader", -0.9, 0.1, lambda: [(-0.9, 0.1), (-0.9, -3.0)])
+    assert book.can_take("leader", [south])
+    assert not book.can_take("third", [south])
+    book.observe("leader", -0.9, -1.5, lambda: [(-0.9, -1.5), (-0.9, -3.0)])
+    assert book.holding("gate") == ("follower",) and not book.can_take("leader", [south])
+    book.observe("leader", -0.9, 0.1, lambda: [(-0.9, 0.1), (-0.9, -3.0)])
+    book.release_robot("leader")
+    assert not book.can_take("leader", [south])  # removed: nothing of it is remembered
+
+
 def test_zones_that_are_gone_lose_their_holders() -> None:
     book = ZoneBook([GATE])
     book.take("r1", [EAST])

@@ -145,3 +145,23 @@ def test_a_robot_joins_a_convoy_under_way_and_never_one_coming_the_other_way() -
     standing = gate([CONVOY], {"aisle": {"lost": None}}, ["next"], np.array([False]),
                     poses((-5.0, 0.0)), [NO_ROUTE], poses((5.0, 0.0)), [0.0])  # fmt: skip
     assert standing.must_hold.tolist() == [True]  # a robot standing in it goes no way
+
+
+def test_a_convoys_leader_at_the_far_mouth_goes_on_whichever_way_it_leaves() -> None:
+    """The corridor, perfect robots: the leader of a westbound convoy stood at the west
+    mouth, inside the zone, its way out bending south to its bay (a pass 67 degrees off the
+    convoy's), its follower 0.8 m behind it in the zone; held for the zone by the follower
+    "going the other way", it blocked the follower's way out for 280 s. Standing in the zone,
+    it goes on, out of it; the same way from outside still waits for the convoy."""
+    west = ZonePass("aisle", (1.0, 0.0), (-1.0, 0.0))
+    holders = {"aisle": {"leader": west, "follower": west}}
+    out_south = [np.array([[-0.9, -0.6]])]
+    leaves = gate([CONVOY], holders, ["leader"], np.array([False]), poses((-0.9, 0.1)),
+                  out_south, poses((-3.0, -3.0)), [0.0])  # fmt: skip
+    assert not leaves.must_hold.any()
+    assert [p.zone for p in leaves.granted[0]] == ["aisle"]
+    assert leaves.granted[0][0].entry == (-0.9, 0.1)  # its pass starts where it stands
+    outside = gate([CONVOY], {"aisle": {"follower": west}}, ["other"], np.array([False]),
+                   poses((-0.9, 1.5)), [np.array([[-0.9, 0.1], [-0.9, -0.6]])],
+                   poses((-3.0, -3.0)), [0.0])  # fmt: skip
+    assert outside.must_hold.tolist() == [True]

@@ -91,6 +91,7 @@ def obstacle_offset(obstacle: ObstacleRow, px: float, py: float) -> tuple[float,
 SIDE_STEP = 0.5
 TURN_PRICE = 0.5
 HELD_TURN_RATE = 1.5  # [rad/s]
+MAX_CONSTRAINTS = 48  # half-planes the compiled step holds (its cap rows need two)
 _SQRT_HALF = math.sqrt(0.5)
 _TOL = 1e-12
 
@@ -211,12 +212,15 @@ def safety_filter(
         stop = stop or more is None
         planes += more or []
     peer_rows = len(planes)
+    along_wall = False  # a constraint of a wall the robot runs along (within 30 deg) is in
     for obstacle in obstacles:
         dx, dy = obstacle_offset(obstacle, px, py)
         gap = math.sqrt(dx * dx + dy * dy) - own - obstacle[3]
         more = _body_half_planes(dx, dy, c, s, gap, safety.spread, safety.heading, rate, reach)
         stop = stop or more is None
         planes += more or []
+        if more and len(obstacle) > 5 and 2.0 * abs(c * dx + s * dy) <= math.hypot(dx, dy):
+            along_wall = along_wall or obstacle[4:6] != obstacle[0:2]
     if stop:
         return 0.0, 0.0, True
     if not planes or _satisfies(planes, u0, w0):
@@ -230,7 +234,17 @@ def safety_filter(
     if len(planes) == peer_rows and ahead > 0.0:
         k = TURN_PRICE * (limit.half_axle if limit is not None else ahead) / ahead
         turn_cost = max(k * k, 1.0)
-    u, w = closest_feasible(planes, u0, w0 + side, turn_cost)
+    u, w = u0, w0 + side
+    capped = False
+    if along_wall and len(planes) + 2 <= MAX_CONSTRAINTS:
+        # Along a wall (not a post, not a wall ahead): turn at most HELD_TURN_RATE (or as the
+        # nominal does) when a command that does not reverse allows it; else uncapped.
+        cap = ahead * max(HELD_TURN_RATE, abs(omega0))
+        rows = [*planes, (0.0, 1.0, cap), (0.0, -1.0, cap)]
+        u, w = closest_feasible(rows, u, w, turn_cost)
+        capped = u * u0 >= 0.0 and _satisfies(rows, u, w)
+    if not capped:
+        u, w = closest_feasible(planes, u0, w0 + side, turn_cost)
     length_sq = u * u + w * w
     if length_sq > reach * reach:  # shortened to reach: towards 0 if 0 is feasible
         if not _satisfies(planes, 0.0, 0.0):

@@ -242,3 +242,87 @@ def test_a_robot_the_filter_holds_turns_no_faster_than_its_path_or_the_held_rate
     assert u < u0  # it slowed
     cap = max(ref.HELD_TURN_RATE, abs(omega0) * abs(u) / u0)
     assert abs(omega) <= cap + 1e-9
+
+
+def _corridor(half_width: float) -> list[ref.ObstacleRow]:
+    """Two walls (body 0.05 m) along x at y = +-half_width, from x = -4 to 4 [m]."""
+    return [
+        (-4.0, -half_width, 1.0, 0.05, 4.0, -half_width),
+        (4.0, half_width, 1.0, 0.05, -4.0, half_width),
+    ]
+
+
+def test_a_robot_angled_at_a_corridor_wall_slows_instead_of_spinning_back() -> None:
+    """Traced (corridor-6, disturbed: 1.1 m between the walls, the robot's own spread
+    0.17 m): 0.27 rad off the corridor's axis towards a wall, the filter turned the robot
+    back at 7.4 rad/s (a turn is cheap at the projected point 3 cm ahead), which 50-150 ms
+    of command latency carried 0.5 rad past the axis towards the other wall: a heading
+    oscillation of +-0.3-0.5 rad all the way through, at 0.55 m/s against 0.83 m/s for
+    perfect robots. Along a wall the filter now turns no faster than the nominal or
+    HELD_TURN_RATE when that is feasible, and slows down instead."""
+    safety = ref.Safety(MARGIN, PROJECTION, 5.0, 0.172)
+    u, omega, acted = ref.safety_filter(
+        (2.164, 0.003, 3.41), 0.909, -0.673, cw=True, radius=RADIUS, limit=LIMIT, peers=[],
+        obstacles=_corridor(0.6), safety=safety, dt=DT,
+    )  # fmt: skip
+    assert acted
+    assert 0.0 < u < 0.909
+    assert abs(omega) <= ref.HELD_TURN_RATE + 1e-9
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    off=st.floats(-0.5, 0.5, allow_nan=False),
+    y=st.floats(-0.05, 0.05, allow_nan=False),
+    spread=st.floats(0.0, 0.15, allow_nan=False),
+    u0=st.floats(0.1, 1.0, allow_nan=False),
+    omega0=st.floats(-3.0, 3.0, allow_nan=False),
+    cw=st.booleans(),
+    west=st.booleans(),
+)
+def test_beside_a_wall_the_filter_turns_no_faster_than_the_nominal_or_the_held_rate(
+    off: float, y: float, spread: float, u0: float, omega0: float, cw: bool, west: bool
+) -> None:
+    """In a 1.2 m corridor, the robot's body clear of both walls by its spread and the
+    step's allowance (|y| + spread <= 0.2 m: standing still is safe), its heading within
+    30 degrees of the axis either way: the command does not reverse, turns no faster than
+    max(HELD_TURN_RATE, |omega0|), and the compiled step gives the same command."""
+    theta = off + (math.pi if west else 0.0)
+    walls = _corridor(0.6)
+    safety = ref.Safety(MARGIN, PROJECTION, 5.0, spread)
+    u, omega, acted = ref.safety_filter(
+        (0.0, y, theta), u0, omega0, cw=cw, radius=RADIUS, limit=LIMIT, peers=[],
+        obstacles=walls, safety=safety, dt=DT,
+    )  # fmt: skip
+    assert u >= 0.0
+    assert abs(omega) <= max(ref.HELD_TURN_RATE, abs(omega0)) + 1e-9
+    params = step.robot_params(
+        goal=np.array([[3.0, 0.0, 0.0]]), gains=np.array([[1.0, 3.0, 1.0]]),
+        cw=np.array([1.0 if cw else 0.0]), tol_position=np.array([0.05]),
+        tol_heading=np.array([0.02]), wheel_radius=np.array([LIMIT.wheel_radius]),
+        half_axle=np.array([LIMIT.half_axle]), max_wheel_speed=np.array([LIMIT.max_wheel_speed]),
+        body_radius=np.array([RADIUS]),
+    )  # fmt: skip
+    rows = np.ascontiguousarray(np.array(walls, dtype=float).T)
+    none = np.zeros((3, 0))
+    compiled = step.safety_filter(
+        0.0, y, math.cos(theta), math.sin(theta), u0, omega0, params, 0, none,
+        np.zeros((2, 0)), 0, 0, -1, rows, (MARGIN, PROJECTION, 5.0, spread, 0.0), DT,
+    )  # fmt: skip
+    assert compiled == (u, omega, acted)
+
+
+def test_round_a_post_the_filter_still_turns_as_fast_as_it_needs() -> None:
+    """A post is passed by turning round it: the wall's turn cap does not apply there
+    (capped round posts too, case III with four robots and the car park slowed:
+    docs/benchmarks.md, twenty-seventh stop). The traced corridor scene with a post of the
+    wall's body where the wall was: the filter turns beyond HELD_TURN_RATE."""
+    safety = ref.Safety(MARGIN, PROJECTION, 5.0, 0.172)
+    x, y, theta = 2.164, 0.003, 3.41
+    px, py = x - 0.6 * math.sin(theta - math.pi), y - 0.6 * math.cos(theta - math.pi)
+    _, omega, acted = ref.safety_filter(
+        (x, y, theta), 0.909, -0.673, cw=True, radius=RADIUS, limit=LIMIT, peers=[],
+        obstacles=[(px, py, 1.0, 0.05, px, py)], safety=safety, dt=DT,
+    )  # fmt: skip
+    assert acted
+    assert abs(omega) > ref.HELD_TURN_RATE

@@ -645,9 +645,9 @@ def safety_filter(
     u, w = u0, w0 + side
     capped = -1
     if along_wall:
-        # A wall in range: turn at most HELD_TURN_RATE (or as the nominal does) when a
-        # command that does not reverse allows it -- slow down rather than turn faster
-        # than command latency can follow (module docstring); else as without the cap.
+        # Along a wall (not a post, not a wall ahead): turn at most HELD_TURN_RATE (or as
+        # the nominal does) when a command that does not reverse allows it -- slow down
+        # rather than turn faster than latency can follow (module docstring); else uncapped.
         cap = ahead * max(HELD_TURN_RATE, abs(omega0))
         capped = _add_half_plane(cons, _add_half_plane(cons, n, 0.0, 1.0, cap), 0.0, -1.0, cap)
     if capped > 0:

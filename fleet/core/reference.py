@@ -215,11 +215,12 @@ def safety_filter(
     along_wall = False  # a constraint of a wall the robot runs along (within 30 deg) is in
     for obstacle in obstacles:
         dx, dy = obstacle_offset(obstacle, px, py)
-        gap = math.sqrt(dx * dx + dy * dy) - own - obstacle[3]
+        distance = math.sqrt(dx * dx + dy * dy)
+        gap = distance - own - obstacle[3]
         more = _body_half_planes(dx, dy, c, s, gap, safety.spread, safety.heading, rate, reach)
         stop = stop or more is None
         planes += more or []
-        if more and len(obstacle) > 5 and 2.0 * abs(c * dx + s * dy) <= math.hypot(dx, dy):
+        if more and len(obstacle) > 5 and 2.0 * abs(c * dx + s * dy) <= distance:
             along_wall = along_wall or obstacle[4:6] != obstacle[0:2]
     if stop:
         return 0.0, 0.0, True

@@ -623,11 +623,12 @@ def safety_filter(
     segments = obstacles.shape[0] > END_Y
     for j in range(obstacles.shape[1]):
         dx, dy = obstacle_offset(obstacles, j, px, py)
-        gap = math.sqrt(dx * dx + dy * dy) - own - obstacles[3, j]
+        distance = math.sqrt(dx * dx + dy * dy)
+        gap = distance - own - obstacles[3, j]
         before = n
         n, hold = _add_body(cons, n, dx, dy, c, s, gap, own_spread, own_heading, rate, reach)
         stop |= hold
-        if n != before and segments and 2.0 * abs(c * dx + s * dy) <= math.hypot(dx, dy):
+        if n != before and segments and 2.0 * abs(c * dx + s * dy) <= distance:
             # a wall segment within 30 degrees of the heading (its closest point abeam)
             along_wall |= (
                 obstacles[END_X, j] != obstacles[0, j] or obstacles[END_Y, j] != obstacles[1, j]

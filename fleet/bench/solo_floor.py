@@ -16,7 +16,9 @@ fastest law), and are reported beside the makespan of every run
 * :func:`law_alone` (``law_solo_s``): the makespan if no robot ever met another -- every
   task at its arrival time plus its robot's solo time under the paper's faster law, on the
   peers' assignment (:func:`fleet.bench.peers.assign_goals`: named tasks to their robot,
-  else straight-line optimal per arrival group). It holds the laws' own convergence
+  else straight-line optimal per arrival group), straight to the goal or along the site's
+  route (no open approach point, :class:`~fleet.core.planner.PlannerConfig`: the fleet's
+  own robots can beat it by those). It holds the laws' own convergence
   (u = kx x_e slows down towards the goal, the heading is corrected on the way) and none
   of the fleet's interactions: the time the paper's law itself needs on the goals the
   peers drive to. It is an estimate, not a bound: ``auto`` may assign other goals (a
@@ -74,7 +76,8 @@ def _solo(
         control_dt=1.0 / settings.control_rate_hz,
         lanes=() if site is None else lane_shapes(site.lanes),
     )  # fmt: skip
-    fleet = build_fleet(snapshot, [(snapshot.tasks[0], snapshot.robots[0])], PlannerConfig())
+    straight = PlannerConfig(open_approach_m=())  # the law's own way (or the site's route)
+    fleet = build_fleet(snapshot, [(snapshot.tasks[0], snapshot.robots[0])], straight)
     law = int(np.argmin(np.where(fleet.movers.allowed[0], fleet.solo_time[0], np.inf)))
     return fleet, law
 

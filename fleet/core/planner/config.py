@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from fleet.core.wire import DEFAULT_PASS_M
@@ -47,6 +48,13 @@ class PlannerConfig:
     whose straight way to its goal is not clear gets via-points around the walls and posts,
     keeping its body ``contact_margin_m`` + ``route_slack_m`` clear of them, ending
     ``approach_m`` in front of its goal; it passes each within ``pass_m``.
+
+    Open approaches (:func:`fleet.core.planner.scene.build_fleet`): a new robot without a
+    route, behind its goal, is given one via-point on its goal's axis, the one of
+    ``open_approach_m`` [m] in front of the goal with which it alone arrives first, when it
+    then arrives more than ``open_approach_gain_s`` sooner than without: the laws reach the
+    goal's heading with a lateral error they can only remove with a whole turn, and from
+    near the axis they arrive without it. Empty: off.
     """
 
     exhaustive_limit: int = 4
@@ -96,6 +104,8 @@ class PlannerConfig:
     approach_m: float = 1.0
     pass_m: float = DEFAULT_PASS_M
     route_slack_m: float = 0.15
+    open_approach_m: tuple[float, ...] = (0.5, 1.0)
+    open_approach_gain_s: float = 0.5
 
     def route_clearance(self, radius: float, contact_margin_m: float) -> float:
         """[m] how far a route keeps the centre of a robot of body ``radius`` [m] from every
@@ -113,6 +123,10 @@ class PlannerConfig:
             raise ValueError("approach_m and route_slack_m must be >= 0, pass_m > 0")
         if not (self.flip_gain_s >= 0 and self.flip_within_m >= 0):  # NaN too
             raise ValueError("flip_gain_s and flip_within_m must be >= 0 (inf: no flips)")
+        if not all(0 < d < math.inf for d in self.open_approach_m):  # NaN too
+            raise ValueError("open_approach_m must be positive and finite (empty: off)")
+        if not self.open_approach_gain_s >= 0:
+            raise ValueError("open_approach_gain_s must be >= 0")
 
 
 __all__ = ["PlannerConfig"]

@@ -37,6 +37,11 @@
    ``standstill_margin_m`` (0.42 m by default) instead of ``separation_m``, and taken if it
    moves someone (noted in ``Plan.notes``). Robots whose every way comes closer than that
    still wait, with the reason.
+8. **Open approaches**: when the scene gives new robots that drive straight a via-point on
+   their goal's axis (:class:`PlannerConfig`: alone they arrive sooner by it), steps 2-6
+   run again with those points, their rollouts ending shortly after the plain plan's
+   makespan, and the fleet takes the plan whose whole rollout costs less
+   (:attr:`~fleet.core.planner.cost.Score.key`; the plain one on a tie).
 """
 
 from __future__ import annotations
@@ -466,8 +471,41 @@ def plan(snapshot: PlanningSnapshot, config: PlannerConfig | None = None) -> Pla
     )
 
 
+#: [s] the plan with open approaches is rolled out this long past the plain plan's makespan.
+_APPROACH_CAP_MARGIN_S = 1.0
+
+
 def _plan(snapshot: PlanningSnapshot, config: PlannerConfig) -> Plan:
-    """One plan keeping ``snapshot.separation_m``."""
+    """One plan keeping ``snapshot.separation_m``: without open approaches and, when the
+    scene gives new robots any, with them -- the better of the two (the whole fleet's cost,
+    :attr:`Score.key`; the plain one on a tie). Alone each robot arrives sooner by its
+    approach point, but robots that all drive straight at theirs can meet where the laws'
+    rotation senses would have taken them round each other. The second plan's rollouts
+    end shortly after the first plan's makespan (a later plan cannot win)."""
+    plain, plain_key, _ = _plan_once(snapshot, dataclasses.replace(config, open_approach_m=()))
+    if not config.open_approach_m or plain_key is None:
+        return plain
+    arrivals = [d.predicted_arrival_s for d in plain.decisions]
+    capped = config
+    if arrivals and all(a is not None for a in arrivals):
+        cap = max(a for a in arrivals if a is not None) + _APPROACH_CAP_MARGIN_S
+        capped = dataclasses.replace(
+            config, max_horizon_s=min(config.max_horizon_s, cap),
+            min_horizon_s=min(config.min_horizon_s, cap),
+        )  # fmt: skip
+    approached, key, approaches = _plan_once(snapshot, capped, only_with_approaches=True)
+    rollouts = plain.rollouts + approached.rollouts
+    if approaches and key is not None and key < plain_key:
+        note = f"open approaches: {approaches} new robot(s) via a point on their goal's axis"
+        return dataclasses.replace(approached, rollouts=rollouts, notes=(*approached.notes, note))
+    return dataclasses.replace(plain, rollouts=rollouts)
+
+
+def _plan_once(
+    snapshot: PlanningSnapshot, config: PlannerConfig, only_with_approaches: bool = False
+) -> tuple[Plan, tuple[float, ...] | None, int]:
+    """One plan, its whole fleet's cost (None without movers) and how many new robots it
+    gave an approach point (``only_with_approaches``: no plan, an empty one, when none)."""
     pairs = pair_queued(snapshot, config)
     fleet = build_fleet(snapshot, pairs, config)
     avoid = frozenset(
@@ -478,8 +516,8 @@ def _plan(snapshot: PlanningSnapshot, config: PlannerConfig) -> Plan:
     if avoid:  # another robot may take these tasks (assign's module docstring)
         pairs = pair_queued(snapshot, config, avoid)
         fleet = build_fleet(snapshot, pairs, config)
-    if fleet.movers.size == 0:
-        return Plan(snapshot.version, (), True, float("inf"))
+    if fleet.movers.size == 0 or (only_with_approaches and not fleet.approaches):
+        return Plan(snapshot.version, (), True, float("inf")), None, 0
     todo = _initial_clusters(fleet, config)
     settled: list[_Settled] = []
     rollouts, merges, round_ = 0, 0, 0
@@ -522,7 +560,7 @@ def _plan(snapshot: PlanningSnapshot, config: PlannerConfig) -> Plan:
             f"lead-in: robots under way come within {fleet.lead_min_separation:.2f} m before "
             "the plan reaches them"
         )
-    return Plan(
+    result = Plan(
         snapshot_version=snapshot.version,
         decisions=tuple(decisions),
         safe=safe,
@@ -535,6 +573,7 @@ def _plan(snapshot: PlanningSnapshot, config: PlannerConfig) -> Plan:
         corridor_slack_s=config.corridor_slack_s,
         replan_in_s=config.hold_retry_s if waiting else None,
     )
+    return result, whole.best.key, fleet.approaches
 
 
 __all__ = ["PlannerConfig", "plan"]

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fleet.core.geometry import segment_distances
+from fleet.core.geometry import segment_distances, segments_distance
 from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
 from fleet.core.planner.gates import Gates, gate, holders_of
@@ -163,6 +163,8 @@ class Fleet:
     blocks: BoolArray
     #: the single-robot zones each mover holds or waits for
     gates: Gates = field(default_factory=lambda: Gates.none(0))
+    #: new movers given an approach point in open space (:func:`_open_approaches`)
+    approaches: int = 0
 
     @property
     def top_speed(self) -> float:
@@ -327,6 +329,14 @@ def build_fleet(
     if drivable is not None:  # a route dropped: every solo again, on one time grid
         route = drivable
         solo_time, solo_times, solo_xy = solo(everyone, route)
+    approached = _open_approaches(
+        route, kind, start, goal, limits, world, config, solo_time, solo
+    )  # fmt: skip
+    approaches = 0
+    if approached is not None:  # approach points given: every solo again, on one time grid
+        approaches = sum(len(a) > 0 for a in approached) - sum(len(r) > 0 for r in route)
+        route = approached
+        solo_time, solo_times, solo_xy = solo(everyone, route)
     fastest = np.where(
         allowed[:, 0] & (~allowed[:, 1] | (solo_time[:, 0] <= solo_time[:, 1])), 0, 1
     )
@@ -376,7 +386,81 @@ def build_fleet(
         solo_xy=solo_xy,
         blocks=blocks,
         gates=gates,
+        approaches=approaches,
     )
+
+
+def _open_approaches(
+    route: Sequence[FloatArray],
+    kind: IntArray,
+    start: FloatArray,
+    goal: FloatArray,
+    limits: FloatArray,
+    world: World,
+    config: PlannerConfig,
+    solo_time: FloatArray,
+    solo: Callable[[IntArray, Sequence[FloatArray]], tuple[FloatArray, FloatArray, FloatArray]],
+) -> tuple[FloatArray, ...] | None:
+    """Every mover's route with an approach point for the new movers that drive straight
+    (:class:`PlannerConfig`, open approaches), or None when none is given one.
+
+    A candidate point lies ``d`` of ``config.open_approach_m`` [m] in front of the goal on
+    its axis; it is tried for a new mover without a route that is behind its goal by more
+    than ``d`` + ``pass_m`` (so it passes the point before it reaches the goal) and whose
+    two straight legs keep its body the route clearance from every static body. Each is
+    rolled out alone (``solo``; ``solo_time`` (k, 2) are the times without) and the fastest
+    point is kept when, with its fastest law, it arrives more than
+    ``config.open_approach_gain_s`` sooner."""
+    k = start.shape[0]
+    if k == 0 or not config.open_approach_m:
+        return None
+    routes = list(route) if route else [NO_ROUTE] * k
+    axis = np.stack([np.cos(goal[:, 2]), np.sin(goal[:, 2])], axis=1)  # (k, 2)
+    behind = -((start[:, :2] - goal[:, :2]) * axis).sum(axis=1)  # [m] along the axis
+    clearance = route_clearance(limits, world, config)
+    rows: list[int] = []
+    points: list[FloatArray] = []
+    for d in config.open_approach_m:
+        for i in range(k):
+            if kind[i] != NEW or len(routes[i]) or behind[i] <= d + config.pass_m:
+                continue
+            point = goal[i, :2] - d * axis[i]
+            if _legs_clear(start[i, :2], point, goal[i, :2], world.obstacles, clearance):
+                rows.append(i)
+                points.append(point.reshape(1, 2))
+    if not rows:
+        return None
+    idx = np.asarray(rows, dtype=np.int64)
+    with_point = solo(idx, points)[0].min(axis=1)  # (r,) [s] fastest law
+    best_now = solo_time.min(axis=1)
+    chosen: dict[int, tuple[float, FloatArray]] = {}
+    for row, i in enumerate(rows):
+        t = float(with_point[row])
+        if t < best_now[i] - config.open_approach_gain_s and t < chosen.get(i, (math.inf,))[0]:
+            chosen[i] = (t, points[row])
+    if not chosen:
+        return None
+    for i, (_, point) in chosen.items():
+        routes[i] = point
+    return tuple(routes)
+
+
+def _legs_clear(
+    start: FloatArray,
+    point: FloatArray,
+    goal: FloatArray,
+    obstacles: Sequence[Obstacle],
+    clearance: float,
+) -> bool:
+    """Whether the legs ``start`` -> ``point`` -> ``goal`` (x, y) [m] keep ``clearance``
+    [m] from every obstacle's body."""
+    s, p, g = ((float(v[0]), float(v[1])) for v in (start, point, goal))
+    for o in obstacles:
+        near, far = (o.x, o.y), o.far_end
+        for a, b in ((s, p), (p, g)):
+            if segments_distance(a, b, near, far) < o.body_radius + clearance:
+                return False
+    return True
 
 
 def _routes(
@@ -423,6 +507,7 @@ def _routes(
         k == 0
         or not (
             world.obstacles
+            or any(len(s) for s in sent)  # an approach point in open space (kept, below)
             or gave_way.any()
             or rounds  # else: a robot standing on a mover's straight way, (s, k) distances
             or (segment_distances(standing_xy[None], pose[:, :2], goal[:, :2])[0] < reach).any()

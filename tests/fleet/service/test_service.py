@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Iterator
+from functools import partial
 
 import pytest
 from support import wait_for
 
+from fleet.core.planner import PlannerConfig, plan
 from fleet.core.tasks import (
     FleetEvent,
     GoalRejected,
@@ -342,11 +345,24 @@ def _other(law: Law | None) -> Law:
     return "cw" if law == "ccw" else "ccw"
 
 
-def test_a_replan_that_changes_a_robot_under_way_sends_the_next_revision(fleet: Fleet) -> None:
+@pytest.fixture
+def straight_fleet() -> Iterator[Fleet]:
+    """A fleet whose planner gives no open approach points (the laws' own way)."""
+    f = Fleet(task_timeout_s=30.0, planner=partial(plan, config=PlannerConfig(open_approach_m=())))
+    yield f
+    f.service.close()
+
+
+def test_a_replan_that_changes_a_robot_under_way_sends_the_next_revision(
+    straight_fleet: Fleet,
+) -> None:
     """Two robots swap sides; the second one's task fixes the opposite sense of the first
-    one's law, which would make them meet head on (mixed senses collide). The planner must
-    change the robot under way (flip its law, or stop it for a while so the other passes
-    first): it gets revision 1 carrying that change, re-sent until acknowledged."""
+    one's law, which would make them meet head on (mixed senses collide). Driving the laws'
+    own way (with an open approach point the second robot goes round the first one's way
+    instead), the planner must change the robot under way (flip its law, or stop it for a
+    while so the other passes first): it gets revision 1 carrying that change, re-sent
+    until acknowledged."""
+    fleet = straight_fleet
     fleet.service.lead_time_max = 0.0  # plan from the reported poses (deterministic)
     q = math.pi / 4
     fleet.join("r0", 4.0, 0.0)

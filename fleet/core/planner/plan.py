@@ -478,10 +478,12 @@ _APPROACH_CAP_MARGIN_S = 1.0
 def _plan(snapshot: PlanningSnapshot, config: PlannerConfig) -> Plan:
     """One plan keeping ``snapshot.separation_m``: without open approaches and, when the
     scene gives new robots any, with them -- the better of the two (the whole fleet's cost,
-    :attr:`Score.key`; the plain one on a tie). Alone each robot arrives sooner by its
-    approach point, but robots that all drive straight at theirs can meet where the laws'
-    rotation senses would have taken them round each other. The second plan's rollouts
-    end shortly after the first plan's makespan (a later plan cannot win)."""
+    :attr:`Score.key`; the plain one on a tie), the second only if it brings every robot
+    to its goal within its horizon (a jam at the approach points looks no worse there than
+    robots that are merely late). Alone each robot arrives sooner by its approach point,
+    but robots that all drive straight at theirs can meet where the laws' rotation senses
+    would have taken them round each other. The second plan's rollouts end shortly after
+    the first plan's makespan (a later plan cannot win)."""
     plain, plain_key, _ = _plan_once(snapshot, dataclasses.replace(config, open_approach_m=()))
     if not config.open_approach_m or plain_key is None:
         return plain
@@ -495,7 +497,8 @@ def _plan(snapshot: PlanningSnapshot, config: PlannerConfig) -> Plan:
         )  # fmt: skip
     approached, key, approaches = _plan_once(snapshot, capped, only_with_approaches=True)
     rollouts = plain.rollouts + approached.rollouts
-    if approaches and key is not None and key < plain_key:
+    arrives = all(d.predicted_arrival_s is not None for d in approached.decisions)
+    if approaches and arrives and key is not None and key < plain_key:
         note = f"open approaches: {approaches} new robot(s) via a point on their goal's axis"
         return dataclasses.replace(approached, rollouts=rollouts, notes=(*approached.notes, note))
     return dataclasses.replace(plain, rollouts=rollouts)

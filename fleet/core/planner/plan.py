@@ -476,18 +476,25 @@ _APPROACH_CAP_MARGIN_S = 1.0
 
 
 def _plan(snapshot: PlanningSnapshot, config: PlannerConfig) -> Plan:
-    """One plan keeping ``snapshot.separation_m``: without open approaches and, when the
-    scene gives new robots any, with them -- the better of the two (the whole fleet's cost,
-    :attr:`Score.key`; the plain one on a tie), the second only if it brings every robot
-    to its goal within its horizon (a jam at the approach points looks no worse there than
-    robots that are merely late). Alone each robot arrives sooner by its approach point,
-    but robots that all drive straight at theirs can meet where the laws' rotation senses
-    would have taken them round each other. The second plan's rollouts end shortly after
-    the first plan's makespan (a later plan cannot win)."""
-    plain, plain_key, _ = _plan_once(snapshot, dataclasses.replace(config, open_approach_m=()))
-    if not config.open_approach_m or plain_key is None:
+    """One plan keeping ``snapshot.separation_m``: without open approaches and, when some
+    new robot alone would arrive through its approach point more than
+    ``open_approach_gain_s`` before the first plan brings it, with them -- the better of
+    the two (the whole fleet's cost, :attr:`Score.key`; the plain one on a tie), the second
+    only if it brings every robot to its goal within its horizon (a jam at the approach
+    points looks no worse there than robots that are merely late). Alone each robot
+    arrives sooner by its approach point, but robots that all drive straight at theirs can
+    meet where the laws' rotation senses would have taken them round each other. The
+    second plan's rollouts end shortly after the first plan's makespan (a later plan
+    cannot win)."""
+    plain, plain_key, through = _plan_once(snapshot, config, approach=False)
+    arrival = {d.robot_id: d.predicted_arrival_s for d in plain.decisions}
+    promising = any(
+        t + config.open_approach_gain_s < (arrival.get(robot) or math.inf)
+        for robot, t in through.items()
+    )
+    if not promising or plain_key is None:
         return plain
-    arrivals = [d.predicted_arrival_s for d in plain.decisions]
+    arrivals = list(arrival.values())
     capped = config
     if arrivals and all(a is not None for a in arrivals):
         cap = max(a for a in arrivals if a is not None) + _APPROACH_CAP_MARGIN_S
@@ -495,22 +502,24 @@ def _plan(snapshot: PlanningSnapshot, config: PlannerConfig) -> Plan:
             config, max_horizon_s=min(config.max_horizon_s, cap),
             min_horizon_s=min(config.min_horizon_s, cap),
         )  # fmt: skip
-    approached, key, approaches = _plan_once(snapshot, capped, only_with_approaches=True)
+    approached, key, _ = _plan_once(snapshot, capped, approach=True)
     rollouts = plain.rollouts + approached.rollouts
     arrives = all(d.predicted_arrival_s is not None for d in approached.decisions)
-    if approaches and arrives and key is not None and key < plain_key:
-        note = f"open approaches: {approaches} new robot(s) via a point on their goal's axis"
+    if arrives and key is not None and key < plain_key:
+        given = sum(bool(d.route) and d.robot_id in through for d in approached.decisions)
+        note = f"open approaches: {given} new robot(s) via a point on their goal's axis"
         return dataclasses.replace(approached, rollouts=rollouts, notes=(*approached.notes, note))
     return dataclasses.replace(plain, rollouts=rollouts)
 
 
 def _plan_once(
-    snapshot: PlanningSnapshot, config: PlannerConfig, only_with_approaches: bool = False
-) -> tuple[Plan, tuple[float, ...] | None, int]:
-    """One plan, its whole fleet's cost (None without movers) and how many new robots it
-    gave an approach point (``only_with_approaches``: no plan, an empty one, when none)."""
+    snapshot: PlanningSnapshot, config: PlannerConfig, approach: bool
+) -> tuple[Plan, tuple[float, ...] | None, dict[str, float]]:
+    """One plan (``approach``: with the open approach points the scene finds), its whole
+    fleet's cost (None without movers) and, by robot, the solo arrival time through its
+    approach point [s] of each new robot that has one."""
     pairs = pair_queued(snapshot, config)
-    fleet = build_fleet(snapshot, pairs, config)
+    fleet = build_fleet(snapshot, pairs, config, approach)
     avoid = frozenset(
         (t.task_id, fleet.movers.robot_ids[i])
         for i in stuck(fleet)
@@ -518,9 +527,9 @@ def _plan_once(
     )
     if avoid:  # another robot may take these tasks (assign's module docstring)
         pairs = pair_queued(snapshot, config, avoid)
-        fleet = build_fleet(snapshot, pairs, config)
-    if fleet.movers.size == 0 or (only_with_approaches and not fleet.approaches):
-        return Plan(snapshot.version, (), True, float("inf")), None, 0
+        fleet = build_fleet(snapshot, pairs, config, approach)
+    if fleet.movers.size == 0:
+        return Plan(snapshot.version, (), True, float("inf")), None, {}
     todo = _initial_clusters(fleet, config)
     settled: list[_Settled] = []
     rollouts, merges, round_ = 0, 0, 0
@@ -576,7 +585,12 @@ def _plan_once(
         corridor_slack_s=config.corridor_slack_s,
         replan_in_s=config.hold_retry_s if waiting else None,
     )
-    return result, whole.best.key, fleet.approaches
+    through = {
+        fleet.movers.robot_ids[i]: float(t)
+        for i, t in enumerate(fleet.approach_time)
+        if math.isfinite(t)
+    }
+    return result, whole.best.key, through
 
 
 __all__ = ["PlannerConfig", "plan"]

@@ -163,8 +163,9 @@ class Fleet:
     blocks: BoolArray
     #: the single-robot zones each mover holds or waits for
     gates: Gates = field(default_factory=lambda: Gates.none(0))
-    #: new movers given an approach point in open space (:func:`_open_approaches`)
-    approaches: int = 0
+    #: (k,) [s] each new mover's solo arrival through its open approach point (inf: none;
+    #: :func:`_open_approaches`), whether or not it was given the point
+    approach_time: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def top_speed(self) -> float:
@@ -216,9 +217,11 @@ def build_fleet(
     snapshot: PlanningSnapshot,
     pairs: Sequence[tuple[TaskSnapshot, RobotSnapshot]],
     config: PlannerConfig,
+    approach: bool = True,
 ) -> Fleet:
     """The movers (tasks under way and the ``pairs`` of new assignments), the standing
-    robots, the lead-in and the solo predictions of ``snapshot``."""
+    robots, the lead-in and the solo predictions of ``snapshot``; the new movers' open
+    approach points found (``Fleet.approach_time``) and, with ``approach``, given."""
     robots = {r.robot_id: r for r in snapshot.robots}
     tasks: list[TaskSnapshot] = []
     owners: list[RobotSnapshot] = []
@@ -329,12 +332,10 @@ def build_fleet(
     if drivable is not None:  # a route dropped: every solo again, on one time grid
         route = drivable
         solo_time, solo_times, solo_xy = solo(everyone, route)
-    approached = _open_approaches(
+    approached, approach_time = _open_approaches(
         route, kind, start, goal, limits, world, config, solo_time, solo
     )  # fmt: skip
-    approaches = 0
-    if approached is not None:  # approach points given: every solo again, on one time grid
-        approaches = sum(len(a) > 0 for a in approached) - sum(len(r) > 0 for r in route)
+    if approach and approached is not None:  # every solo again, on one time grid
         route = approached
         solo_time, solo_times, solo_xy = solo(everyone, route)
     fastest = np.where(
@@ -386,7 +387,7 @@ def build_fleet(
         solo_xy=solo_xy,
         blocks=blocks,
         gates=gates,
-        approaches=approaches,
+        approach_time=approach_time,
     )
 
 
@@ -400,9 +401,10 @@ def _open_approaches(
     config: PlannerConfig,
     solo_time: FloatArray,
     solo: Callable[[IntArray, Sequence[FloatArray]], tuple[FloatArray, FloatArray, FloatArray]],
-) -> tuple[FloatArray, ...] | None:
+) -> tuple[tuple[FloatArray, ...] | None, FloatArray]:
     """Every mover's route with an approach point for the new movers that drive straight
-    (:class:`PlannerConfig`, open approaches), or None when none is given one.
+    (:class:`PlannerConfig`, open approaches), or None when none is given one; and (k,)
+    each mover's solo arrival time through its point [s] (inf: none).
 
     A candidate point lies ``d`` of ``config.open_approach_m`` [m] in front of the goal on
     its axis; it is tried for a new mover without a route that is behind its goal by more
@@ -412,8 +414,9 @@ def _open_approaches(
     point is kept when, with its fastest law, it arrives more than
     ``config.open_approach_gain_s`` sooner."""
     k = start.shape[0]
+    times = np.full(k, np.inf)
     if k == 0 or not config.open_approach_m:
-        return None
+        return None, times
     routes = list(route) if route else [NO_ROUTE] * k
     axis = np.stack([np.cos(goal[:, 2]), np.sin(goal[:, 2])], axis=1)  # (k, 2)
     behind = -((start[:, :2] - goal[:, :2]) * axis).sum(axis=1)  # [m] along the axis
@@ -429,7 +432,7 @@ def _open_approaches(
                 rows.append(i)
                 points.append(point.reshape(1, 2))
     if not rows:
-        return None
+        return None, times
     idx = np.asarray(rows, dtype=np.int64)
     with_point = solo(idx, points)[0].min(axis=1)  # (r,) [s] fastest law
     best_now = solo_time.min(axis=1)
@@ -439,10 +442,11 @@ def _open_approaches(
         if t < best_now[i] - config.open_approach_gain_s and t < chosen.get(i, (math.inf,))[0]:
             chosen[i] = (t, points[row])
     if not chosen:
-        return None
-    for i, (_, point) in chosen.items():
+        return None, times
+    for i, (t, point) in chosen.items():
         routes[i] = point
-    return tuple(routes)
+        times[i] = t
+    return tuple(routes), times
 
 
 def _legs_clear(

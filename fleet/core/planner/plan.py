@@ -37,11 +37,12 @@
    ``standstill_margin_m`` (0.42 m by default) instead of ``separation_m``, and taken if it
    moves someone (noted in ``Plan.notes``). Robots whose every way comes closer than that
    still wait, with the reason.
-8. **Open approaches**: when the scene gives new robots that drive straight a via-point on
-   their goal's axis (:class:`PlannerConfig`: alone they arrive sooner by it), steps 2-6
-   run again with those points, their rollouts ending shortly after the plain plan's
-   makespan, and the fleet takes the plan whose whole rollout costs less
-   (:attr:`~fleet.core.planner.cost.Score.key`; the plain one on a tie).
+8. **Open approaches**: steps 2-6 run without them first. When a new robot that drives
+   straight would, alone, arrive through a via-point on its goal's axis
+   (:class:`PlannerConfig`) more than ``open_approach_gain_s`` before that plan brings it,
+   they run again with the points, their rollouts ending shortly after the first plan's
+   makespan; the fleet takes the plan with points only if its whole rollout costs less
+   (:attr:`~fleet.core.planner.cost.Score.key`) and brings every robot to its goal.
 """
 
 from __future__ import annotations
@@ -489,7 +490,7 @@ def _plan(snapshot: PlanningSnapshot, config: PlannerConfig) -> Plan:
     plain, plain_key, through = _plan_once(snapshot, config, approach=False)
     arrival = {d.robot_id: d.predicted_arrival_s for d in plain.decisions}
     promising = any(
-        t + config.open_approach_gain_s < (arrival.get(robot) or math.inf)
+        t + config.open_approach_gain_s < _or_inf(arrival.get(robot))
         for robot, t in through.items()
     )
     if not promising or plain_key is None:
@@ -510,6 +511,11 @@ def _plan(snapshot: PlanningSnapshot, config: PlannerConfig) -> Plan:
         note = f"open approaches: {given} new robot(s) via a point on their goal's axis"
         return dataclasses.replace(approached, rollouts=rollouts, notes=(*approached.notes, note))
     return dataclasses.replace(plain, rollouts=rollouts)
+
+
+def _or_inf(arrival: float | None) -> float:
+    """A predicted arrival [s], inf for a robot predicted not to arrive."""
+    return math.inf if arrival is None else arrival
 
 
 def _plan_once(

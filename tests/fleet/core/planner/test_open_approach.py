@@ -1,6 +1,6 @@
 """Open approaches (:class:`PlannerConfig`): a new robot that drives straight gets one
 via-point on its goal's axis when alone it arrives sooner by it, and the plan takes it
-only where the fleet arrives sooner with it."""
+only where the whole plan is cheaper with it and every robot arrives."""
 
 from __future__ import annotations
 

@@ -495,14 +495,12 @@ def _plan(snapshot: PlanningSnapshot, config: PlannerConfig) -> Plan:
     )
     if not promising or plain_key is None:
         return plain
-    arrivals = list(arrival.values())
-    capped = config
-    if arrivals and all(a is not None for a in arrivals):
-        cap = max(a for a in arrivals if a is not None) + _APPROACH_CAP_MARGIN_S
-        capped = dataclasses.replace(
-            config, max_horizon_s=min(config.max_horizon_s, cap),
-            min_horizon_s=min(config.min_horizon_s, cap),
-        )  # fmt: skip
+    # no cap (inf) while the first plan leaves some robot short of its goal
+    cap = max(map(_or_inf, arrival.values()), default=math.inf) + _APPROACH_CAP_MARGIN_S
+    capped = dataclasses.replace(
+        config, max_horizon_s=min(config.max_horizon_s, cap),
+        min_horizon_s=min(config.min_horizon_s, cap),
+    )  # fmt: skip
     approached, key, _ = _plan_once(snapshot, capped, approach=True)
     rollouts = plain.rollouts + approached.rollouts
     arrives = all(d.predicted_arrival_s is not None for d in approached.decisions)

@@ -214,9 +214,7 @@ class Roadmap:
     def end_clearance(self, point: Point) -> float:
         """The clearance [m] a segment ending at ``point`` [m] must keep from every body:
         ``min(clearance_m, point's distance to the nearest body - 0.01)``, never below 0."""
-        if self._tree is None:
-            return self.clearance_m
-        own = float(np.min(shapely.distance(shapely.Point(point), self._shapes) - self._bodies))
+        own = self._surface_distance(point)
         return max(0.0, min(self.clearance_m, own - END_SLACK_M))
 
     def route(
@@ -292,6 +290,12 @@ class Roadmap:
         line = _segments(np.array([a], dtype=np.float64), np.array([b], dtype=np.float64))
         return bool(self._blocked(line, need)[0])
 
+    def _surface_distance(self, point: Point) -> float:
+        """[m] from ``point`` to the nearest body's surface (inf without obstacles)."""
+        if self._tree is None:
+            return math.inf
+        return float(np.min(shapely.distance(shapely.Point(point), self._shapes) - self._bodies))
+
     def _end_need(self, point: Point) -> FloatArray:
         """How far [m] from each obstacle's segment a segment ending at ``point`` must
         stay: body + the point's own clearance (:meth:`end_clearance`)."""
@@ -299,13 +303,15 @@ class Roadmap:
 
     def _visible(self, point: Point, need: FloatArray) -> tuple[list[int], list[float]]:
         """The nodes whose segment from ``point`` is free under ``need`` and tangent to
-        the outline at the node (a shortest path uses no other; but from a ``point`` within
-        the clearance of a body on a roadmap with islands, whose sense may make another
-        cheaper, every node), and the lengths [m]."""
+        the outline at the node (from outside the outline a shortest path uses no other),
+        and the lengths [m]. From a ``point`` inside the outline -- within the clearance
+        plus the nodes' margin of a body, e.g. a robot in a corridor a little off its
+        centre line -- every node: the tangent ones may all lie behind it (it was routed
+        back out of the mouth it came in by), and an island's sense may make another
+        cheaper."""
         origin = np.array(point, dtype=np.float64)
         d = self.nodes - origin
-        priced = self._senses.tree is not None
-        inside = priced and self.end_clearance(point) < self.clearance_m
+        inside = self._surface_distance(point) < self.clearance_m + _margin(self.clearance_m)
         tangent = _one_side(d, self.nodes, self._before, self._after)
         ids = np.arange(len(d)) if inside else np.flatnonzero(tangent)
         if len(ids) == 0:

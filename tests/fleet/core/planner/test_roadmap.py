@@ -196,6 +196,31 @@ def test_a_robot_closer_than_the_clearance_to_a_post_still_leaves_and_parks() ->
     assert_keeps_clearance(obstacles, CLEARANCE, start, goal, 1.0, route)
 
 
+# Two rooms joined by a corridor 1.2 m wide along y = 0, its mouths at x = -4 and x = 4.
+CORRIDOR = [
+    wall((-4.0, 0.6), (4.0, 0.6)), wall((-4.0, -0.6), (4.0, -0.6)),
+    wall((-4.0, 0.6), (-4.0, 5.0)), wall((-4.0, -0.6), (-4.0, -5.0)),
+    wall((4.0, 0.6), (4.0, 5.0)), wall((4.0, -0.6), (4.0, -5.0)),
+]  # fmt: skip
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-3.9, 3.9), st.floats(-0.3, 0.3), st.booleans(), st.booleans())
+def test_a_robot_in_a_corridor_is_routed_out_of_the_mouth_ahead_not_back(
+    x: float, y: float, east: bool, north: bool
+) -> None:
+    """Off the corridor's centre line by up to 0.3 m -- where the roadmap's nodes, a margin
+    beyond the clearance, no longer bound the free space -- a robot bound for a bay in
+    either room leaves by the mouth on that side: no via-point behind it (the robot drove
+    back to the mouth it had come in by, and met the robots following it)."""
+    roadmap = Roadmap.build(CORRIDOR, CLEARANCE)
+    goal = (8.5 if east else -8.5, 3.5 if north else -3.5, math.pi / 2 if north else -math.pi / 2)
+    route = roadmap.route((x, y), goal, 1.0)
+    assert route is not None
+    assert all(vx >= x if east else vx <= x for vx, _ in route), route
+    assert_keeps_clearance(CORRIDOR, CLEARANCE, (x, y), goal, 1.0, route)
+
+
 def test_the_car_park_is_entered_through_the_gate() -> None:
     site = load_site(CARPARK)
     obstacles = site.static_obstacles()

@@ -91,6 +91,7 @@ def obstacle_offset(obstacle: ObstacleRow, px: float, py: float) -> tuple[float,
 SIDE_STEP = 0.5
 TURN_PRICE = 0.5
 HELD_TURN_RATE = 1.5  # [rad/s]
+SIDE_TIE_M = 0.05  # [m]
 MAX_CONSTRAINTS = 48  # half-planes the compiled step holds (its cap rows need two)
 _SQRT_HALF = math.sqrt(0.5)
 _TOL = 1e-12
@@ -181,9 +182,11 @@ def safety_filter(
     obstacles: Sequence[ObstacleRow],
     safety: Safety,
     dt: float,
+    via: tuple[float, float] | None = None,
 ) -> tuple[float, float, bool]:
     """(u, omega) closest to the nominal that keeps every body clear, and whether it acted
-    (the maths of ``fleet.core.step.safety_filter``; ``obstacles`` as in :func:`step`)."""
+    (the maths of ``fleet.core.step.safety_filter``; ``obstacles`` as in :func:`step`;
+    ``via``: the via-point (x, y) [m] the robot aims at, None on its goal's leg)."""
     x, y, theta = pose
     c, s = math.cos(theta), math.sin(theta)
     ahead, rate = safety.projection, safety.rate
@@ -203,6 +206,7 @@ def safety_filter(
     own = radius + ahead + safety.margin + eps
     planes: list[tuple[float, float, float]] = []
     stop = False
+    binding: list[Body] = []  # peers whose constraint is in
     for peer in peers:
         dx = peer.x + ahead * math.cos(peer.theta) - px
         dy = peer.y + ahead * math.sin(peer.theta) - py
@@ -211,6 +215,8 @@ def safety_filter(
         more = _body_half_planes(dx, dy, c, s, gap, spread, safety.heading, 0.5 * rate, reach)
         stop = stop or more is None
         planes += more or []
+        if more:
+            binding.append(peer)
     peer_rows = len(planes)
     along_wall = False  # a constraint of a wall the robot runs along (within 30 deg) is in
     for obstacle in obstacles:
@@ -227,7 +233,15 @@ def safety_filter(
     if not planes or _satisfies(planes, u0, w0):
         return u0, omega0, False
     side = SIDE_STEP / (1.0 + SIDE_STEP) * reach
-    if cw:
+    right = cw
+    if via is not None and len(planes) == peer_rows and len(binding) == 1:
+        # On a via leg with one peer binding and nothing else: away from it, seen from the
+        # straight way to the via-point; dead ahead, the law's side.
+        ax, ay = via[0] - x, via[1] - y
+        across = ax * (binding[0].y - y) - ay * (binding[0].x - x)
+        if abs(across) > SIDE_TIE_M * math.sqrt(ax * ax + ay * ay):
+            right = across > 0.0
+    if right:
         side = -side
     # Among peers only, a change of w = l omega costs (TURN_PRICE b / l)^2 beside u's
     # (at least 1); with a static body in range, 1 (turn along it).
@@ -388,12 +402,14 @@ def step(
     obstacles: Sequence[ObstacleRow] = (),
     hold: bool = False,
     safety: Safety | None = None,
+    on_via: bool = False,
 ) -> Step:
     """One closed-loop step of ``dt`` [s]: error (5), law (17)/(20), repulsion (27) from
     ``peers`` within the peer radius and ``obstacles`` (x, y, influence radius, body
     radius[, end x, end y]: a post, or a wall segment from (x, y) to the end) within their
     influence radius, saturation, the safety filter (``safety``),
-    saturation again, Euler on (3). ``hold``: stand still."""
+    saturation again, Euler on (3). ``hold``: stand still. ``on_via``: ``goal`` is a
+    via-point the robot faces (the filter's side, :func:`safety_filter`)."""
     x, y, theta = pose
     error = pose_error(pose, goal, cw)
     if hold:
@@ -422,7 +438,7 @@ def step(
         u, omega, acted = safety_filter(
             pose, u, omega, cw=cw, radius=avoidance.radius if avoidance else 0.0, limit=limit,
             peers=peers, obstacles=obstacles, safety=safety,
-            dt=dt,
+            dt=dt, via=(goal[0], goal[1]) if on_via else None,
         )  # fmt: skip
         if acted:
             if limit is not None:

@@ -71,8 +71,15 @@ scaled back to V (feasible: every constraint holds 0; else a standstill). Bodies
 constraint cannot bind (c >= V) are skipped -- a peer by its centre's distance, before
 its projected point is computed (|p_i - p_j| is within 2 l of it). When it binds, the
 aim is shifted sideways by ``SIDE_STEP`` |v0| in the law's rotation sense (robots meeting
-head-on pass each other). Running along a wall (a wall segment in range whose closest
-point is within 30 degrees of abeam: the heading within 30 degrees of the wall) the
+head-on pass each other) -- but on a leg to a via-point (``ON_VIA``) with one peer binding
+and nothing else, away from that peer, seen from the straight way to the via-point (the
+law's sense when the peer is within ``SIDE_TIE_M`` of the way): the law facing a
+via-point turns the shorter way, so its sense flips as the via-point crosses dead ahead,
+and a robot routed past a standing peer turned back and forth at it for good; among
+several peers the law's common sense keeps a crowd turning one way (away from the nearest
+one, crowds of swapping robots turned back and forth; docs/benchmarks.md, thirtieth
+stop). Running along a wall (a wall segment in range whose closest point is within 30
+degrees of abeam: the heading within 30 degrees of the wall) the
 command also turns no faster than ``HELD_TURN_RATE`` or the nominal, whichever is more,
 when some command that does not reverse allows it (two more half-planes |w| <= l
 max(HELD_TURN_RATE, |omega0|); else the closest without them): a turn at the point 3 cm
@@ -145,7 +152,8 @@ DELAY_END = 13  # [s] the robot is held while t < DELAY_END (batch only; -inf = 
 ROUTE_LAST = 14  # column of the robot's goal in the route table (batch only; -1: no route)
 PASS_SQ = 15  # squared pass-through radius [m^2] of the route's via-points
 SMOOTHING = 16  # [m] width of Eq. (27)'s smoothed bands (0: the paper's term; repulsion_term)
-ROBOT_COLUMNS = 17
+ON_VIA = 17  # 1.0 while the robot aims at a via-point of its route, not its goal (aim)
+ROBOT_COLUMNS = 18
 
 # Rows of a route table (``route[:, k]``): the points a robot aims at in turn, its via-points
 # then its goal (world frame). A robot aims at entry k until its centre comes within the
@@ -418,6 +426,9 @@ _FEASIBLE_TOL = 1e-12  # [m/s] slack of a constraint check
 _CULL_SLACK = 1e-6  # [m] beyond rounding: a culled body is one whose constraint is skipped
 #: Sideways aim of a bound command, a fraction of |v0| in l omega (law's rotation sense).
 SIDE_STEP = 0.5
+#: [m] on a via leg, the one binding peer's centre within this of the straight way to
+#: the via-point is dead ahead: the sideways aim keeps the law's sense (module docstring).
+SIDE_TIE_M = 0.05
 #: Share of the wheels' price of a turn (b domega) in the filter's metric among peers.
 TURN_PRICE = 0.5
 
@@ -601,6 +612,7 @@ def safety_filter(
     n = 0
     stop = False
     half = 0.5 * rate
+    binding, near_x, near_y = 0, 0.0, 0.0  # peers whose constraint is in; the last one
     # A peer whose centre is farther than this cannot bind (|p_j - p_i| is within 2 l of the
     # centres' distance; the slack keeps the cull from ever skipping one the test keeps).
     far = reach / half + own + 3.0 * ahead + own_spread + _CULL_SLACK
@@ -616,8 +628,11 @@ def safety_filter(
         dy = positions[1, j] + ahead * math.sin(th) - py
         gap = math.sqrt(dx * dx + dy * dy) - own - shapes[0, j] - ahead
         spread = own_spread + shapes[1, j]
+        before = n
         n, hold = _add_body(cons, n, dx, dy, c, s, gap, spread, own_heading, half, reach)
         stop |= hold
+        if n != before:
+            binding, near_x, near_y = binding + 1, ex, ey
     peer_rows = n
     along_wall = False  # a constraint of a wall the robot runs along is in
     segments = obstacles.shape[0] > END_Y
@@ -640,7 +655,15 @@ def safety_filter(
     # Bound: aim to the side of the law's rotation sense (left for (17), right for (20)),
     # so that robots meeting head-on pass each other instead of stopping nose to nose.
     side = SIDE_STEP / (1.0 + SIDE_STEP) * reach
-    if params[i, CW] != 0.0:
+    right = params[i, CW] != 0.0
+    if params[i, ON_VIA] != 0.0 and n == peer_rows and binding == 1:
+        # On a via leg with one peer binding and nothing else: away from it, seen from the
+        # straight way to the via-point; dead ahead, the law's side.
+        ax, ay = params[i, GOAL_X] - x, params[i, GOAL_Y] - y
+        across = ax * near_y - ay * near_x
+        if abs(across) > SIDE_TIE_M * math.sqrt(ax * ax + ay * ay):
+            right = across > 0.0
+    if right:
         side = -side
     turn_cost = _turn_cost(b, ahead, n == peer_rows)
     u, w = u0, w0 + side
@@ -750,6 +773,7 @@ def _aim(
             break  # the next leg cuts a corner from here: drive on to the via-point
         leg += 1
     params[i, GOAL_X], params[i, GOAL_Y] = route[VIA_X, leg], route[VIA_Y, leg]
+    params[i, ON_VIA] = 1.0 if leg < last else 0.0
     if leg < last:  # a via-point: face it, turning the shorter way (right: law (20))
         dx, dy = route[VIA_X, leg] - x, route[VIA_Y, leg] - y
         params[i, GOAL_HEADING] = wrap_to_2pi(math.atan2(dy, dx))
@@ -781,8 +805,8 @@ def aim(
     via-point and drives on. Both laws command u = kx x_e, so the distance to the via-point
     never grows (the Lyapunov-like L = (x_e^2 + y_e^2) / 2 of Eq. (10.a),
     ``fleet.core.switching``) and the robot reaches it. Last comes the goal with the task's
-    law. Writes the goal columns of ``params[0]``; the agent calls it before its tick's
-    step and the batch before each step (the same code: the planner predicts it).
+    law. Writes the goal columns of ``params[0]`` and ``ON_VIA``; the agent calls it before
+    its tick's step and the batch before each step (the same code: the planner predicts it).
     """
     return _aim(x, y, theta, params, 0, route, leg, obstacles)
 
@@ -1031,6 +1055,7 @@ def robot_params(
     params[:, ROUTE_LAST] = -1.0 if route_last is None else route_last
     params[:, PASS_SQ] = np.square(pass_radius)
     params[:, SMOOTHING] = smoothing
+    params[:, ON_VIA] = 0.0
     return params
 
 

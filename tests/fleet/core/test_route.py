@@ -15,8 +15,10 @@ from fleet.core import step
 from fleet.core.params import RobotProfile, SafetyConfig
 from fleet.core.route import remaining, route_table
 from fleet.core.simulate import BatchProblem, batch_filter, obstacle_columns, simulate
+from fleet.core.tasks import DEFAULT_GAINS
 from fleet.core.types import Law, Posture
 from fleet.core.wire import Obstacle, ParkAssignment, parse_assignment
+from fleet.io.settings import load_settings
 from robot_agent.logic import AgentTask, apply_assignment, decide, obstacle_arrays
 
 PROFILE = RobotProfile(wheel_radius=0.05, half_axle=0.15, max_wheel_speed=10.0, radius=0.2)
@@ -185,3 +187,33 @@ def test_a_via_point_is_passed_early_only_where_the_next_leg_clears_the_corner()
     assert step.aim(0.3, 2.05, 0.0, params, table, 0, wall) == 1
     # within half the pass radius it is passed anyway (peers may crowd the corner)
     assert step.aim(-0.2, 2.0, 0.0, params, table, 0, wall) == 1
+
+
+@pytest.mark.parametrize("law", ["cw", "ccw"])
+@pytest.mark.parametrize("beside", [-0.5, -0.3, 0.3, 0.5])
+@pytest.mark.parametrize("along", [1.0, 1.5])
+def test_a_robot_routed_past_a_standing_peer_goes_round_it_and_arrives(
+    law: Law, beside: float, along: float
+) -> None:
+    """A via-point 3 m dead ahead, a standing peer ``along`` m down the leg and ``beside``
+    m to its side, the planner's model with the default bounds: the filter's sideways aim
+    takes the robot round the peer on the side away from it, and it arrives. With the side
+    of the law facing the via-point (the shorter way, flipping as the via-point crosses
+    dead ahead) it turned back and forth 0.8 m from the peer until the end of the run:
+    360-390 reversals of omega in 20 s, never arriving (docs/benchmarks.md)."""
+    defaults = load_settings()
+    avoidance = defaults.avoidance
+    peer = (along, beside, 1.0)
+    problem = BatchProblem.build(
+        [(0.0, 0.0, 0.0), peer], [(4.5, 0.0, 0.0), peer],
+        [DEFAULT_GAINS[law], DEFAULT_GAINS["ccw"]], [law, "ccw"], profile=defaults.profile,
+        k_avoid=avoidance.k_avoid, peer_radius=avoidance.peer_radius,
+        min_x_oa=avoidance.min_x_oa, smoothing=avoidance.smoothing_m,
+        safety=batch_filter(defaults.safety), start_delay=[0.0, math.inf],
+        routes=[np.array([(3.0, 0.0)]), None], pass_radius=0.5,
+    )  # fmt: skip
+    result = simulate(problem, dt=DT, max_time=20.0, record=True)
+    assert result.trajectory is not None and result.done[0]
+    poses = result.trajectory.poses[:, 0, :]
+    abreast = poses[np.abs(poses[:, 0] - along) < 0.1]
+    assert len(abreast) and (abreast[:, 1] * beside < 0.0).all()  # round the far side

@@ -84,24 +84,27 @@ class Situation:
     peers: list[reference.Body]
     obstacles: list[reference.ObstacleRow]
     safety: reference.Safety | None = None
+    on_via: bool = False  # the goal is a via-point the robot faces (the filter's side)
 
     def compiled(self, limit: float | None = None) -> step.StepResult:
         """The compiled step (``limit`` overrides the wheel limit)."""
         wheel_limit = self.limit if limit is None else limit
+        params = _params(
+            self.goal,
+            self.gains,
+            self.law,
+            wheel_limit,
+            self.avoidance.radius,
+            self.avoidance.smoothing,
+        )
+        params[0, step.ON_VIA] = 1.0 if self.on_via else 0.0
         bodies = np.array(
             [(b.x, b.y, b.theta, b.radius, b.spread) for b in self.peers], dtype=np.float64
         ).reshape(-1, 5)
         safety = self.safety
         return step.step_robot(
             self.pose,
-            _params(
-                self.goal,
-                self.gains,
-                self.law,
-                wheel_limit,
-                self.avoidance.radius,
-                self.avoidance.smoothing,
-            ),
+            params,
             peers=bodies[:, :3].T.copy(),
             shapes=bodies[:, 3:].T.copy(),
             obstacles=np.array(self.obstacles, dtype=np.float64).reshape(-1, 6).T.copy(),
@@ -128,6 +131,7 @@ situations = st.builds(
     peers_st,
     obstacles_st,
     safety_st,
+    st.booleans(),
 )
 
 
@@ -252,7 +256,7 @@ def test_compiled_step_equals_the_plain_python_reference(sit: Situation) -> None
     ref = reference.step(
         sit.pose, sit.goal, sit.gains, sit.law == "cw", 0.02,
         wheel, avoidance=sit.avoidance, peers=sit.peers,
-        obstacles=sit.obstacles, safety=sit.safety,
+        obstacles=sit.obstacles, safety=sit.safety, on_via=sit.on_via,
     )  # fmt: skip
     assert (got.x_e, got.y_e, got.theta_e) == ref.error
     assert (got.u, got.omega, got.repulsion, got.avoiding) == (
@@ -286,13 +290,14 @@ def test_the_filter_s_cull_skips_only_peers_the_reference_skips(
         for d, bearing, theta, body in nearby
     ]
     near = Situation(
-        sit.pose, sit.goal, sit.gains, sit.law, sit.limit, sit.avoidance, peers, [], safety
-    )
+        sit.pose, sit.goal, sit.gains, sit.law, sit.limit, sit.avoidance, peers, [], safety,
+        sit.on_via,
+    )  # fmt: skip
     got = near.compiled()
     ref = reference.step(
         near.pose, near.goal, near.gains, near.law == "cw", 0.02,
         reference.WheelLimit(R, B, near.limit), avoidance=near.avoidance, peers=peers,
-        obstacles=[], safety=safety,
+        obstacles=[], safety=safety, on_via=near.on_via,
     )  # fmt: skip
     assert (got.u, got.omega, got.avoiding) == (ref.u, ref.omega, ref.avoiding)
     assert (got.x, got.y, got.theta) == ref.pose
@@ -324,6 +329,7 @@ def test_omega_sign_wheel_limit_and_curvature_hold_for_every_step(sit: Situation
     law,
     st.sampled_from([0.0, 0.05, 1.0, 4.0]),
     peers_st,
+    st.booleans(),
 )
 def test_the_filter_never_closes_on_a_peer_at_the_margin(
     heading_: float,
@@ -334,16 +340,18 @@ def test_the_filter_never_closes_on_a_peer_at_the_margin(
     law_name: Law,
     k_avoid: float,
     others: list[reference.Body],
+    on_via: bool,
 ) -> None:
     """With the projected discs at or within the margin of a peer's, whatever the law, the
-    gains and the other peers: the step never brings the discs closer (the barrier's
+    gains, the other peers and the side the filter aims at (a via leg's or the law's): the
+    step never brings the discs closer (the barrier's
     bound is <= 0 there; the second-order allowance is part of it)."""
     avoidance = reference.Avoidance(k_avoid=k_avoid, peer_radius=1.0, min_x_oa=0.05, radius=0.2)
     safety = reference.Safety(0.05, 0.03, 5.0, 0.0)
     peer = reference.Body(distance * math.cos(bearing), distance * math.sin(bearing), 0.0, 0.2)
     pose = (0.0, 0.0, heading_)
     got = Situation(
-        pose, goal, gains, law_name, 20.0, avoidance, [*others, peer], [], safety
+        pose, goal, gains, law_name, 20.0, avoidance, [*others, peer], [], safety, on_via
     ).compiled()
 
     def disc_gap(x: float, y: float, theta: float) -> float:

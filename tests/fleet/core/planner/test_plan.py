@@ -302,7 +302,8 @@ def test_held_tasks_are_released_once_it_is_safe() -> None:
 def test_robots_under_way_are_rolled_on_until_the_plan_reaches_them() -> None:
     snapshot = swap2()
     first = plan(snapshot)
-    moving = dataclasses.replace(moved_on(snapshot, first, 0.0), lead_time_s=1.0)
+    under_way = max(d.start_delay_s for d in first.decisions)  # every start delay over
+    moving = dataclasses.replace(moved_on(snapshot, first, under_way), lead_time_s=1.0)
     result = plan(moving)
     for r, d in zip(moving.robots, result.decisions, strict=True):
         t0, x0, y0 = d.corridor[0]

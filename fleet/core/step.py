@@ -424,7 +424,7 @@ MAX_CONSTRAINTS = 48
 _SQRT_HALF = math.sqrt(0.5)
 _FEASIBLE_TOL = 1e-12  # [m/s] slack of a constraint check
 _CULL_SLACK = 1e-6  # [m] beyond rounding: a culled body is one whose constraint is skipped
-#: Sideways aim of a bound command, a fraction of |v0| in l omega (law's rotation sense).
+#: Sideways aim of a bound command, a fraction of |v0| in l omega (its side: module docstring).
 SIDE_STEP = 0.5
 #: [m] on a via leg, the one binding peer's centre within this of the straight way to
 #: the via-point is dead ahead: the sideways aim keeps the law's sense (module docstring).

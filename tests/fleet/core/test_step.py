@@ -344,8 +344,8 @@ def test_the_filter_never_closes_on_a_peer_at_the_margin(
 ) -> None:
     """With the projected discs at or within the margin of a peer's, whatever the law, the
     gains, the other peers and the side the filter aims at (a via leg's or the law's): the
-    step never brings the discs closer (the barrier's
-    bound is <= 0 there; the second-order allowance is part of it)."""
+    step never brings the discs closer (the barrier's bound is <= 0 there; the
+    second-order allowance is part of it)."""
     avoidance = reference.Avoidance(k_avoid=k_avoid, peer_radius=1.0, min_x_oa=0.05, radius=0.2)
     safety = reference.Safety(0.05, 0.03, 5.0, 0.0)
     peer = reference.Body(distance * math.cos(bearing), distance * math.sin(bearing), 0.0, 0.2)

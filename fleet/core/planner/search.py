@@ -18,10 +18,7 @@ bucket, :mod:`fleet.core.planner.rollout`) and sends back their scores
    six new robots or more routed round one lone post or wall -- an order in two waves:
    every other one of them round it waits each of ``delays_s`` (robots crowding a
    roundabout fill the circle round its zone and crawl all at once; docs/benchmarks.md,
-   eighteenth stop); -- with six new robots or more whose goals are each other's starts
-   (a swap) -- orders in two to four waves of whole cycles (:func:`crowd_orders`), each
-   later wave waiting each of ``delays_s`` once more, two waves also with every seed's
-   laws (all at once such a crowd packs the centre and crawls; thirty-first stop).
+   eighteenth stop).
 2. **Local search** (up to ``rounds`` rounds, ``budget`` rollouts): from the best so far,
    single-robot moves, all rolled out in one round. When the best is unsafe, for the robots
    of its closest pairs: flip the law, wait longer (``delays_s`` added to the start delay),
@@ -51,62 +48,12 @@ from fleet.core.planner.clusters import Cluster
 from fleet.core.planner.config import PlannerConfig
 from fleet.core.planner.cost import Score
 from fleet.core.planner.scene import HELD, NEW, UNDER_WAY, Candidate, Fleet, route_clearance
-from fleet.core.types import FloatArray, IntArray
+from fleet.core.types import IntArray
 
 #: [s] rollouts run this long past the best known makespan (see the module docstring).
 _CUT_MARGIN = 1.0
 #: New robots routed round one lone obstacle from which the baseline also tries two waves.
 _WAVE_MIN = 6
-#: A crowd whose goals are each other's starts is also tried in up to this many waves.
-_WAVES_MAX = 4
-
-
-def goal_cycles(start: FloatArray, goal: FloatArray, within: float) -> list[list[int]]:
-    """The cycles of "my goal is your start" among robots with positions ``start`` and
-    ``goal`` (k, 2) [m]: robot a leads to the robot whose start is nearest a's goal, if
-    within ``within`` [m]; each cycle in the order its robots lead to one another (robots
-    on no cycle are left out)."""
-    if not len(start):
-        return []
-    gap = np.hypot(*(goal[:, None, :] - start[None, :, :]).transpose(2, 0, 1))
-    successor = np.where(gap.min(axis=1) <= within, gap.argmin(axis=1), -1).tolist()
-    cycles: list[list[int]] = []
-    seen: set[int] = set()
-    for first in range(len(start)):
-        path: list[int] = []
-        at = first
-        while at >= 0 and at not in seen and at not in path:
-            path.append(at)
-            at = successor[at]
-        seen.update(path)
-        if at >= 0 and at in path:  # closed: the cycle is the path from ``at`` on
-            cycles.append(path[path.index(at) :])
-    return cycles
-
-
-def crowd_orders(
-    start: FloatArray, goal: FloatArray, within: float, min_robots: int = 6, max_waves: int = 4
-) -> list[FloatArray]:
-    """Orders "these go, those follow" for a crowd whose goals are each other's starts (a
-    swap): when at least ``min_robots`` robots form two or more
-    :func:`goal_cycles`, the cycles dealt by bearing round the crowd's centre into 2 to
-    ``max_waves`` waves. Each order gives every robot (k,) its wave number (0: goes at
-    once; robots on no cycle go at once). All at once such a crowd packs the centre and
-    crawls; a whole cycle waits together, so nobody of a later wave stands on a goal of an
-    earlier one. Empty: none."""
-    cycles = goal_cycles(start, goal, within)
-    if len(cycles) < 2 or sum(map(len, cycles)) < min_robots:
-        return []
-    centre = np.mean(start[[i for c in cycles for i in c]], axis=0)
-    bearing = np.arctan2(start[:, 1] - centre[1], start[:, 0] - centre[0])
-    cycles.sort(key=lambda c: float(bearing[c].min()))
-    orders = []
-    for waves in range(2, min(max_waves, len(cycles)) + 1):
-        wave = np.zeros(len(start))
-        for rank, cycle in enumerate(cycles):
-            wave[cycle] = rank % waves
-        orders.append(wave)
-    return orders
 
 
 class ClusterSearch:
@@ -199,13 +146,10 @@ class ClusterSearch:
                 c.law[free] = combo
                 out.append(c)
         later = self._every_other_round()
-        orders = [np.isin(np.arange(self.size), later).astype(np.float64)] if len(later) else []
-        if not orders:
-            orders = self._crowd_waves()
-        for wave in orders:  # two waves: with the seeds' senses too (a crowd may jam in one)
-            senses = [released.law, *(s.law for s in self._seeds)] if wave.max() == 1 else []
-            for law, d in itertools.product(senses or [released.law], self.config.delays_s):
-                out.append(Candidate(law.copy(), released.delay + d * wave, released.hold.copy()))
+        for d in self.config.delays_s if len(later) else ():
+            c = Candidate(released.law.copy(), released.delay.copy(), released.hold.copy())
+            c.delay[later] += d
+            out.append(c)
         return out
 
     def _faster_flips(self, keep: Candidate) -> list[Candidate]:
@@ -262,28 +206,6 @@ class ClusterSearch:
                 order = np.asarray(users)[np.argsort(bearings, kind="stable")]
                 return np.asarray(order[1::2], dtype=np.int64)
         return none
-
-    def _crowd_waves(self) -> list[FloatArray]:
-        """Orders "these go, those follow" for a crowd of new robots whose goals are each
-        other's starts (:func:`crowd_orders`, at least ``_WAVE_MIN`` of them); each order
-        is every robot's wave number (0: goes at once). Empty: none."""
-        new = np.flatnonzero(self._kind == NEW)
-        if len(new) < _WAVE_MIN:
-            return []
-        m = self.fleet.movers
-        orders = crowd_orders(
-            m.start[self._idx[new], :2],
-            m.goal[self._idx[new], :2],
-            self.fleet.separation,
-            min_robots=_WAVE_MIN,
-            max_waves=_WAVES_MAX,
-        )
-        out = []
-        for order in orders:
-            wave = np.zeros(self.size)
-            wave[new] = order
-            out.append(wave)
-        return out
 
     def _repairs(self, best: Score) -> list[Candidate]:
         """Moves for the robots of an unsafe candidate's closest pairs."""
@@ -492,4 +414,4 @@ class ClusterSearch:
             self.memo[key] = replace(old, outcome=None)
 
 
-__all__ = ["ClusterSearch", "crowd_orders", "goal_cycles"]
+__all__ = ["ClusterSearch"]

@@ -133,22 +133,3 @@ def test_sixteen_robots_crossing_a_roundabout_go_in_two_waves_and_all_park() -> 
     assert not any(ring[k] in waits and ring[(k + 1) % 16] in waits for k in range(16))
     run = run_closed_loop(scenario, "auto", plan, time_limit_s=60.0)
     assert run.success_rate == 1.0 and run.collisions == 0
-
-
-def test_sixteen_robots_swapping_places_go_in_waves_of_whole_pairs_and_all_park() -> None:
-    """Sixteen robots on a circle, each to the antipodal point (the benchmark's mirrored
-    swap): all at once they pack the centre and crawl (offline 62.7 s before the crowd's
-    orders); the first plan now sends them in waves -- a pair of robots whose goals are
-    each other's starts always waits together, so nobody waits on another's goal -- and
-    they park well within 40 s."""
-    scenario = swap(16, "left")
-    fleet = OfflineFleet(scenario)
-    fleet.submit_arrived()
-    work = fleet.snapshot()
-    first = plan(work.snapshot)
-    delay = {d.robot_id: d.start_delay_s for d in first.decisions}
-    ring = scenario.robot_ids  # in order round the circle: k and k + 8 swap
-    assert any(v > 0.0 for v in delay.values()) and any(v == 0.0 for v in delay.values())
-    assert all(delay[ring[k]] == delay[ring[k + 8]] for k in range(8))
-    run = run_closed_loop(scenario, "auto", plan, time_limit_s=40.0)
-    assert run.success_rate == 1.0 and run.collisions == 0

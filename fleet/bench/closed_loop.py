@@ -60,6 +60,7 @@ from fleet.io.trace import TraceChunk
 from fleet.service.effects import Effects, Publish, StoreWrite
 from fleet.service.ledger import Outcome, TaskLedger, ledger_config
 from fleet.service.snapshot import PlanInput, RobotFacts, planning_input
+from fleet.service.zones import fleet_zones, zone_bodies
 
 Planner = Callable[[PlanningSnapshot], Plan]
 _STAND = Tolerance(position=1e-3, heading=1e-3)
@@ -122,9 +123,16 @@ class OfflineFleet:
             control_rate_hz=1.0 / dt,
             yard=scenario.bounds,
         )
+        site = scenario.site()
+        if site is not None:  # its single-robot zones and lanes, as the service runs it
+            self.settings = self.settings.with_site(site)
         self.profile = self.settings.profile
         self.dt = dt
-        self.ledger = TaskLedger(ledger_config(self.settings))
+        self.ledger = TaskLedger(ledger_config(self.settings), site=self.settings.site)
+        obstacles = scenario.static_obstacles()  # the zones the service holds (a corridor)
+        self.ledger.zones.set_zones(
+            fleet_zones(self.settings, obstacles), zone_bodies(self.settings, obstacles)
+        )
         self.tasks: dict[str, Task] = {}  # every task's latest version (the "store")
         self.orders: dict[str, _Order] = {}  # robot -> its last assignment
         self.outcomes: dict[Outcome, int] = dict.fromkeys(Outcome, 0)
@@ -255,18 +263,26 @@ class OfflineFleet:
                     available=rid not in busy,
                 )
             )
-        acked = {tid: self.t - at for tid, at in self.ledger.acknowledged_at().items()}
-        return planning_input(
-            self.ledger.version,
+        ledger = self.ledger
+        acked = {tid: self.t - at for tid, at in ledger.acknowledged_at().items()}
+        return planning_input(  # what the service's snapshot takes from its ledger
+            ledger.version,
             robots,
-            list(self.ledger.active.values()),
+            list(ledger.active.values()),
             self.scenario.static_obstacles(),
             self.settings,
             lead_time_s=0.0,
             time_scale=1.0,
-            avoided=self.ledger.avoided(),
+            held=set(ledger.held),
+            avoided=ledger.avoided(),
             acknowledged_s=acked,
-            pinned=self.ledger.pinned(),
+            pinned=ledger.pinned(),
+            own_way=ledger.own_way(),
+            wide_way=ledger.wide_way(),
+            gave_way=ledger.gave_way(),
+            round_robots=ledger.round_robots(),
+            zones=ledger.zones.shapes,
+            zone_holders=ledger.zones.holders(),
         )
 
     def apply(self, plan: Plan, work: PlanInput) -> None:

@@ -34,24 +34,21 @@ import numpy as np
 from fleet.bench.peers import assign_goals
 from fleet.bench.scenarios import Scenario
 from fleet.core.planner import PlannerConfig, PlanningSnapshot, RobotSnapshot, TaskSnapshot
-from fleet.core.planner.passages import narrow_passages
 from fleet.core.planner.scene import Fleet, build_fleet
 from fleet.core.route import lane_shapes
 from fleet.core.tasks import DEFAULT_GAINS, RobotStatus, TaskStatus
 from fleet.core.types import Posture
-from fleet.core.zones import ZoneShape, declared
+from fleet.core.zones import ZoneShape
 from fleet.io.settings import Settings
+from fleet.service.zones import fleet_zones
 
 
 def scenario_zones(scenario: Scenario, settings: Settings) -> tuple[ZoneShape, ...]:
     """The scenario's single-robot zones as the fleet service holds them."""
-    obstacles = tuple(scenario.static_obstacles())
-    zones = declared(scenario.site())
-    if not settings.narrow_passages or not obstacles:
-        return zones
-    radius = settings.profile.radius
-    clearance = PlannerConfig().route_clearance(radius, settings.safety.contact_margin_m)
-    return zones + narrow_passages(obstacles, clearance, radius)
+    site = scenario.site()
+    return fleet_zones(
+        settings if site is None else settings.with_site(site), scenario.static_obstacles()
+    )
 
 
 def _solo(

@@ -67,7 +67,7 @@ import threading
 from collections.abc import Callable
 from types import TracebackType
 
-from fleet.core.planner import PlannerConfig, plan
+from fleet.core.planner import plan
 from fleet.core.planner.clusters import components
 from fleet.core.tasks import (
     RobotConflict,
@@ -85,7 +85,6 @@ from fleet.core.wire import (
     RobotDescription,
     RobotState,
 )
-from fleet.core.zones import Point, ZoneShape, declared
 from fleet.io.settings import Settings
 from fleet.service.bus import FleetBus
 from fleet.service.clock import Clock, SystemClock
@@ -103,7 +102,7 @@ from fleet.service.stats import Counters
 from fleet.service.store import TaskStore
 from fleet.service.stuck import stuck_cause
 from fleet.service.submission import Submission
-from fleet.service.zones import ZoneState
+from fleet.service.zones import ZoneState, fleet_zones, zone_bodies
 
 _log = logging.getLogger(__name__)
 
@@ -162,7 +161,7 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         site = settings.site  # the site map's obstacles are the initial ones (PUT replaces)
         self._obstacles: list[Obstacle] = [] if site is None else site.static_obstacles()
         self._ledger.zones.set_zones(
-            self._zone_shapes(self._obstacles), self._zone_bodies(self._obstacles)
+            fleet_zones(settings, self._obstacles), zone_bodies(settings, self._obstacles)
         )
         self._desk = ControlDesk()  # what the operator asked (pause, e-stop), held to
         self._keys_in_flight: dict[str, threading.Event] = {}  # idempotency keys being stored
@@ -703,35 +702,14 @@ class FleetService(Submission, OperatorControls, PlannerGlue):
         """Replace the static obstacles and publish them (``ObstacleSet``); the narrow
         passages they make are found again."""
         msg = ObstacleSet(obstacles=list(obstacles))
-        zones = self._zone_shapes(msg.obstacles)
+        zones = fleet_zones(self.settings, msg.obstacles)
         with self._lock:
             self._obstacles = list(msg.obstacles)
-            self._ledger.zones.set_zones(zones, self._zone_bodies(msg.obstacles))
+            self._ledger.zones.set_zones(zones, zone_bodies(self.settings, msg.obstacles))
             self._obstacles_version += 1
             batch = self._queue([Publish(msg)], self._clock.monotonic())
         self._settle(batch, wait=True)
         self._planner.request("obstacles")
-
-    def _zone_bodies(self, obstacles: list[Obstacle]) -> list[tuple[Point, Point, float]]:
-        """The obstacles' bodies grown by the host profile's radius, for the zone book (a
-        way through one is no path: :mod:`fleet.service.zones`)."""
-        radius = self.settings.profile.radius
-        return [((o.x, o.y), o.far_end, o.body_radius + radius) for o in obstacles]
-
-    def _zone_shapes(self, obstacles: list[Obstacle]) -> tuple[ZoneShape, ...]:
-        """The fleet's single-robot zones: the site map's, then (``narrow_passages``) the
-        passages ``obstacles`` make too narrow for two robots of the host's profile to pass
-        (:mod:`fleet.core.planner.passages`)."""
-        zones = declared(self.settings.site)
-        if not self.settings.narrow_passages or not obstacles:
-            return zones
-        # shapely on first use: the fleet host's package (a robot install imports this module
-        # for its command line but never runs a service)
-        from fleet.core.planner.passages import narrow_passages
-
-        radius = self.settings.profile.radius
-        clearance = PlannerConfig().route_clearance(radius, self.settings.safety.contact_margin_m)
-        return zones + narrow_passages(obstacles, clearance, radius)
 
     def zones(self) -> list[ZoneState]:
         """Every single-robot zone with the robots holding it (and their tasks)."""

@@ -37,14 +37,41 @@ from dataclasses import dataclass
 import numpy as np
 
 from fleet.core.geometry import segments_distance
+from fleet.core.planner.config import PlannerConfig
 from fleet.core.types import FloatArray
-from fleet.core.zones import Point, ZonePass, ZoneShape, may_join
+from fleet.core.wire import Obstacle
+from fleet.core.zones import Point, ZonePass, ZoneShape, declared, may_join
+from fleet.io.settings import Settings
 
 #: Zone -> the robots holding it, each with its pass (None: it stands in the zone).
 Holders = Mapping[str, Mapping[str, ZonePass | None]]
 #: An obstacle's body as the zone book sees it: the segment (a post: both ends equal) and
 #: its radius [m], the body's grown by the robots' radius.
 Body = tuple[Point, Point, float]
+
+
+def fleet_zones(settings: Settings, obstacles: Sequence[Obstacle]) -> tuple[ZoneShape, ...]:
+    """The fleet's single-robot zones: the site map's, then (``settings.narrow_passages``)
+    the passages ``obstacles`` make too narrow for two robots of the host's profile to pass
+    (:mod:`fleet.core.planner.passages`). The one rule for the service, the offline fleet
+    and the benchmark's floors."""
+    zones = declared(settings.site)
+    if not settings.narrow_passages or not obstacles:
+        return zones
+    # shapely on first use: the fleet host's package (a robot install imports the service's
+    # modules for its command line but never runs a service)
+    from fleet.core.planner.passages import narrow_passages
+
+    radius = settings.profile.radius
+    clearance = PlannerConfig().route_clearance(radius, settings.safety.contact_margin_m)
+    return zones + narrow_passages(obstacles, clearance, radius)
+
+
+def zone_bodies(settings: Settings, obstacles: Sequence[Obstacle]) -> list[Body]:
+    """The obstacles' bodies grown by the host profile's radius, for the zone book (a way
+    through one is no path)."""
+    radius = settings.profile.radius
+    return [((o.x, o.y), o.far_end, o.body_radius + radius) for o in obstacles]
 
 
 def _boxes(bodies: Sequence[Body]) -> FloatArray:

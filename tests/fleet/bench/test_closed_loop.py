@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from fleet.bench.closed_loop import OfflineFleet, run_closed_loop
-from fleet.bench.scenarios import ObstacleSpec, ring_round_posts, swap
+from fleet.bench.scenarios import ObstacleSpec, corridor, ring_round_posts, swap
 from fleet.core.planner import Plan, TaskDecision, plan
 from fleet.core.tasks import TaskStatus
 from fleet.service.ledger import Outcome
@@ -132,4 +132,16 @@ def test_sixteen_robots_crossing_a_roundabout_go_in_two_waves_and_all_park() -> 
     ring = scenario.robot_ids  # in order round the circle
     assert not any(ring[k] in waits and ring[(k + 1) % 16] in waits for k in range(16))
     run = run_closed_loop(scenario, "auto", plan, time_limit_s=60.0)
+    assert run.success_rate == 1.0 and run.collisions == 0
+
+
+def test_the_offline_fleet_holds_the_corridor_one_robot_at_a_time_as_the_service_does() -> None:
+    """The corridor between two rooms is too narrow for two robots to pass: the service
+    holds it as a single-robot zone (a narrow passage found in the walls), and so does the
+    offline fleet now -- without it, robots from both rooms met nose to nose inside and two
+    of six parked in 300 s."""
+    scenario = corridor()
+    fleet = OfflineFleet(scenario)
+    assert [z.name for z in fleet.ledger.zones.shapes] == ["passage-1"]
+    run = run_closed_loop(scenario, "auto", plan, time_limit_s=120.0)
     assert run.success_rate == 1.0 and run.collisions == 0

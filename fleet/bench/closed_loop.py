@@ -4,13 +4,15 @@ Used by ``parkfleet bench plan`` to make scenes with robots under way and to com
 planners on the same scenarios without Zenoh or processes. The robots are the simulator's
 (the agents' control step with its safety filter, wheel limits, Eq. (27) repulsion from
 every peer and static obstacle). The tasks live in a :class:`fleet.service.ledger.TaskLedger`
-configured as the service configures it (:func:`fleet.service.ledger.ledger_config`), so
-the offline fleet predicts what the service does:
+configured as the service configures it (:func:`fleet.service.ledger.ledger_config`; the
+scenario's site map, and the single-robot zones the service holds,
+:func:`fleet.service.zones.fleet_zones`: the site's and the narrow passages of its walls
+and posts), so the offline fleet predicts what the service does:
 
 * tasks are added to the ledger when they arrive (``direction`` the policy: ``auto``, or
   the fixed law a user would ask for);
-* the planner gets the service's snapshot (:func:`fleet.service.snapshot.planning_input`,
-  lead time 0: no delivery delay) when tasks arrive or finish, when the previous plan asked
+* the planner gets the service's snapshot (:func:`fleet.service.snapshot.planning_input`
+  with every fact the service takes from its ledger, lead time 0: no delivery delay) when tasks arrive or finish, when the previous plan asked
   for it (held robots, ``Plan.replan_in_s``), when a robot leaves its corridor (the
   ledger's check) and every ``replan_period_s``; its decisions go through
   :meth:`TaskLedger.apply` (stale status family or revision, unsafe plans dropped);

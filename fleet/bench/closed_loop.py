@@ -12,9 +12,10 @@ and posts), so the offline fleet predicts what the service does:
 * tasks are added to the ledger when they arrive (``direction`` the policy: ``auto``, or
   the fixed law a user would ask for);
 * the planner gets the service's snapshot (:func:`fleet.service.snapshot.planning_input`
-  with every fact the service takes from its ledger, lead time 0: no delivery delay) when tasks arrive or finish, when the previous plan asked
-  for it (held robots, ``Plan.replan_in_s``), when a robot leaves its corridor (the
-  ledger's check) and every ``replan_period_s``; its decisions go through
+  with every fact the service takes from its ledger, lead time 0: no delivery delay) when
+  tasks arrive or finish, when the previous plan asked for it (held robots,
+  ``Plan.replan_in_s``), when a robot leaves its corridor (the ledger's check) and every
+  ``replan_period_s``; its decisions go through
   :meth:`TaskLedger.apply` (stale status family or revision, unsafe plans dropped);
 * the robots drive what the ledger publishes (each :class:`ParkAssignment` from the moment
   it is published, its start delay in simulated time, along its route's via-points as the

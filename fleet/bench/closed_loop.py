@@ -266,26 +266,15 @@ class OfflineFleet:
                     available=rid not in busy,
                 )
             )
-        ledger = self.ledger
-        acked = {tid: self.t - at for tid, at in ledger.acknowledged_at().items()}
-        return planning_input(  # what the service's snapshot takes from its ledger
-            ledger.version,
+        return planning_input(  # the service's snapshot, lead time 0
+            self.ledger.version,
             robots,
-            list(ledger.active.values()),
+            list(self.ledger.active.values()),
             self.scenario.static_obstacles(),
             self.settings,
             lead_time_s=0.0,
             time_scale=1.0,
-            held=set(ledger.held),
-            avoided=ledger.avoided(),
-            acknowledged_s=acked,
-            pinned=ledger.pinned(),
-            own_way=ledger.own_way(),
-            wide_way=ledger.wide_way(),
-            gave_way=ledger.gave_way(),
-            round_robots=ledger.round_robots(),
-            zones=ledger.zones.shapes,
-            zone_holders=ledger.zones.holders(),
+            facts=self.ledger.facts(self.t),
         )
 
     def apply(self, plan: Plan, work: PlanInput) -> None:

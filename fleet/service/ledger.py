@@ -90,6 +90,7 @@ from fleet.service.bays import BayBook
 from fleet.service.effects import Effects, Notify, Publish, StoreWrite
 from fleet.service.horizon import Corridor
 from fleet.service.paths import PathRecorder
+from fleet.service.snapshot import LedgerFacts
 from fleet.service.stuck import RECOVERIES, StuckWatch
 from fleet.service.zones import ZoneBook
 
@@ -334,6 +335,22 @@ class TaskLedger:
         (the planner routes it round them while they stand: giving way to a robot that does
         not move changes nothing)."""
         return dict(self._round)
+
+    def facts(self, now: float) -> LedgerFacts:
+        """What a plan needs from the ledger beside its tasks, copied, at ``now`` [s, the
+        clock the ledger observes with] (the service's snapshot and the offline fleet's)."""
+        return LedgerFacts(
+            held=frozenset(self.held),
+            avoided=self.avoided(),
+            acknowledged_s={t: now - at for t, at in self.acknowledged_at().items()},
+            pinned=self.pinned(),
+            own_way=self.own_way(),
+            wide_way=self.wide_way(),
+            gave_way=self.gave_way(),
+            round_robots=self.round_robots(),
+            zones=self.zones.shapes,
+            zone_holders=self.zones.holders(),
+        )
 
     def acknowledged_at(self) -> dict[str, float]:
         """Tasks under way whose robot reports their current revision -> when it first did

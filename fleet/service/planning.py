@@ -55,40 +55,15 @@ class PlannerGlue(ServiceState):
                 if rec.state is not None and rec.status is not None and not rec.gone_for_good
             ]
             tasks = list(self._ledger.active.values())
-            held = set(self._ledger.held)
-            avoided = self._ledger.avoided()
-            pinned = self._ledger.pinned()
-            own_way = self._ledger.own_way()
-            wide_way = self._ledger.wide_way()
-            gave_way = self._ledger.gave_way()
-            round_robots = self._ledger.round_robots()
-            acknowledged = {t: now - at for t, at in self._ledger.acknowledged_at().items()}
+            facts = self._ledger.facts(now)
             obstacles = list(self._obstacles)
-            zones = self._ledger.zones.shapes
-            zone_holders = self._ledger.zones.holders()
             version = self._snapshot_version()
             lead_time = self._lead_time()
             scale = self._time_scale if self._time_scale is not None else 1.0
         if not worth_planning(robots, tasks):
             return None
         return planning_input(
-            version,
-            robots,
-            tasks,
-            obstacles,
-            self.settings,
-            lead_time,
-            scale,
-            held,
-            avoided,
-            acknowledged,
-            pinned,
-            own_way=own_way,
-            wide_way=wide_way,
-            gave_way=gave_way,
-            round_robots=round_robots,
-            zones=zones,
-            zone_holders=zone_holders,
+            version, robots, tasks, obstacles, self.settings, lead_time, scale, facts
         )
 
     def _apply_plan(self, plan: Plan, work: PlanInput) -> None:

@@ -13,7 +13,7 @@ poses with the predicted corridors at the same robot time.
 from __future__ import annotations
 
 from collections.abc import Collection, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from fleet.core.params import RobotProfile
 from fleet.core.planner.assign import plannable
@@ -35,6 +35,35 @@ class RobotFacts:
     age_s: float  # since its state arrived [s, service clock]
     available: bool  # may take a new task (not lost, no task, in service, not held)
     profile: RobotProfile | None = None  # its own (described); None: the host's [profile]
+
+
+@dataclass(frozen=True)
+class LedgerFacts:
+    """What a plan needs from the task ledger beside its tasks, copied (safe to use once the
+    service's lock is released; :meth:`fleet.service.ledger.TaskLedger.facts` makes it, for
+    the service and the offline fleet alike). ``held``: robots an operator holds still
+    (their tasks stand, ``hold``); ``avoided``: queued task -> the stuck robot it was taken
+    from; ``acknowledged_s``: task under way -> how long ago [s, the ledger's clock] its
+    robot first reported the current revision (so the planner knows how much of the start
+    delay is left, in robot time); ``pinned``: task under way -> the law a stuck recovery
+    chose (the planner may only use it); ``own_way``: tasks under way a stuck recovery took
+    off their route (the planner routes them no more); ``wide_way``: tasks under way a stuck
+    recovery sent round the posts' Eq. (27) zones; ``gave_way``: tasks whose robot gave way
+    in a standoff (held: the others are routed round it); ``round_robots``: task under way
+    -> the standing robots that held its robot off in a standoff (it is routed round them);
+    ``zones``: the single-robot zones, ``zone_holders``: zone -> robot -> its pass, the
+    robots holding each."""
+
+    held: Collection[str] = frozenset()
+    avoided: Mapping[str, str] = field(default_factory=dict)
+    acknowledged_s: Mapping[str, float] = field(default_factory=dict)
+    pinned: Mapping[str, Law] = field(default_factory=dict)
+    own_way: Collection[str] = frozenset()
+    wide_way: Collection[str] = frozenset()
+    gave_way: Collection[str] = frozenset()
+    round_robots: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    zones: Sequence[ZoneShape] = ()
+    zone_holders: Mapping[str, Mapping[str, ZonePass | None]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -107,33 +136,14 @@ def planning_input(
     settings: Settings,
     lead_time_s: float,
     time_scale: float,
-    held: Collection[str] = (),
-    avoided: Mapping[str, str] | None = None,
-    acknowledged_s: Mapping[str, float] | None = None,
-    pinned: Mapping[str, Law] | None = None,
-    *,
-    own_way: Collection[str] = (),
-    wide_way: Collection[str] = (),
-    gave_way: Collection[str] = (),
-    round_robots: Mapping[str, tuple[str, ...]] | None = None,
-    zones: Sequence[ZoneShape] = (),
-    zone_holders: Mapping[str, Mapping[str, ZonePass | None]] | None = None,
+    facts: LedgerFacts | None = None,
 ) -> PlanInput:
     """The planner's snapshot (robots sorted by id, tasks oldest first): the tasks under
     way and, of the queued ones, those a plan may pair with the available robots
     (:func:`~fleet.core.planner.assign.plannable`: as many as there are robots to take
-    them, not the thousands a burst may queue; the plan is the same). ``held``: robots an
-    operator holds still (their tasks stand, ``hold``); ``avoided``: queued task -> the
-    stuck robot it was taken from; ``acknowledged_s``: task under way -> how long ago [s,
-    monotonic] its robot first reported the current revision (so the planner knows how much
-    of the start delay is left, in robot time); ``pinned``: task under way -> the law a
-    stuck recovery chose (the planner may only use it); ``own_way``: tasks under way a
-    stuck recovery took off their route (the planner routes them no more); ``wide_way``:
-    tasks under way a stuck recovery sent round the posts' Eq. (27) zones; ``gave_way``:
-    tasks whose robot gave way in a standoff (held: the others are routed round it);
-    ``round_robots``: task under way -> the standing robots that held its robot off in a
-    standoff (it is routed round them); ``zones``: the
-    single-robot zones, ``zone_holders``: zone -> robot -> its pass, the robots holding each."""
+    them, not the thousands a burst may queue; the plan is the same); ``facts``: what the
+    ledger knows of them beside (:class:`LedgerFacts`; None: nothing)."""
+    facts = facts or LedgerFacts()
     hz = settings.control_rate_hz
     available = {r.state.robot_id for r in robots if r.available}
     queued = [t for t in tasks if t.status is TaskStatus.QUEUED]
@@ -141,7 +151,7 @@ def planning_input(
     if available and queued:
         queued.sort(key=lambda t: t.created_at)
         tasks += plannable(queued, available, lambda t: t.request.robot_id)
-    running = {tid: ago * time_scale for tid, ago in (acknowledged_s or {}).items()}
+    running = {tid: ago * time_scale for tid, ago in facts.acknowledged_s.items()}
     robot_snaps = []
     origins: dict[str, float] = {}
     for r in sorted(robots, key=lambda r: r.state.robot_id):
@@ -166,14 +176,14 @@ def planning_input(
         tasks=tuple(
             _task_snapshot(
                 t,
-                held,
-                avoided or {},
+                facts.held,
+                facts.avoided,
                 running,
-                pinned or {},
-                own_way,
-                wide_way,
-                gave_way,
-                round_robots or {},
+                facts.pinned,
+                facts.own_way,
+                facts.wide_way,
+                facts.gave_way,
+                facts.round_robots,
             )
             for t in sorted(tasks, key=lambda t: t.created_at)
         ),
@@ -184,11 +194,11 @@ def planning_input(
         separation_m=settings.safety_separation_m,
         lead_time_s=lead_time_s,
         control_dt=1.0 / hz,
-        zones=tuple(zones),
+        zones=tuple(facts.zones),
         lanes=() if settings.site is None else lane_shapes(settings.site.lanes),
         zone_holders=tuple(
             (zone, robot, how)
-            for zone, held in sorted((zone_holders or {}).items())
+            for zone, held in sorted(facts.zone_holders.items())
             for robot, how in held.items()
         ),
     )

@@ -89,23 +89,13 @@ def worth_planning(robots: Sequence[RobotFacts], tasks: Sequence[Task]) -> bool:
     )
 
 
-def _task_snapshot(
-    task: Task,
-    held: Collection[str],
-    avoided: Mapping[str, str],
-    running_s: Mapping[str, float],
-    pinned: Mapping[str, Law],
-    own_way: Collection[str],
-    wide_way: Collection[str],
-    gave_way: Collection[str],
-    round_robots: Mapping[str, tuple[str, ...]],
-) -> TaskSnapshot:
+def _task_snapshot(task: Task, facts: LedgerFacts, running_s: Mapping[str, float]) -> TaskSnapshot:
     request = task.request
     under_way = task.status.under_way
     return TaskSnapshot(
         task_id=task.id,
         goal=request.goal.as_tuple(),
-        direction=pinned.get(task.id, request.direction),
+        direction=facts.pinned.get(task.id, request.direction),
         gains={law: request.gains_for(law) for law in LAWS},
         tolerance=request.tolerance,
         status=task.status,
@@ -114,14 +104,14 @@ def _task_snapshot(
         robot_id=task.robot_id if under_way else None,
         law=task.law,
         revision=task.revision,
-        hold=task.hold or (under_way and task.robot_id in held),
+        hold=task.hold or (under_way and task.robot_id in facts.held),
         start_delay_s=task.start_delay_s,
         route=tuple(task.route) if under_way else (),
-        own_way=under_way and task.id in own_way,
-        wide_way=under_way and task.id in wide_way,
-        gave_way=under_way and task.hold and task.id in gave_way,
-        round_robots=round_robots.get(task.id, ()) if under_way else (),
-        avoid_robot=avoided.get(task.id),
+        own_way=under_way and task.id in facts.own_way,
+        wide_way=under_way and task.id in facts.wide_way,
+        gave_way=under_way and task.hold and task.id in facts.gave_way,
+        round_robots=facts.round_robots.get(task.id, ()) if under_way else (),
+        avoid_robot=facts.avoided.get(task.id),
         start_delay_left_s=(
             max(0.0, task.start_delay_s - running_s[task.id]) if task.id in running_s else None
         ),
@@ -174,18 +164,7 @@ def planning_input(
         version=version,
         robots=tuple(robot_snaps),
         tasks=tuple(
-            _task_snapshot(
-                t,
-                facts.held,
-                facts.avoided,
-                running,
-                facts.pinned,
-                facts.own_way,
-                facts.wide_way,
-                facts.gave_way,
-                facts.round_robots,
-            )
-            for t in sorted(tasks, key=lambda t: t.created_at)
+            _task_snapshot(t, facts, running) for t in sorted(tasks, key=lambda t: t.created_at)
         ),
         obstacles=tuple(obstacles),
         profile=settings.profile,

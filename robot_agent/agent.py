@@ -92,7 +92,6 @@ from robot_agent.prediction import (
     point_speed,
     predict_own,
 )
-from robot_agent.smoothing import JUMP_ERRORS, PoseSmoother, Wheels
 from robot_agent.state_streams import StateStreams
 from robot_agent.world import WorldView
 from robot_agent.world_feed import WorldFeed
@@ -108,12 +107,6 @@ def _predicts(safety: SafetyConfig) -> bool:
     """Whether the agent carries its pose through its commands in flight (``prediction``
     or ``compensate_latency``): it then logs its commands and measures its latency."""
     return safety.prediction or safety.compensate_latency
-
-
-def _smooths(safety: SafetyConfig) -> bool:
-    """Whether the law decides on pose readings blended with odometry (``reading_weight``
-    below 1): the agent then reads the wheels' speeds every tick."""
-    return safety.reading_weight < 1.0
 
 
 def _drive_faults(drive: Drive) -> list[tuple[str, str]]:
@@ -195,17 +188,7 @@ class RobotAgent:
         )
         self._last_speed = 0.0  # [m/s] point_speed of the last command sent
         self._last_u = 0.0  # [m/s] bound on |u| in flight (own spread without prediction)
-        #: The pose the law decides on: readings blended with odometry (robot_agent.smoothing).
-        self.smoother = PoseSmoother(
-            safety.reading_weight,
-            settings.profile,
-            self.period,
-            jump_m=JUMP_ERRORS * max(safety.pose_error_m, 1e-3),
-            jump_rad=JUMP_ERRORS * max(safety.heading_error_rad, 1e-3),
-            max_gap_s=settings.pose_stale_s,
-        )
-        # sensed (pose, stamp, now, the smoothed pose)
-        self._reading: tuple[Pose, float, float, Posture] | None = None
+        self._reading: tuple[Pose, float, float] | None = None  # sensed (pose, stamp, now)
         self._failure: tuple[str, str] | None = None  # (phase, message) of a failed sense
         self.tick_errors = 0
         self.last: AgentSnapshot | None = None
@@ -326,19 +309,15 @@ class RobotAgent:
             phase = "drive_error"
             pose, stamp = self.drive.read_pose()
             wheel_speeds = getattr(self.drive, "wheel_speeds", None)
-            safety = self.settings.safety
-            wheels: Wheels | None = None
-            if wheel_speeds is not None and (_predicts(safety) or _smooths(safety)):
-                wheels = wheel_speeds()
-                if _predicts(safety):
-                    self.latency.measured(wheels[2], wheels[0], wheels[1])
+            if wheel_speeds is not None and _predicts(self.settings.safety):
+                right, left, measured = wheel_speeds()
+                self.latency.measured(measured, right, left)
             phase = "tick_error"
             now = self.clock.now()
             self._pose = pose
             self.world.update_position(self.robot_id, pose.x, pose.y, pose.theta, stamp)
             self.feed.follow(self.robot_id, pose.x, pose.y)
-            smoothed = self.smoother.update(pose.as_tuple(), stamp, wheels)
-            self._reading = (pose, stamp, now, smoothed)
+            self._reading = (pose, stamp, now)
         except Exception as exc:
             self._failure = self._tick_failed(phase, exc)
 
@@ -355,7 +334,7 @@ class RobotAgent:
         prediction: OwnPrediction | None = None
         window = self.latency.window()
         if reading is not None:
-            pose, stamp, now, smoothed = reading
+            pose, stamp, now = reading
             pose_age = now - stamp
             phase = "tick_error"
             try:
@@ -364,21 +343,16 @@ class RobotAgent:
                 sent_at = self.clock.now()
                 predicting = safety.prediction
                 measured = pose.as_tuple()
-                # The law decides on the smoothed pose (the reading itself when smoothing is
-                # off), carried to when the command acts with prediction or compensation on.
                 nominal: Posture | None = None
-                if predicting or safety.compensate_latency:
-                    if not predicting or _smooths(safety):
-                        nominal = nominal_pose(
-                            smoothed, stamp, sent_at, self.commands, window, profile, self.period
-                        )
-                    if predicting:
-                        prediction = predict_own(
-                            measured, stamp, sent_at, self.commands, window, profile, safety,
-                            self.period,
-                        )  # fmt: skip
-                elif _smooths(safety):
-                    nominal = smoothed
+                if predicting:
+                    prediction = predict_own(
+                        measured, stamp, sent_at, self.commands, window, profile, safety,
+                        self.period,
+                    )  # fmt: skip
+                elif safety.compensate_latency:
+                    nominal = nominal_pose(
+                        measured, stamp, sent_at, self.commands, window, profile, self.period
+                    )
                 override = self.operator.mode
                 if override is not None:  # an operator's pause or e-stop: stand still, keep task
                     decision = TickResult(

@@ -95,14 +95,6 @@ class SafetyConfig(BaseModel):
     filter keeps the measured pose and the spreads below, so the guarantee is the same
     either way.
 
-    With ``reading_weight`` w < 1 (1, off, by default: docs/safety.md, "Pose smoothing")
-    the law, Eq. (27) and the route decide on the robot's pose readings blended with its
-    wheels' odometry, each reading moving the estimate w of the way to it
-    (:mod:`robot_agent.smoothing`; a drive without ``wheel_speeds`` keeps its readings), so
-    that pose noise does not flip the stiff terms' speed from tick to tick; with
-    ``compensate_latency`` the prediction starts from that estimate. The stop rule and the
-    safety filter keep the measured pose: the guarantee is the same either way.
-
     With ``prediction`` (off by default: docs/safety.md, "Latency where it lives") the robot
     decides on its pose predicted for the instant its command acts
     (:mod:`robot_agent.prediction`), sees each peer around the pose that peer predicted for
@@ -145,7 +137,6 @@ class SafetyConfig(BaseModel):
     clock_sync_s: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] | None = None
     prediction: bool = False
     compensate_latency: bool = False
-    reading_weight: Annotated[float, Field(gt=0.0, le=1.0, allow_inf_nan=False)] = 1.0
 
     def filter_terms(self, spread: float) -> tuple[float, float, float, float]:
         """The compiled step's filter parameters (``fleet.core.step.Safety``: margin,
